@@ -1,0 +1,380 @@
+//! The experiment runner: cells in chunks, each chunk one batch stepped to
+//! the schedule, metrics streamed per cell. Pure Rust over [`Physics`].
+
+use std::cell::RefCell;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::grid::{Axis, Cell, Grid};
+use crate::metrics::{Metrics, Recorder, Status};
+use crate::model::ModelSource;
+use crate::pd;
+use crate::physics::{CellSetup, Force, Mode, Physics};
+use crate::quat;
+use crate::schedule::Schedule;
+
+/// Values used for any axis the grid does not vary.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Defaults {
+    pub kp: f64,
+    pub kd: f64,
+    pub max_torque: f64,
+}
+
+impl Default for Defaults {
+    fn default() -> Self {
+        Defaults {
+            kp: 5.0,
+            kd: 0.1,
+            max_torque: 3.0,
+        }
+    }
+}
+
+/// Everything that decides a sweep's numbers. Stored in the manifest; a
+/// resume must match it exactly.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepConfig {
+    pub model: ModelSource,
+    pub grid: Grid,
+    pub schedule: Schedule,
+    pub mode: Mode,
+    pub defaults: Defaults,
+}
+
+impl Default for SweepConfig {
+    fn default() -> Self {
+        SweepConfig {
+            model: ModelSource::default(),
+            grid: Grid::default(),
+            schedule: Schedule::default(),
+            mode: Mode::Servo,
+            defaults: Defaults::default(),
+        }
+    }
+}
+
+/// How to run (not what): changes speed, never numbers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RunOptions {
+    /// Threads of the batch; 0 for all cores.
+    pub threads: usize,
+    /// Cells per batch.
+    pub chunk_cells: usize,
+    /// Steps per open-loop call in servo mode.
+    pub chunk_steps: usize,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            threads: 0,
+            chunk_cells: 256,
+            chunk_steps: 250,
+        }
+    }
+}
+
+impl SweepConfig {
+    pub fn validate(&self) -> Result<()> {
+        self.schedule.validate()?;
+        let d = &self.defaults;
+        if !(d.kp.is_finite() && d.kp >= 0.0 && d.kd.is_finite() && d.kd >= 0.0) {
+            return Err(Error::Config(format!(
+                "gains kp {} kd {} are negative or not finite: give --kp and --kd values >= 0",
+                d.kp, d.kd
+            )));
+        }
+        if !(d.max_torque.is_finite() && d.max_torque > 0.0) {
+            return Err(Error::Config(format!(
+                "max torque {} is not positive: give --max-torque a value > 0",
+                d.max_torque
+            )));
+        }
+        Ok(())
+    }
+
+    /// The physical setting of one cell.
+    pub fn setup(&self, cell: &Cell) -> CellSetup {
+        let get = |a: Axis, d: f64| cell.get(a).unwrap_or(d);
+        let base_push = self.schedule.push.as_ref().map(|p| p.force);
+        // The push_force axis sets the push's world-z component (N).
+        let push_force = match (cell.get(Axis::PushForce), base_push) {
+            (Some(f), Some(p)) => [p[0], p[1], f],
+            (Some(f), None) => [0.0, 0.0, f],
+            (None, Some(p)) => p,
+            (None, None) => [0.0; 3],
+        };
+        CellSetup {
+            kp: get(Axis::Kp, self.defaults.kp),
+            kd: get(Axis::Kd, self.defaults.kd),
+            max_torque: get(Axis::MaxTorque, self.defaults.max_torque),
+            push_force,
+            friction: cell.get(Axis::Friction),
+            timestep: cell.get(Axis::Timestep),
+            leg_scale: get(Axis::LegScale, 1.0),
+            torso_mass_scale: get(Axis::TorsoMassScale, 1.0),
+        }
+    }
+}
+
+/// One finished cell.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CellResult {
+    pub cell: Cell,
+    pub metrics: Metrics,
+    /// Decimated (time, base z) samples when a trace was asked for.
+    pub trace: Vec<(f64, f64)>,
+}
+
+/// Callbacks from a running sweep.
+pub trait Hooks {
+    /// `steps` more cell-steps are done.
+    fn progress(&mut self, _steps: u64) {}
+    /// True to stop now; checked about every 50 ms of simulation work.
+    fn should_stop(&mut self) -> bool {
+        false
+    }
+    /// A chunk of cells finished (in grid order within the chunk).
+    fn chunk_done(&mut self, _results: &[CellResult]) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// Hooks that do nothing.
+pub struct NoHooks;
+impl Hooks for NoHooks {}
+
+/// Total cell-steps of `cells`, for a progress bar.
+pub fn total_steps(cfg: &SweepConfig, physics: &dyn Physics, cells: &[Cell]) -> u64 {
+    cells
+        .iter()
+        .map(|c| {
+            let dt = cfg.setup(c).timestep.unwrap_or(physics.info().timestep);
+            cfg.schedule.steps(dt) as u64
+        })
+        .sum()
+}
+
+/// Runs `cells` (any subset of the grid, e.g. the ones a resume still
+/// needs). Results come back in the order of `cells`. On interrupt returns
+/// `Error::Interrupted` after the finished chunks were passed to `hooks`.
+pub fn run_cells(
+    physics: &dyn Physics,
+    cfg: &SweepConfig,
+    cells: &[Cell],
+    opts: RunOptions,
+    hooks: &mut dyn Hooks,
+) -> Result<Vec<CellResult>> {
+    cfg.validate()?;
+    // Cells of one batch must share a timestep: group, keeping grid order within.
+    let model_dt = physics.info().timestep;
+    let mut groups: Vec<(u64, Vec<&Cell>)> = Vec::new();
+    for c in cells {
+        let dt = cfg.setup(c).timestep.unwrap_or(model_dt);
+        match groups.iter_mut().find(|(b, _)| *b == dt.to_bits()) {
+            Some((_, g)) => g.push(c),
+            None => groups.push((dt.to_bits(), vec![c])),
+        }
+    }
+    let mut out: Vec<CellResult> = Vec::with_capacity(cells.len());
+    for (bits, group) in &groups {
+        let dt = f64::from_bits(*bits);
+        for chunk in group.chunks(opts.chunk_cells.max(1)) {
+            let results = run_chunk(physics, cfg, chunk, dt, opts, hooks)?;
+            hooks.chunk_done(&results)?;
+            out.extend(results);
+        }
+    }
+    // back to the caller's order
+    let pos = |c: &Cell| {
+        cells
+            .iter()
+            .position(|x| x.index == c.index)
+            .unwrap_or(usize::MAX)
+    };
+    out.sort_by_key(|r| pos(&r.cell));
+    Ok(out)
+}
+
+struct TorqueScratch {
+    peak: f64,
+    nsat: usize,
+}
+
+fn run_chunk(
+    physics: &dyn Physics,
+    cfg: &SweepConfig,
+    cells: &[&Cell],
+    dt: f64,
+    opts: RunOptions,
+    hooks: &mut dyn Hooks,
+) -> Result<Vec<CellResult>> {
+    let setups: Vec<CellSetup> = cells.iter().map(|c| cfg.setup(c)).collect();
+    let mut batch = physics.start(&setups, cfg.mode, &cfg.schedule.initial, opts.threads)?;
+    let layout = physics.layout().clone();
+    let targets = batch.targets().to_vec();
+    let schedule = &cfg.schedule;
+    let nsteps = schedule.steps(dt);
+    let push = schedule.push_steps(dt);
+    let n = cells.len();
+    let mut recorders: Vec<Recorder> = (0..n).map(|_| Recorder::new(schedule, dt)).collect();
+    let mut alive: Vec<usize> = (0..n).collect();
+    let nu = layout.nu;
+
+    // Reads one post-step sample into a recorder.
+    let sample = |rec: &mut Recorder, qpos: &[f64], peak: f64, nsat: usize| {
+        let z = qpos[layout.base.z()];
+        let qi = layout.base.quat();
+        let tilt = quat::tilt([qpos[qi], qpos[qi + 1], qpos[qi + 2], qpos[qi + 3]]).to_degrees();
+        let track: f64 = layout
+            .act_qpos
+            .iter()
+            .zip(&targets)
+            .map(|(&i, &q)| (q - qpos[i]) * (q - qpos[i]))
+            .sum();
+        rec.observe(z, tilt, track, nu, peak, nsat, nu);
+    };
+    // Step-time of the step k's start, the clock the schedule is written in.
+    let mut step_time = Vec::new();
+    let sine = schedule.sine.is_some();
+    let mut k = 0usize;
+    let mut t_before = 0.0f64;
+    let mut since_check = 0usize;
+    while k < nsteps && !alive.is_empty() {
+        // A call never crosses a push boundary.
+        let mut end = (k + opts.chunk_steps.max(1)).min(nsteps);
+        if cfg.mode == Mode::Torque {
+            end = k + 1;
+        }
+        for b in [push.start, push.end] {
+            if k < b && b < end {
+                end = b;
+            }
+        }
+        let pushing = push.contains(&k);
+        let nstep = end - k;
+        step_time.clear();
+        let mut t = t_before;
+        for _ in 0..nstep {
+            step_time.push(t);
+            t += dt;
+        }
+        let force_of = |sim: usize, step: usize| -> [f64; 3] {
+            let mut f = if pushing {
+                setups[sim].push_force
+            } else {
+                [0.0; 3]
+            };
+            if sine {
+                let s = schedule.sine_force(step_time[step]);
+                for i in 0..3 {
+                    f[i] += s[i];
+                }
+            }
+            f
+        };
+        let diverged: Vec<(usize, usize)> = match cfg.mode {
+            Mode::Servo => {
+                let forces: Vec<[f64; 3]>;
+                let force = if sine {
+                    forces = alive
+                        .iter()
+                        .flat_map(|&s| (0..nstep).map(move |j| (s, j)))
+                        .map(|(s, j)| force_of(s, j))
+                        .collect();
+                    Force::PerStep(&forces)
+                } else {
+                    forces = alive.iter().map(|&s| force_of(s, 0)).collect();
+                    Force::Constant(&forces)
+                };
+                let limits: Vec<f64> = setups.iter().map(|s| s.max_torque).collect();
+                batch.advance(&alive, nstep, force, &mut |pos, _step, qpos, act| {
+                    let sim = alive[pos];
+                    let lim = limits[sim];
+                    let (mut peak, mut nsat) = (0.0f64, 0usize);
+                    for &f in act {
+                        peak = peak.max(f.abs());
+                        // the actuator clamps at its force range
+                        if f.abs() >= lim * (1.0 - 1e-12) {
+                            nsat += 1;
+                        }
+                    }
+                    sample(&mut recorders[sim], qpos, peak, nsat);
+                })?
+            }
+            Mode::Torque => {
+                let forces: Vec<[f64; 3]> = alive.iter().map(|&s| force_of(s, 0)).collect();
+                let scratch: RefCell<Vec<TorqueScratch>> = RefCell::new(
+                    (0..alive.len())
+                        .map(|_| TorqueScratch { peak: 0.0, nsat: 0 })
+                        .collect(),
+                );
+                let d = batch.step_controlled(
+                    &alive,
+                    &forces,
+                    &mut |pos, qpos, qvel, ctrl| {
+                        let s = &setups[alive[pos]];
+                        let mut scratch = scratch.borrow_mut();
+                        let sc = &mut scratch[pos];
+                        sc.peak = 0.0;
+                        sc.nsat = 0;
+                        for a in 0..nu {
+                            let (tau, sat) = pd::torque(
+                                s.kp,
+                                s.kd,
+                                targets[a],
+                                qpos[layout.act_qpos[a]],
+                                qvel[layout.act_dof[a]],
+                                s.max_torque,
+                            );
+                            ctrl[a] = tau;
+                            sc.peak = sc.peak.max(tau.abs());
+                            sc.nsat += sat as usize;
+                        }
+                    },
+                    &mut |pos, _step, qpos, _act| {
+                        let scratch = scratch.borrow();
+                        let sc = &scratch[pos];
+                        sample(&mut recorders[alive[pos]], qpos, sc.peak, sc.nsat);
+                    },
+                )?;
+                d.into_iter().map(|p| (p, 0)).collect()
+            }
+        };
+        // Diverged cells leave the batch; their clock is set to the event.
+        let mut dead: Vec<usize> = Vec::new();
+        for (pos, step) in diverged {
+            let sim = alive[pos];
+            let rec = &mut recorders[sim];
+            let t_event = step_time[step] + dt;
+            rec.diverge(t_event);
+            dead.push(sim);
+        }
+        alive.retain(|s| !dead.contains(s));
+        hooks.progress((nstep * (alive.len() + dead.len())) as u64);
+        t_before = t;
+        k = end;
+        since_check += nstep * n;
+        if since_check >= 2000 || cfg.mode == Mode::Servo {
+            since_check = 0;
+            if hooks.should_stop() {
+                return Err(Error::Interrupted("stopped by a signal".into()));
+            }
+        }
+    }
+    Ok(cells
+        .iter()
+        .zip(recorders)
+        .map(|(c, r)| {
+            let (metrics, trace) = r.finish();
+            debug_assert!(metrics.status != Status::Diverged || metrics.event_time.is_finite());
+            CellResult {
+                cell: (*c).clone(),
+                metrics,
+                trace,
+            }
+        })
+        .collect())
+}

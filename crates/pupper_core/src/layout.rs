@@ -1,0 +1,194 @@
+//! Index bookkeeping of a floating-base model: where the base and each
+//! actuated joint live in qpos (7 base entries for a free joint) and qvel
+//! (6), in actuator (ctrl) order. Taken from the model's addresses, never
+//! hard-coded.
+
+use crate::error::{Error, Result};
+use crate::model::ModelInfo;
+
+/// The floating base: a free joint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Base {
+    pub body: usize,
+    pub qpos: usize,
+    pub dof: usize,
+}
+
+impl Base {
+    /// Index of base z in qpos.
+    pub fn z(&self) -> usize {
+        self.qpos + 2
+    }
+    /// Index of the (w, x, y, z) quaternion's first entry in qpos.
+    pub fn quat(&self) -> usize {
+        self.qpos + 3
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Layout {
+    pub nq: usize,
+    pub nv: usize,
+    pub nu: usize,
+    pub base: Base,
+    /// qpos address of the joint each actuator drives, in ctrl order.
+    pub act_qpos: Vec<usize>,
+    /// qvel address of the same joints.
+    pub act_dof: Vec<usize>,
+}
+
+impl Layout {
+    /// The layout of a free-base model whose actuators all drive 1-dof joints.
+    pub fn floating(info: &ModelInfo) -> Result<Layout> {
+        let base = info
+            .joints
+            .iter()
+            .find(|j| j.kind == "free")
+            .ok_or_else(|| {
+                Error::Model(format!(
+                    "model '{}' has no free-joint base: sweeps and stand need a floating robot; add <freejoint/> to its root body (or use --model pupper_v3)",
+                    info.name
+                ))
+            })?;
+        if info.actuators.is_empty() {
+            return Err(Error::Model(format!(
+                "model '{}' has no actuators: the controller needs one actuator per leg joint",
+                info.name
+            )));
+        }
+        let mut act_qpos = Vec::with_capacity(info.nu);
+        let mut act_dof = Vec::with_capacity(info.nu);
+        for a in &info.actuators {
+            let joint = a
+                .joint
+                .and_then(|j| info.joints.get(j))
+                .filter(|j| j.kind == "hinge" || j.kind == "slide");
+            let Some(j) = joint else {
+                return Err(Error::Model(format!(
+                    "actuator '{}' of model '{}' does not drive a hinge or slide joint: pupper controls joint actuators only",
+                    a.name, info.name
+                )));
+            };
+            act_qpos.push(j.qpos_adr);
+            act_dof.push(j.dof_adr);
+        }
+        Ok(Layout {
+            nq: info.nq,
+            nv: info.nv,
+            nu: info.nu,
+            base: Base {
+                body: base.body,
+                qpos: base.qpos_adr,
+                dof: base.dof_adr,
+            },
+            act_qpos,
+            act_dof,
+        })
+    }
+
+    /// Joint targets in ctrl order from a full qpos vector.
+    pub fn joint_targets(&self, qpos: &[f64]) -> Vec<f64> {
+        self.act_qpos.iter().map(|&i| qpos[i]).collect()
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::model::{ActuatorInfo, JointInfo};
+
+    /// A free base plus `legs` three-joint legs, actuated in an order that
+    /// differs from the joint order, like a user model might.
+    pub fn quadruped_info(legs: usize) -> ModelInfo {
+        let mut joints = vec![JointInfo {
+            name: "root".into(),
+            kind: "free".into(),
+            qpos_adr: 0,
+            dof_adr: 0,
+            range: None,
+            body: 1,
+        }];
+        for i in 0..legs * 3 {
+            joints.push(JointInfo {
+                name: format!("j{i}"),
+                kind: "hinge".into(),
+                qpos_adr: 7 + i,
+                dof_adr: 6 + i,
+                range: Some([-1.0, 1.0]),
+                body: 2 + i,
+            });
+        }
+        // actuators in reverse joint order
+        let actuators = (0..legs * 3)
+            .rev()
+            .map(|i| ActuatorInfo {
+                name: format!("a{i}"),
+                joint: Some(1 + i),
+                gainprm: [5.0, 0.0, 0.0],
+                biasprm: [0.0, -5.0, -0.1],
+                forcerange: Some([-3.0, 3.0]),
+            })
+            .collect();
+        ModelInfo {
+            name: "test".into(),
+            source: "test".into(),
+            sha256: String::new(),
+            nq: 7 + legs * 3,
+            nv: 6 + legs * 3,
+            nu: legs * 3,
+            nbody: 2 + legs * 3,
+            timestep: 0.002,
+            total_mass: 1.0,
+            bodies: vec![],
+            joints,
+            actuators,
+            keyframes: vec![],
+            sensors: vec![],
+        }
+    }
+
+    #[test]
+    fn free_joint_bookkeeping() {
+        let l = Layout::floating(&quadruped_info(4)).unwrap();
+        assert_eq!((l.nq, l.nv, l.nu), (19, 18, 12));
+        assert_eq!(l.base.z(), 2);
+        assert_eq!(l.base.quat(), 3);
+        assert_eq!(l.base.dof, 0);
+        // actuator 0 drives the last joint: qpos 18, qvel 17
+        assert_eq!(l.act_qpos[0], 18);
+        assert_eq!(l.act_dof[0], 17);
+        assert_eq!(l.act_qpos[11], 7);
+        assert_eq!(l.act_dof[11], 6);
+        let qpos: Vec<f64> = (0..19).map(|i| i as f64).collect();
+        assert_eq!(l.joint_targets(&qpos)[0], 18.0);
+    }
+
+    #[test]
+    fn free_joint_not_first() {
+        // a model whose free joint comes after a hinge (e.g. a prop on the floor first)
+        let mut info = quadruped_info(1);
+        info.joints[0].qpos_adr = 3;
+        info.joints[0].dof_adr = 3;
+        let l = Layout::floating(&info).unwrap();
+        assert_eq!(l.base.z(), 5);
+        assert_eq!(l.base.quat(), 6);
+    }
+
+    #[test]
+    fn no_free_joint_is_a_model_error() {
+        let mut info = quadruped_info(4);
+        info.joints.remove(0);
+        for a in &mut info.actuators {
+            a.joint = a.joint.map(|j| j - 1);
+        }
+        let e = Layout::floating(&info).unwrap_err().to_string();
+        assert!(e.contains("no free-joint base"), "{e}");
+    }
+
+    #[test]
+    fn actuator_without_joint_is_rejected() {
+        let mut info = quadruped_info(1);
+        info.actuators[0].joint = None;
+        assert!(Layout::floating(&info).is_err());
+    }
+}

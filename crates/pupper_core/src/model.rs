@@ -1,0 +1,181 @@
+//! Which model to load, and a plain-data description of a compiled model
+//! (what `pupper info` prints).
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::error::{Error, Result};
+
+/// The project's floating-base Pupper v3.
+pub const PUPPER_V3_XML: &str = include_str!("../../../models/pupper_v3.xml");
+/// The fixed-base Pupper v3 (hung in the air; for joint-level tests).
+pub const PUPPER_V3_FIXED_XML: &str = include_str!("../../../models/pupper_v3_fixed.xml");
+
+pub const BUILTIN_NAMES: [&str; 2] = ["pupper_v3", "pupper_v3_fixed"];
+
+/// A built-in model by name, or an MJCF file.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ModelSource {
+    Builtin(String),
+    Path(PathBuf),
+}
+
+impl Default for ModelSource {
+    fn default() -> Self {
+        ModelSource::Builtin("pupper_v3".into())
+    }
+}
+
+impl ModelSource {
+    /// A built-in name, else a path. A path must exist and be readable.
+    pub fn parse(text: &str) -> Result<ModelSource> {
+        if BUILTIN_NAMES.contains(&text) {
+            return Ok(ModelSource::Builtin(text.to_string()));
+        }
+        let path = PathBuf::from(text);
+        if !path.exists() {
+            let hint = if text.contains('/') || text.ends_with(".xml") {
+                String::new()
+            } else {
+                format!(
+                    " and is not a built-in model ({})",
+                    BUILTIN_NAMES.join(", ")
+                )
+            };
+            return Err(Error::Model(format!(
+                "model file '{text}' does not exist{hint}: check the path, or use --model pupper_v3"
+            )));
+        }
+        if path.is_dir() {
+            return Err(Error::Model(format!(
+                "model path '{text}' is a directory: give the MJCF .xml file inside it"
+            )));
+        }
+        std::fs::File::open(&path).map_err(|e| {
+            Error::Model(format!(
+                "model file '{text}' cannot be read ({e}): check its permissions"
+            ))
+        })?;
+        Ok(ModelSource::Path(path))
+    }
+
+    /// The built-in XML text, if this is a built-in model.
+    pub fn builtin_xml(&self) -> Option<&'static str> {
+        match self {
+            ModelSource::Builtin(n) if n == "pupper_v3" => Some(PUPPER_V3_XML),
+            ModelSource::Builtin(n) if n == "pupper_v3_fixed" => Some(PUPPER_V3_FIXED_XML),
+            _ => None,
+        }
+    }
+
+    pub fn display(&self) -> String {
+        match self {
+            ModelSource::Builtin(n) => n.clone(),
+            ModelSource::Path(p) => p.display().to_string(),
+        }
+    }
+
+    /// SHA-256 of the MJCF text (the main file; included files are not hashed).
+    pub fn sha256(&self) -> Result<String> {
+        let bytes = match self.builtin_xml() {
+            Some(xml) => xml.as_bytes().to_vec(),
+            None => match self {
+                ModelSource::Path(p) => std::fs::read(p).map_err(|e| Error::io("read", p, e))?,
+                ModelSource::Builtin(n) => {
+                    return Err(Error::Model(format!("unknown built-in model '{n}'")));
+                }
+            },
+        };
+        Ok(Sha256::digest(&bytes)
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect())
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JointInfo {
+    pub name: String,
+    /// free, ball, slide or hinge.
+    pub kind: String,
+    pub qpos_adr: usize,
+    pub dof_adr: usize,
+    /// Range if limited.
+    pub range: Option<[f64; 2]>,
+    /// Index of the body the joint moves.
+    pub body: usize,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ActuatorInfo {
+    pub name: String,
+    /// Index into `joints` of the joint it drives, if it drives a joint.
+    pub joint: Option<usize>,
+    pub gainprm: [f64; 3],
+    pub biasprm: [f64; 3],
+    pub forcerange: Option<[f64; 2]>,
+}
+
+impl ActuatorInfo {
+    /// Kp of an affine position servo (gain), Kd (−biasprm[2]).
+    pub fn kp_kd(&self) -> (f64, f64) {
+        (self.gainprm[0], -self.biasprm[2])
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct KeyframeInfo {
+    pub name: String,
+    pub qpos: Vec<f64>,
+    pub ctrl: Vec<f64>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SensorInfo {
+    pub name: String,
+    pub kind: String,
+    pub dim: usize,
+}
+
+/// What `pupper info` shows, read from a compiled model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelInfo {
+    pub name: String,
+    pub source: String,
+    pub sha256: String,
+    pub nq: usize,
+    pub nv: usize,
+    pub nu: usize,
+    pub nbody: usize,
+    pub timestep: f64,
+    pub total_mass: f64,
+    pub bodies: Vec<String>,
+    pub joints: Vec<JointInfo>,
+    pub actuators: Vec<ActuatorInfo>,
+    pub keyframes: Vec<KeyframeInfo>,
+    pub sensors: Vec<SensorInfo>,
+}
+
+impl ModelInfo {
+    pub fn keyframe(&self, name: &str) -> Result<(usize, &KeyframeInfo)> {
+        self.keyframes
+            .iter()
+            .enumerate()
+            .find(|(_, k)| k.name == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = self.keyframes.iter().map(|k| k.name.as_str()).collect();
+                let have = if names.is_empty() {
+                    "it has none: add a <keyframe> or use --pose".to_string()
+                } else {
+                    format!("it has {}", names.join(", "))
+                };
+                Error::Config(format!(
+                    "model '{}' has no keyframe '{name}': {have}",
+                    self.name
+                ))
+            })
+    }
+}

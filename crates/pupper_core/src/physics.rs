@@ -1,0 +1,103 @@
+//! The runner's whole contact with physics: start a batch of cells, advance
+//! it, read what is recorded. The MuJoCo CPU batch in `bridge` implements it;
+//! a GPU backend can slot in beside it.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::Result;
+use crate::layout::Layout;
+use crate::model::ModelInfo;
+use crate::schedule::InitialState;
+
+/// Who computes the joint torques.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// MuJoCo's affine actuators are the PD: gains written once per cell.
+    #[default]
+    Servo,
+    /// PD computed in Rust every step; actuators are direct torque inputs.
+    Torque,
+}
+
+impl Mode {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Mode::Servo => "servo",
+            Mode::Torque => "torque",
+        }
+    }
+}
+
+/// One cell's physical setting, resolved from the grid and the defaults.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CellSetup {
+    pub kp: f64,
+    pub kd: f64,
+    pub max_torque: f64,
+    /// Push force (N) along the push direction's z, i.e. the push's world z.
+    pub push_force: [f64; 3],
+    /// Sliding friction of every colliding geom; None keeps the model's.
+    pub friction: Option<f64>,
+    /// Physics timestep; None keeps the model's.
+    pub timestep: Option<f64>,
+    pub leg_scale: f64,
+    pub torso_mass_scale: f64,
+}
+
+/// The external base force over one advance call.
+pub enum Force<'a> {
+    /// One force per simulation of the call, held for every step.
+    Constant(&'a [[f64; 3]]),
+    /// `nstep` forces per simulation, simulation-major.
+    PerStep(&'a [[f64; 3]]),
+}
+
+/// Rows handed to an observer after each step: the simulation's position in
+/// the call's ids, the step within the call, qpos, and actuator forces.
+pub type Observer<'a> = dyn FnMut(usize, usize, &[f64], &[f64]) + 'a;
+
+/// A controller: simulation's position in the ids, qpos, qvel, ctrl to write.
+pub type Controller<'a> = dyn FnMut(usize, &[f64], &[f64], &mut [f64]) + 'a;
+
+pub trait Physics {
+    fn info(&self) -> &ModelInfo;
+    fn layout(&self) -> &Layout;
+    /// Starts simulations for `cells` (which share a timestep) at `initial`.
+    fn start(
+        &self,
+        cells: &[CellSetup],
+        mode: Mode,
+        initial: &InitialState,
+        threads: usize,
+    ) -> Result<Box<dyn SimBatch + '_>>;
+}
+
+pub trait SimBatch {
+    fn len(&self) -> usize;
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// The joint targets, in ctrl order.
+    fn targets(&self) -> &[f64];
+    /// Open-loop advance of simulations `ids` (sorted) by `nstep` steps,
+    /// observing after each. Returns `(position in ids, step)` of simulations
+    /// that diverged; they are not observed from that step on.
+    fn advance(
+        &mut self,
+        ids: &[usize],
+        nstep: usize,
+        force: Force<'_>,
+        observe: &mut Observer<'_>,
+    ) -> Result<Vec<(usize, usize)>>;
+    /// One closed-loop step: `control` writes each simulation's ctrl from its
+    /// state, then all step once, then `observe` sees the new state. Returns
+    /// the positions in ids of simulations that diverged.
+    fn step_controlled(
+        &mut self,
+        ids: &[usize],
+        force: &[[f64; 3]],
+        control: &mut Controller<'_>,
+        observe: &mut Observer<'_>,
+    ) -> Result<Vec<usize>>;
+}

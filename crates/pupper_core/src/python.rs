@@ -1,0 +1,1 @@
+//! The #[pymodule] behind `import pupper_core`.

@@ -1,0 +1,254 @@
+//! The experiment schedule: how long, where it starts, when the push comes,
+//! which continuous force acts, and what is recorded. Plain data shared by the
+//! CLI and the Python module.
+//!
+//! Timing follows MuJoCo: time before step k is the double `t += dt`
+//! accumulated k times, and an event is active on a step when the time before
+//! that step lies in its window. This reproduces a hand-written
+//! `while data.time < T` loop exactly (at dt 2 ms a 0.25 s push at 2 s acts on
+//! 126 steps, not 125).
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+/// Where every cell starts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InitialState {
+    /// A keyframe of the model, by name; its joint qpos and ctrl are the
+    /// targets.
+    Keyframe(String),
+    /// Joint angles in actuator order (rad), used as both start and target;
+    /// the base starts where the first keyframe (or the model default) puts it.
+    Pose(Vec<f64>),
+}
+
+/// A force on a body, in world coordinates, over a time window.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Push {
+    /// Start time (s).
+    pub start: f64,
+    /// Duration (s).
+    pub duration: f64,
+    /// Force (N), world frame.
+    pub force: [f64; 3],
+    /// Body name; empty means the floating base body.
+    #[serde(default)]
+    pub body: String,
+}
+
+impl Default for Push {
+    fn default() -> Self {
+        Push {
+            start: 2.0,
+            duration: 0.25,
+            force: [0.0, 0.0, -25.0],
+            body: String::new(),
+        }
+    }
+}
+
+/// A continuous sinusoidal force `amplitude * sin(2 pi f t)` along `axis`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SineForce {
+    pub amplitude: f64,
+    pub frequency: f64,
+    #[serde(default = "z_axis")]
+    pub axis: [f64; 3],
+}
+
+fn z_axis() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Schedule {
+    /// Simulated seconds per cell.
+    pub duration: f64,
+    pub initial: InitialState,
+    pub push: Option<Push>,
+    pub sine: Option<SineForce>,
+    /// Length of the "last second" window for the steadiness statistic (s).
+    pub window: f64,
+    /// Keep every n-th sample of the base-z trace (0: no trace).
+    pub trace_every: usize,
+    /// A base lower than this (m) counts as a fall.
+    pub fall_height: f64,
+    /// A tilt larger than this (deg) counts as a fall.
+    pub fall_tilt_deg: f64,
+    /// Band (m) around the pre-push height within which the base counts as settled.
+    pub settle_band: f64,
+}
+
+impl Default for Schedule {
+    fn default() -> Self {
+        Schedule {
+            duration: 10.0,
+            initial: InitialState::Keyframe("home".into()),
+            push: Some(Push::default()),
+            sine: None,
+            window: 1.0,
+            trace_every: 0,
+            fall_height: 0.04,
+            fall_tilt_deg: 60.0,
+            settle_band: 0.001,
+        }
+    }
+}
+
+impl Schedule {
+    pub fn validate(&self) -> Result<()> {
+        let bad = |what: &str, fix: &str| Err(Error::Config(format!("{what}: {fix}")));
+        if !(self.duration.is_finite() && self.duration > 0.0) {
+            return bad(
+                &format!("duration {} s is not positive", self.duration),
+                "give --seconds a positive number",
+            );
+        }
+        if self.duration > 1.0e5 {
+            return bad("duration over 100000 s", "give --seconds a smaller number");
+        }
+        if !(self.window.is_finite() && self.window > 0.0) {
+            return bad(
+                "the statistics window is not positive",
+                "use a window > 0 s",
+            );
+        }
+        if let Some(p) = &self.push {
+            if !(p.start.is_finite() && p.start >= 0.0) {
+                return bad(
+                    &format!("push start {} s is negative or not finite", p.start),
+                    "give --push-at a time >= 0",
+                );
+            }
+            if !(p.duration.is_finite() && p.duration >= 0.0) {
+                return bad(
+                    &format!("push duration {} s is negative or not finite", p.duration),
+                    "give --push-duration a time >= 0",
+                );
+            }
+            if p.force.iter().any(|f| !f.is_finite()) {
+                return bad("push force is not finite", "use finite newtons");
+            }
+        }
+        if let Some(s) = &self.sine
+            && !(s.amplitude.is_finite()
+                && s.frequency.is_finite()
+                && s.frequency >= 0.0
+                && s.axis.iter().all(|a| a.is_finite()))
+        {
+            return bad(
+                "sinusoidal force has a non-finite amplitude or a negative frequency",
+                "give --sine AMPLITUDE,FREQUENCY with finite numbers",
+            );
+        }
+        if let InitialState::Pose(p) = &self.initial
+            && p.iter().any(|v| !v.is_finite())
+        {
+            return bad("the pose has a non-finite angle", "use finite radians");
+        }
+        if !(self.fall_height.is_finite() && self.fall_tilt_deg.is_finite()) {
+            return bad("fall thresholds are not finite", "use finite numbers");
+        }
+        Ok(())
+    }
+
+    /// Number of steps a `while time < duration` loop makes at `dt`.
+    pub fn steps(&self, dt: f64) -> usize {
+        let mut t = 0.0f64;
+        let mut n = 0usize;
+        while t < self.duration {
+            t += dt;
+            n += 1;
+        }
+        n
+    }
+
+    /// Steps `[first, last)` on which the push acts, or an empty range.
+    pub fn push_steps(&self, dt: f64) -> std::ops::Range<usize> {
+        let Some(p) = &self.push else { return 0..0 };
+        let end = p.start + p.duration;
+        let (mut first, mut last) = (None, 0);
+        let mut t = 0.0f64;
+        let n = self.steps(dt);
+        for k in 0..n {
+            if p.start <= t && t < end {
+                first.get_or_insert(k);
+                last = k + 1;
+            }
+            t += dt;
+        }
+        match first {
+            Some(f) => f..last,
+            None => 0..0,
+        }
+    }
+
+    /// Number of samples in the statistics window at `dt`.
+    pub fn window_samples(&self, dt: f64) -> usize {
+        ((self.window / dt).round() as usize).max(1)
+    }
+
+    /// The continuous force at time `t` (before the step), world frame.
+    pub fn sine_force(&self, t: f64) -> [f64; 3] {
+        match &self.sine {
+            Some(s) => {
+                let f = s.amplitude * (2.0 * std::f64::consts::PI * s.frequency * t).sin();
+                [f * s.axis[0], f * s.axis[1], f * s.axis[2]]
+            }
+            None => [0.0; 3],
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chapter_push_acts_on_126_steps() {
+        let s = Schedule::default();
+        assert_eq!(s.steps(0.002), 5000);
+        let r = s.push_steps(0.002);
+        assert_eq!(r, 1000..1126);
+        assert_eq!(s.window_samples(0.002), 500);
+    }
+
+    #[test]
+    fn no_push() {
+        let s = Schedule {
+            push: None,
+            ..Schedule::default()
+        };
+        assert!(s.push_steps(0.002).is_empty());
+    }
+
+    #[test]
+    fn sine_force_values() {
+        let s = Schedule {
+            sine: Some(SineForce {
+                amplitude: 2.0,
+                frequency: 1.2,
+                axis: [0.0, 0.0, 1.0],
+            }),
+            ..Schedule::default()
+        };
+        let f = s.sine_force(1.0 / (4.0 * 1.2));
+        assert!((f[2] - 2.0).abs() < 1e-12);
+        assert_eq!(f[0], 0.0);
+    }
+
+    #[test]
+    fn validation() {
+        let mut s = Schedule {
+            duration: -1.0,
+            ..Schedule::default()
+        };
+        assert!(s.validate().unwrap_err().to_string().contains("--seconds"));
+        s.duration = 1.0;
+        assert!(s.validate().is_ok());
+        s.push.as_mut().unwrap().start = f64::NAN;
+        assert!(s.validate().is_err());
+    }
+}
