@@ -1,22 +1,41 @@
-fn main() {
-    let py = pupper_core::embed::find_python(option_env!("PUPPER_BUILD_PYTHON"));
-    pupper_core::embed::start(py.as_deref());
-    let r = pupper_core::bridge::doctor().unwrap();
-    println!("{r:?}");
-    let info = pupper_core::api::info(&Default::default()).unwrap();
-    println!(
-        "{} {} {} {} {}",
-        info.nq, info.nv, info.nu, info.nbody, info.total_mass
-    );
-    let t = std::time::Instant::now();
-    let s = pupper_core::api::stand(
-        &Default::default(),
-        10.0,
-        5.0,
-        0.1,
-        pupper_core::schedule::InitialState::Keyframe("home".into()),
-        pupper_core::physics::Mode::Servo,
-    )
-    .unwrap();
-    println!("{s:?} {:?}", t.elapsed());
+//! `pupper`: physics experiments on the Pupper v3 quadruped in MuJoCo.
+//! This crate only parses arguments, calls `pupper_core`, and prints.
+
+mod cli;
+mod print;
+
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use clap::Parser;
+use pupper_core::Error;
+
+fn main() -> ExitCode {
+    let args = cli::Cli::parse();
+    // Before any Python use: find the project's venv, start the interpreter.
+    let python = pupper_core::embed::find_python(option_env!("PUPPER_BUILD_PYTHON"));
+    pupper_core::embed::start(python.as_deref());
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        // SIGINT and SIGTERM: finish the current step, keep what is done.
+        let _ = ctrlc::set_handler(move || {
+            if stop.swap(true, Ordering::SeqCst) {
+                // a second Ctrl-C: the user really wants out
+                std::process::exit(130);
+            }
+        });
+    }
+    match cli::run(args, stop) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e}");
+            match e {
+                Error::Interrupted(_) => ExitCode::from(130),
+                e if e.is_user_error() => ExitCode::from(2),
+                _ => ExitCode::from(1),
+            }
+        }
+    }
 }

@@ -1,15 +1,18 @@
 //! The operations the CLI and the Python module share, so the same inputs
 //! give the same numbers from both.
 
+use std::path::PathBuf;
+
 use serde::Serialize;
 
 use crate::bridge;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::experiment::{self, CellResult, Defaults, Hooks, RunOptions, SweepConfig};
 use crate::grid::{Cell, Grid};
 use crate::metrics::Status;
 use crate::model::{ModelInfo, ModelSource};
-use crate::physics::{Mode, Physics};
+use crate::output::{Existing, Manifest, ModelRecord, RunWriter};
+use crate::physics::Mode;
 use crate::schedule::{InitialState, Schedule};
 
 /// What `pupper info` prints.
@@ -71,6 +74,146 @@ pub fn stand(
     })
 }
 
+/// A sweep as the CLI and the Python module ask for it.
+#[derive(Debug, Clone)]
+pub struct SweepRequest {
+    pub config: SweepConfig,
+    pub options: RunOptions,
+    /// Run directory, or None to keep results in memory only.
+    pub out: Option<PathBuf>,
+    pub existing: Existing,
+    pub max_cells: usize,
+    /// The command line, for the manifest.
+    pub command: Vec<String>,
+}
+
+/// What a finished (or interrupted) sweep leaves.
+#[derive(Debug, Clone)]
+pub struct SweepOutcome {
+    /// summary.csv's header and rows, in cell order (resumed rows included).
+    pub header: Vec<String>,
+    pub rows: Vec<Vec<String>>,
+    /// Traces of the cells run now (id, samples), when asked for.
+    pub traces: Vec<(String, Vec<(f64, f64)>)>,
+    pub out: Option<PathBuf>,
+    pub cells_total: usize,
+    /// Cells this call ran (a resume skips finished ones).
+    pub cells_run: usize,
+    pub complete: bool,
+    pub wall_seconds: f64,
+    pub mujoco_version: String,
+}
+
+/// Hooks of the caller (progress, interrupt) plus the run writer.
+struct WriterHooks<'a> {
+    ui: &'a mut dyn Hooks,
+    writer: &'a mut RunWriter,
+}
+
+impl Hooks for WriterHooks<'_> {
+    fn progress(&mut self, steps: u64) {
+        self.ui.progress(steps)
+    }
+    fn should_stop(&mut self) -> bool {
+        self.ui.should_stop()
+    }
+    fn chunk_done(&mut self, results: &[CellResult]) -> Result<()> {
+        self.writer.add(results)?;
+        self.ui.chunk_done(results)
+    }
+}
+
+/// Validates everything, loads the model, then runs the cells still to do,
+/// writing the run directory as chunks finish. Bad input fails before any
+/// file is created. An interrupt returns `Ok` with `complete == false`.
+pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcome> {
+    let cfg = &req.config;
+    cfg.validate()?;
+    cfg.grid.check_size(req.max_cells)?;
+    if cfg.schedule.push.is_none() && cfg.grid.has_axis(crate::grid::Axis::PushForce) {
+        return Err(Error::Config(
+            "the grid varies push_force but the push is off: drop --no-push or the push_force axis"
+                .into(),
+        ));
+    }
+    let cells = cfg.grid.cells();
+    let started = std::time::Instant::now();
+    bridge::with_model(&cfg.model, true, |model| {
+        let info = model.info();
+        let manifest = Manifest {
+            pupper_version: crate::VERSION.to_string(),
+            mujoco_version: model.mujoco_version().to_string(),
+            python: model.python_executable(),
+            config: cfg.clone(),
+            model: ModelRecord {
+                name: info.name.clone(),
+                source: info.source.clone(),
+                sha256: info.sha256.clone(),
+            },
+            cells_total: cells.len(),
+            cells_done: 0,
+            complete: false,
+            threads: req.options.threads,
+            started_unix: std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map(|d| d.as_secs())
+                .unwrap_or(0),
+            wall_seconds: 0.0,
+            command: req.command.clone(),
+        };
+        let mut writer = RunWriter::new(req.out.as_deref(), req.existing, manifest)?;
+        let done: Vec<usize> = writer.done().collect();
+        let todo: Vec<Cell> = cells
+            .into_iter()
+            .filter(|c| !done.contains(&c.index))
+            .collect();
+        let dt = info.timestep;
+        let total: u64 = todo
+            .iter()
+            .map(|c| cfg.schedule.steps(cfg.setup(c).timestep.unwrap_or(dt)) as u64)
+            .sum();
+        ui.start(todo.len(), total);
+        writer.create()?;
+        let result = {
+            let mut hooks = WriterHooks {
+                ui: ui.hooks(),
+                writer: &mut writer,
+            };
+            experiment::run_cells(model, cfg, &todo, req.options, &mut hooks)
+        };
+        let complete = match result {
+            Ok(_) => true,
+            Err(Error::Interrupted(_)) => false,
+            Err(e) => {
+                let _ = writer.finish(false);
+                return Err(e);
+            }
+        };
+        writer.finish(complete)?;
+        ui.finish();
+        Ok(SweepOutcome {
+            header: writer.header().to_vec(),
+            rows: writer.rows().cloned().collect(),
+            traces: writer.traces().cloned().collect(),
+            out: writer.dir().map(|p| p.to_path_buf()),
+            cells_total: writer.manifest.cells_total,
+            cells_run: todo.len(),
+            complete: writer.manifest.complete,
+            wall_seconds: started.elapsed().as_secs_f64(),
+            mujoco_version: writer.manifest.mujoco_version.clone(),
+        })
+    })
+}
+
+/// A front end's view of a running sweep.
+pub trait SweepUi {
+    /// The run starts: `cells` to do, `steps` cell-steps in all.
+    fn start(&mut self, _cells: usize, _steps: u64) {}
+    fn finish(&mut self) {}
+    /// Progress and interrupt hooks.
+    fn hooks(&mut self) -> &mut dyn Hooks;
+}
+
 /// Runs a sweep's cells (all of them, or `only` these), streaming finished
 /// chunks to `hooks`.
 pub fn sweep(
@@ -102,9 +245,4 @@ pub fn total_steps(cfg: &SweepConfig, cells: &[Cell]) -> Result<u64> {
             .map(|c| cfg.schedule.steps(cfg.setup(c).timestep.unwrap_or(dt)) as u64)
             .sum())
     })
-}
-
-/// Model info through the [`Physics`] trait object, for callers that hold one.
-pub fn physics_info(p: &dyn Physics) -> &ModelInfo {
-    p.info()
 }

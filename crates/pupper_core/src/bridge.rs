@@ -351,6 +351,17 @@ impl<'py> LoadedModel<'py> {
         Ok(self)
     }
 
+    pub fn mujoco_version(&self) -> &str {
+        &self.mj.version
+    }
+
+    pub fn python_executable(&self) -> String {
+        PyModule::import(self.mj.py, "sys")
+            .and_then(|s| s.getattr("executable"))
+            .map(|e| e.to_string())
+            .unwrap_or_default()
+    }
+
     /// The `MjModel` object, for Python callers (rendering, viewers).
     pub fn model(&self) -> &Bound<'py, PyAny> {
         &self.model
@@ -989,4 +1000,57 @@ pub fn with_model<T>(
 /// raised, leaving the KeyboardInterrupt for the caller.
 pub fn interrupted() -> bool {
     Python::attach(|py| py.check_signals().is_err())
+}
+
+/// Calls a function of our Python package (plots, rendering, the viewer)
+/// with string arguments and keyword arguments; returns its result as
+/// strings (a path or a list of paths). `RenderUnavailable` and
+/// `DisplayUnavailable` become one-line [`Error::Display`]s.
+pub fn call_helper(
+    module: &str,
+    func: &str,
+    args: &[String],
+    kwargs: &[(&str, f64)],
+) -> Result<Vec<String>> {
+    Python::attach(|py| {
+        Mujoco::import(py)?;
+        let m = PyModule::import(py, module).map_err(|e| {
+            Error::Mujoco(format!(
+                "cannot import {module} ({}): run `make setup` to install pupper's Python package into the project venv",
+                python_message(py, &e)
+            ))
+        })?;
+        let kw = PyDict::new(py);
+        for (k, v) in kwargs {
+            kw.set_item(k, v).internal()?;
+        }
+        let out = m
+            .getattr(func)
+            .and_then(|f| f.call(pyo3::types::PyTuple::new(py, args)?, Some(&kw)))
+            .map_err(|e| {
+                let kind = e
+                    .get_type(py)
+                    .name()
+                    .map(|n| n.to_string())
+                    .unwrap_or_default();
+                let msg = python_message(py, &e);
+                if kind.ends_with("Unavailable") {
+                    Error::Display(msg)
+                } else {
+                    Error::Internal(format!("{module}.{func}: {kind}: {msg}"))
+                }
+            })?;
+        if out.is_none() {
+            return Ok(vec![]);
+        }
+        if let Ok(s) = out.extract::<String>() {
+            return Ok(vec![s]);
+        }
+        let items: Vec<Bound<'_, PyAny>> = out
+            .try_iter()
+            .internal()?
+            .collect::<PyResult<_>>()
+            .internal()?;
+        Ok(items.iter().map(|i| i.to_string()).collect())
+    })
 }

@@ -75,14 +75,21 @@ impl Axis {
             return Ok(*axis);
         }
         let names: Vec<&str> = Axis::ALL.iter().map(|a| a.name()).collect();
-        let nearest = names
+        let dist: Vec<(usize, &str)> = names
             .iter()
             .map(|n| (strsim::damerau_levenshtein(&key, n), *n))
-            .min()
-            .filter(|(d, n)| *d <= 2.max(n.len() / 3));
-        let hint = match nearest {
-            Some((_, n)) => format!("did you mean '{n}'? "),
-            None => String::new(),
+            .filter(|(d, n)| *d <= 2.max(n.len() / 3))
+            .collect();
+        let best = dist.iter().map(|(d, _)| *d).min();
+        let close: Vec<String> = dist
+            .iter()
+            .filter(|(d, _)| Some(*d) == best)
+            .map(|(_, n)| format!("'{n}'"))
+            .collect();
+        let hint = if close.is_empty() {
+            String::new()
+        } else {
+            format!("did you mean {}? ", close.join(" or "))
         };
         Err(Error::Grid(format!(
             "unknown grid axis '{}': {hint}known axes are {}",
@@ -486,7 +493,13 @@ mod tests {
 
     #[test]
     fn bad_specs_name_the_problem() {
-        assert!(err("kq=1").contains("did you mean 'kp'"));
+        assert!(err("kpp=1").contains("did you mean 'kp'?"));
+        assert!(
+            err("kq=1").contains("did you mean 'kp' or 'kd'?"),
+            "{}",
+            err("kq=1")
+        );
+        assert!(err("timestpe=1").contains("'timestep'"));
         assert!(err("kp").contains("no '='"));
         assert!(err("kp=").contains("no values"));
         assert!(err("kp=1,,2").contains("empty value"));

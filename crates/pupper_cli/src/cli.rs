@@ -1,0 +1,566 @@
+//! Command-line arguments and what each command does with them.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use pupper_core::api::{self, SweepRequest, SweepUi};
+use pupper_core::experiment::{Defaults, Hooks, RunOptions, SweepConfig};
+use pupper_core::grid::{DEFAULT_MAX_CELLS, Grid};
+use pupper_core::model::ModelSource;
+use pupper_core::output::{self, Existing};
+use pupper_core::physics::Mode;
+use pupper_core::schedule::{InitialState, Push, Schedule, SineForce};
+use pupper_core::{Error, Result, bridge};
+
+use crate::print;
+
+const ABOUT: &str = "Physics experiments on the Pupper v3 quadruped in MuJoCo: inspect the robot, \
+make it stand, sweep PD gains, measure how well each setting stands and rejects a push.";
+
+const AFTER: &str = "Examples:
+  pupper info                                   counts, joints, actuators of the built-in model
+  pupper stand --kp 5 --kd 0.1                  settle from the home keyframe, report base height
+  pupper sweep --grid kp=10,30,60,120 --grid kd=0.5,1,2,5
+  pupper sweep --preset chapter-4.6 --plot      the chapter's four servo cases, with plots
+  pupper sweep --resume runs/20261122-120000-kp-kd   finish an interrupted sweep
+
+Exit status: 0 success, 2 bad input (one line on stderr says what and how to fix it),
+130 interrupted (finished cells are kept), 1 internal error.";
+
+#[derive(Parser, Debug)]
+#[command(name = "pupper", version, about = ABOUT, after_help = AFTER)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Show a model: sizes, mass, joints with their qpos/qvel addresses, actuators in ctrl order, keyframes, sensors.
+    Info {
+        #[command(flatten)]
+        model: ModelArg,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Reset to a keyframe (or a pose), stand with PD gains and no push; report final base height, last-second steadiness and tilt.
+    Stand(StandArgs),
+    /// Run a grid of settings as one batched simulation; write summary.csv and manifest.json into a run directory.
+    Sweep(Box<SweepArgs>),
+    /// Show which Python, prefix and mujoco pupper found, and how to fix it if it found none.
+    Doctor {
+        #[arg(long)]
+        json: bool,
+    },
+    /// Render one model or cell from the tracking camera to a PNG (offscreen; needs EGL or OSMesa).
+    Render(RenderArgs),
+    /// Open MuJoCo's interactive viewer on a model (needs a display).
+    View {
+        #[command(flatten)]
+        model: ModelArg,
+    },
+}
+
+#[derive(Args, Debug)]
+struct ModelArg {
+    /// Built-in model name (pupper_v3, pupper_v3_fixed) or path to an MJCF file.
+    #[arg(
+        long,
+        short = 'm',
+        default_value = "pupper_v3",
+        value_name = "NAME|PATH"
+    )]
+    model: String,
+}
+
+impl ModelArg {
+    fn source(&self) -> Result<ModelSource> {
+        ModelSource::parse(&self.model)
+    }
+}
+
+#[derive(Args, Debug)]
+struct StartArgs {
+    /// Keyframe to reset to; its ctrl (or joint qpos) gives the joint targets.
+    #[arg(
+        long,
+        default_value = "home",
+        value_name = "NAME",
+        conflicts_with = "pose"
+    )]
+    keyframe: String,
+    /// Start and target joint angles (rad), one per actuator in ctrl order, comma-separated.
+    #[arg(long, value_name = "Q1,Q2,...", allow_hyphen_values = true)]
+    pose: Option<String>,
+}
+
+impl StartArgs {
+    fn initial(&self) -> Result<InitialState> {
+        match &self.pose {
+            None => Ok(InitialState::Keyframe(self.keyframe.clone())),
+            Some(p) => {
+                let v = p
+                    .split(',')
+                    .map(|t| {
+                        t.trim().parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
+                            Error::Config(format!(
+                                "--pose value '{}' is not a finite number: give radians like 0,0.7,-1.4",
+                                t.trim()
+                            ))
+                        })
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                Ok(InitialState::Pose(v))
+            }
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum ModeArg {
+    /// MuJoCo's affine actuators do the PD (gains written into gainprm/biasprm).
+    Servo,
+    /// PD computed in Rust every step, clipped to --max-torque; actuators as direct torque inputs.
+    Torque,
+}
+
+impl From<ModeArg> for Mode {
+    fn from(m: ModeArg) -> Mode {
+        match m {
+            ModeArg::Servo => Mode::Servo,
+            ModeArg::Torque => Mode::Torque,
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+struct StandArgs {
+    #[command(flatten)]
+    model: ModelArg,
+    /// Simulated seconds.
+    #[arg(long, default_value_t = 10.0, value_name = "S")]
+    seconds: f64,
+    /// Proportional gain (N·m/rad).
+    #[arg(long, default_value_t = 5.0)]
+    kp: f64,
+    /// Derivative gain (N·m·s/rad).
+    #[arg(long, default_value_t = 0.1)]
+    kd: f64,
+    /// Who computes the PD torques.
+    #[arg(long, value_enum, default_value = "servo")]
+    mode: ModeArg,
+    #[command(flatten)]
+    start: StartArgs,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args, Debug)]
+#[command(
+    after_help = "Grid values: a list 10,30,60 | a linear range start:stop:count (10:120:12) | \
+a log range start:stop:count:log (1:100:5:log).
+Axes: kp, kd, push_force (N, world z), max_torque (N·m), friction (feet and floor), timestep (s),
+leg_scale, torso_mass_scale. Cells are the product of the axes, the last axis varying fastest.
+Metrics per cell: final_z (m), last_1s_std_mm, push_dip_mm (mean z 0.5 s before the push minus
+the minimum from push start to push end + 1.5 s), settle_time_s (after the push, until base z stays
+within ±1 mm of its pre-push mean), max_tilt_deg, peak_torque (N·m), saturation_frac,
+tracking_rms (rad), status (ok, fell, diverged), event_time (s, when it fell or diverged)."
+)]
+struct SweepArgs {
+    /// A grid axis and its values, AXIS=VALUES; repeat for more axes.
+    #[arg(
+        long = "grid",
+        short = 'g',
+        value_name = "AXIS=VALUES",
+        allow_hyphen_values = true
+    )]
+    grid: Vec<String>,
+    /// A named grid: chapter-4.6 (the chapter's soft/default/stiff/underD servo cases) or lab (kp 10,30,60,120 x kd 0.5,1,2,5).
+    #[arg(long, value_name = "NAME", conflicts_with = "grid")]
+    preset: Option<String>,
+    #[command(flatten)]
+    model: ModelArg,
+    /// Who computes the PD torques.
+    #[arg(long, value_enum, default_value = "servo")]
+    mode: ModeArg,
+    /// Simulated seconds per cell.
+    #[arg(long, default_value_t = 10.0, value_name = "S")]
+    seconds: f64,
+    /// Kp for cells whose grid has no kp axis.
+    #[arg(long, default_value_t = 5.0)]
+    kp: f64,
+    /// Kd for cells whose grid has no kd axis.
+    #[arg(long, default_value_t = 0.1)]
+    kd: f64,
+    /// Torque limit (N·m) of every actuator, in both modes (Pupper v3's motors: 3).
+    #[arg(long, default_value_t = 3.0, value_name = "NM")]
+    max_torque: f64,
+    /// Push force along world z (N; negative pushes down).
+    #[arg(long, default_value_t = -25.0, value_name = "N", allow_hyphen_values = true)]
+    push_force: f64,
+    /// Push start time (s).
+    #[arg(long, default_value_t = 2.0, value_name = "S")]
+    push_at: f64,
+    /// Push duration (s).
+    #[arg(long, default_value_t = 0.25, value_name = "S")]
+    push_duration: f64,
+    /// No push.
+    #[arg(long)]
+    no_push: bool,
+    /// A continuous vertical force AMPLITUDE*sin(2π·FREQUENCY·t) on the base (N, Hz), e.g. 2,1.2.
+    #[arg(long, value_name = "AMP,HZ", allow_hyphen_values = true)]
+    sine: Option<String>,
+    #[command(flatten)]
+    start: StartArgs,
+    /// Run directory (default runs/<time>-<grid>).
+    #[arg(long, short = 'o', value_name = "DIR", conflicts_with = "resume")]
+    out: Option<PathBuf>,
+    /// Overwrite pupper's files in an existing --out directory.
+    #[arg(long)]
+    force: bool,
+    /// Continue an interrupted run in DIR: checks the inputs match its manifest, runs only missing cells. Alone, it reuses the manifest's inputs.
+    #[arg(long, value_name = "DIR")]
+    resume: Option<PathBuf>,
+    /// Keep base-z traces (traces.csv), every --trace-every-th step.
+    #[arg(long)]
+    trace: bool,
+    /// Decimation of the traces.
+    #[arg(long, default_value_t = 10, value_name = "N")]
+    trace_every: usize,
+    /// Batch threads; 0 uses all cores. Never changes the numbers.
+    #[arg(long, short = 'j', default_value_t = 0, value_name = "N")]
+    threads: usize,
+    /// Cells per batch, to bound memory on large grids. Never changes the numbers.
+    #[arg(long, default_value_t = 256, value_name = "N")]
+    chunk_cells: usize,
+    /// Refuse grids with more cells than this.
+    #[arg(long, default_value_t = DEFAULT_MAX_CELLS, value_name = "N")]
+    max_cells: usize,
+    /// Write plots (base-z curves, heatmaps or bars) into DIR/plots.
+    #[arg(long)]
+    plot: bool,
+    /// Render the effects GIF and final-frame PNG of the cells (up to 6) into DIR/plots.
+    #[arg(long)]
+    render: bool,
+    /// Print the rows as JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// No progress bar.
+    #[arg(long, short = 'q')]
+    quiet: bool,
+}
+
+#[derive(Args, Debug)]
+struct RenderArgs {
+    #[command(flatten)]
+    model: ModelArg,
+    /// Output PNG.
+    #[arg(long, short = 'o', default_value = "pupper.png", value_name = "FILE")]
+    out: PathBuf,
+    /// Simulate this long (servo PD from the home keyframe) before the frame.
+    #[arg(long, default_value_t = 0.0, value_name = "S")]
+    seconds: f64,
+    #[arg(long, default_value_t = 5.0)]
+    kp: f64,
+    #[arg(long, default_value_t = 0.1)]
+    kd: f64,
+    /// Image width and height in pixels.
+    #[arg(long, default_value_t = 640)]
+    width: u32,
+    #[arg(long, default_value_t = 480)]
+    height: u32,
+}
+
+pub fn run(cli: Cli, stop: Arc<AtomicBool>) -> Result<ExitCode> {
+    match cli.command {
+        Command::Info { model, json } => {
+            let info = api::info(&model.source()?)?;
+            if json {
+                println!("{}", print::json(&info)?);
+            } else {
+                print!("{}", print::info(&info));
+            }
+        }
+        Command::Stand(a) => {
+            check_gain("--kp", a.kp)?;
+            check_gain("--kd", a.kd)?;
+            let r = api::stand(
+                &a.model.source()?,
+                a.seconds,
+                a.kp,
+                a.kd,
+                a.start.initial()?,
+                a.mode.into(),
+            )?;
+            if a.json {
+                println!("{}", print::json(&r)?);
+            } else {
+                print!("{}", print::stand(&r));
+            }
+        }
+        Command::Sweep(a) => return sweep(*a, stop),
+        Command::Doctor { json } => {
+            let r = bridge::doctor()?;
+            if json {
+                println!("{}", print::json(&r)?);
+            } else {
+                print!("{}", print::doctor(&r));
+            }
+            if let Some(p) = r.problem {
+                return Err(Error::Mujoco(p));
+            }
+        }
+        Command::Render(a) => {
+            let source = a.model.source()?;
+            let model = match &source {
+                ModelSource::Path(p) => p.display().to_string(),
+                ModelSource::Builtin(n) => n.clone(),
+            };
+            let out = bridge::call_helper(
+                "pupper_core.render",
+                "render_png",
+                &[model, a.out.display().to_string()],
+                &[
+                    ("seconds", a.seconds),
+                    ("kp", a.kp),
+                    ("kd", a.kd),
+                    ("width", a.width as f64),
+                    ("height", a.height as f64),
+                ],
+            )?;
+            println!("wrote {}", out.first().cloned().unwrap_or_default());
+        }
+        Command::View { model } => {
+            let source = model.source()?;
+            if std::env::var_os("DISPLAY").is_none()
+                && std::env::var_os("WAYLAND_DISPLAY").is_none()
+            {
+                return Err(Error::Display(
+                    "no display found (DISPLAY and WAYLAND_DISPLAY are unset): run pupper view in a desktop session, or use `pupper render` for a PNG".into(),
+                ));
+            }
+            let name = match &source {
+                ModelSource::Path(p) => p.display().to_string(),
+                ModelSource::Builtin(n) => n.clone(),
+            };
+            bridge::call_helper("pupper_core.render", "view", &[name], &[])?;
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn check_gain(flag: &str, v: f64) -> Result<()> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(Error::Config(format!(
+            "{flag} {v} is negative or not finite: gains must be >= 0"
+        )))
+    }
+}
+
+fn sine(text: &str) -> Result<SineForce> {
+    let bad = || {
+        Error::Config(format!(
+            "--sine '{text}' is not AMPLITUDE,FREQUENCY: give two numbers, e.g. --sine 2,1.2"
+        ))
+    };
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|t| t.trim().parse::<f64>().map_err(|_| bad()))
+        .collect::<Result<_>>()?;
+    match v[..] {
+        [amplitude, frequency] => Ok(SineForce {
+            amplitude,
+            frequency,
+            axis: [0.0, 0.0, 1.0],
+        }),
+        _ => Err(bad()),
+    }
+}
+
+fn sweep(a: SweepArgs, stop: Arc<AtomicBool>) -> Result<ExitCode> {
+    let command: Vec<String> = std::env::args().collect();
+    let resume_alone = a.resume.is_some() && a.grid.is_empty() && a.preset.is_none();
+    let config = if resume_alone {
+        // `--resume DIR` alone: the manifest's inputs
+        output::read_manifest(a.resume.as_deref().unwrap_or(std::path::Path::new(".")))?.config
+    } else {
+        let grid = match &a.preset {
+            Some(p) => Grid::preset(p)?,
+            None => Grid::parse(&a.grid)?,
+        };
+        let schedule = Schedule {
+            duration: a.seconds,
+            initial: a.start.initial()?,
+            push: (!a.no_push).then(|| Push {
+                start: a.push_at,
+                duration: a.push_duration,
+                force: [0.0, 0.0, a.push_force],
+                body: String::new(),
+            }),
+            sine: a.sine.as_deref().map(sine).transpose()?,
+            trace_every: if a.trace || a.plot {
+                a.trace_every.max(1)
+            } else {
+                0
+            },
+            ..Schedule::default()
+        };
+        SweepConfig {
+            model: a.model.source()?,
+            grid,
+            schedule,
+            mode: a.mode.into(),
+            defaults: Defaults {
+                kp: a.kp,
+                kd: a.kd,
+                max_torque: a.max_torque,
+            },
+        }
+    };
+    let (out, existing) = match (&a.resume, &a.out) {
+        (Some(dir), _) => (dir.clone(), Existing::Resume),
+        (None, Some(dir)) => (
+            dir.clone(),
+            if a.force {
+                Existing::Overwrite
+            } else {
+                Existing::Refuse
+            },
+        ),
+        (None, None) => (default_out(&a.preset, &config), Existing::Refuse),
+    };
+    let req = SweepRequest {
+        config,
+        options: RunOptions {
+            threads: a.threads,
+            chunk_cells: a.chunk_cells.max(1),
+            ..RunOptions::default()
+        },
+        out: Some(out),
+        existing,
+        max_cells: a.max_cells,
+        command,
+    };
+    let mut ui = Progress {
+        bar: None,
+        quiet: a.quiet || a.json,
+        stop,
+    };
+    let outcome = api::run_sweep(&req, &mut ui)?;
+    let dir = outcome.out.clone().unwrap_or_default();
+    if !outcome.complete {
+        eprintln!(
+            "interrupted: kept {} of {} cells in {}; continue with: pupper sweep --resume {}",
+            outcome.rows.len(),
+            outcome.cells_total,
+            dir.display(),
+            dir.display()
+        );
+        return Ok(ExitCode::from(130));
+    }
+    if a.json {
+        println!("{}", print::json(&print::rows_json(&outcome))?);
+    } else {
+        print!("{}", print::sweep(&outcome));
+    }
+    let dir_s = dir.display().to_string();
+    if a.plot {
+        for p in bridge::call_helper(
+            "pupper_core.plots",
+            "write_run_plots",
+            &[dir_s.clone()],
+            &[],
+        )? {
+            eprintln!("wrote {p}");
+        }
+    }
+    if a.render {
+        for p in bridge::call_helper("pupper_core.render", "write_run_effects", &[dir_s], &[])? {
+            eprintln!("wrote {p}");
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn default_out(preset: &Option<String>, cfg: &SweepConfig) -> PathBuf {
+    let name = match preset {
+        Some(p) => p.clone(),
+        None if cfg.grid.axes.is_empty() => "single".into(),
+        None => cfg
+            .grid
+            .axes
+            .iter()
+            .map(|a| a.axis.name())
+            .collect::<Vec<_>>()
+            .join("-"),
+    };
+    let stamp = chrono::Local::now().format("%Y%m%d-%H%M%S");
+    let base = PathBuf::from("runs").join(format!("{stamp}-{name}"));
+    // two runs in one second get distinct directories
+    (0..)
+        .map(|i| {
+            if i == 0 {
+                base.clone()
+            } else {
+                PathBuf::from(format!("{}-{i}", base.display()))
+            }
+        })
+        .find(|p| !p.exists())
+        .unwrap_or(base)
+}
+
+/// Progress bar on stderr (hidden when stderr is not a terminal) and the
+/// Ctrl-C flag.
+struct Progress {
+    bar: Option<ProgressBar>,
+    quiet: bool,
+    stop: Arc<AtomicBool>,
+}
+
+impl SweepUi for Progress {
+    fn start(&mut self, cells: usize, steps: u64) {
+        if self.quiet {
+            return;
+        }
+        let bar = ProgressBar::new(steps);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} {msg} [{bar:30}] {percent:>3}% {elapsed} (eta {eta})",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+        bar.set_message(format!("{cells} cells"));
+        self.bar = Some(bar);
+    }
+
+    fn finish(&mut self) {
+        if let Some(b) = self.bar.take() {
+            b.finish_and_clear();
+        }
+    }
+
+    fn hooks(&mut self) -> &mut dyn Hooks {
+        self
+    }
+}
+
+impl Hooks for Progress {
+    fn progress(&mut self, steps: u64) {
+        if let Some(b) = &self.bar {
+            b.inc(steps);
+        }
+    }
+
+    fn should_stop(&mut self) -> bool {
+        self.stop.load(Ordering::SeqCst)
+    }
+}

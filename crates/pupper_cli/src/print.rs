@@ -1,0 +1,236 @@
+//! Text and JSON for the terminal.
+
+use std::fmt::Write;
+
+use pupper_core::api::{StandReport, SweepOutcome};
+use pupper_core::bridge::PythonReport;
+use pupper_core::model::ModelInfo;
+use pupper_core::{Error, Result};
+use serde::Serialize;
+
+pub fn json<T: Serialize>(v: &T) -> Result<String> {
+    serde_json::to_string_pretty(v).map_err(|e| Error::Internal(format!("json: {e}")))
+}
+
+pub fn info(m: &ModelInfo) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "model      {} ({})", m.name, m.source);
+    let _ = writeln!(s, "sha256     {}", m.sha256);
+    let _ = writeln!(
+        s,
+        "sizes      nq {}  nv {}  nu {}  nbody {}",
+        m.nq, m.nv, m.nu, m.nbody
+    );
+    let _ = writeln!(s, "timestep   {} s", m.timestep);
+    let _ = writeln!(s, "total mass {:.3} kg", m.total_mass);
+    let _ = writeln!(s, "\njoints ({})", m.joints.len());
+    let _ = writeln!(
+        s,
+        "  {:<18} {:<6} {:>4} {:>4}  range (rad)",
+        "name", "type", "qpos", "qvel"
+    );
+    for j in &m.joints {
+        let range = j
+            .range
+            .map(|r| format!("[{:.2}, {:.2}]", r[0], r[1]))
+            .unwrap_or_else(|| "-".into());
+        let _ = writeln!(
+            s,
+            "  {:<18} {:<6} {:>4} {:>4}  {}",
+            j.name, j.kind, j.qpos_adr, j.dof_adr, range
+        );
+    }
+    let _ = writeln!(s, "\nactuators in ctrl order ({})", m.actuators.len());
+    let _ = writeln!(
+        s,
+        "  {:>3} {:<18} {:<18} {:>7} {:>7}  force range (N·m)",
+        "ctrl", "name", "joint", "kp", "kd"
+    );
+    for (i, a) in m.actuators.iter().enumerate() {
+        let joint = a
+            .joint
+            .and_then(|j| m.joints.get(j))
+            .map(|j| j.name.as_str())
+            .unwrap_or("-");
+        let (kp, kd) = a.kp_kd();
+        let fr = a
+            .forcerange
+            .map(|r| format!("[{}, {}]", r[0], r[1]))
+            .unwrap_or_else(|| "unlimited".into());
+        let _ = writeln!(
+            s,
+            "  {i:>3}  {:<18} {:<18} {kp:>7} {kd:>7}  {fr}",
+            a.name, joint
+        );
+    }
+    let _ = writeln!(s, "\nkeyframes ({})", m.keyframes.len());
+    for k in &m.keyframes {
+        let head: Vec<String> = k.qpos.iter().take(7).map(|v| format!("{v}")).collect();
+        let more = if k.qpos.len() > 7 { " ..." } else { "" };
+        let _ = writeln!(s, "  {:<10} qpos [{}{more}]", k.name, head.join(" "));
+    }
+    let _ = writeln!(s, "\nsensors ({})", m.sensors.len());
+    for x in &m.sensors {
+        let _ = writeln!(s, "  {:<18} {:<14} dim {}", x.name, x.kind, x.dim);
+    }
+    s
+}
+
+pub fn stand(r: &StandReport) -> String {
+    format!(
+        "stand  {} ({} mode, kp {} kd {}, {} s, no push)\n  final z          {:.4} m\n  last-1s std      {:.3} mm\n  max tilt         {:.2} deg\n  status           {}\n",
+        r.model,
+        r.mode.as_str(),
+        r.kp,
+        r.kd,
+        r.seconds,
+        r.final_z,
+        r.last_1s_std_mm,
+        r.max_tilt_deg,
+        r.status.as_str()
+    )
+}
+
+pub fn doctor(r: &PythonReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "python     {}", r.executable);
+    let _ = writeln!(s, "version    {}", r.version);
+    let _ = writeln!(s, "prefix     {}", r.prefix);
+    let _ = writeln!(s, "base       {}", r.base_prefix);
+    let _ = writeln!(
+        s,
+        "numpy      {}",
+        r.numpy.as_deref().unwrap_or("not found")
+    );
+    match (&r.mujoco, &r.mujoco_path) {
+        (Some(v), Some(p)) => {
+            let _ = writeln!(s, "mujoco     {v} ({p})");
+        }
+        _ => {
+            let _ = writeln!(s, "mujoco     not usable");
+        }
+    }
+    s
+}
+
+/// Columns of the table, by summary.csv name: (header, width, decimals).
+const SHOWN: [(&str, &str, usize, usize); 9] = [
+    ("final_z", "final z m", 9, 3),
+    ("last_1s_std_mm", "std mm", 7, 2),
+    ("push_dip_mm", "dip mm", 7, 2),
+    ("settle_time_s", "settle s", 8, 2),
+    ("max_tilt_deg", "tilt °", 7, 2),
+    ("peak_torque", "peak N·m", 8, 2),
+    ("saturation_frac", "sat %", 6, 1),
+    ("tracking_rms", "track rad", 9, 4),
+    ("status", "status", 8, 0),
+];
+
+pub fn sweep(o: &SweepOutcome) -> String {
+    let col = |name: &str| o.header.iter().position(|h| h == name);
+    let metrics_at = col("final_z").unwrap_or(o.header.len());
+    let axes: Vec<(usize, &String)> = o
+        .header
+        .iter()
+        .enumerate()
+        .take(metrics_at)
+        .skip(3)
+        .collect();
+    let named = o.rows.iter().any(|r| !r[2].is_empty());
+    let mut s = String::new();
+    let mut head = String::new();
+    if named {
+        let _ = write!(head, "{:<8} ", "case");
+    }
+    for (_, a) in &axes {
+        let _ = write!(head, "{:>8} ", a);
+    }
+    for (_, h, w, _) in SHOWN {
+        let _ = write!(head, "{:>w$} ", h);
+    }
+    let _ = writeln!(s, "{}", head.trim_end());
+    for r in &o.rows {
+        let mut line = String::new();
+        if named {
+            let _ = write!(line, "{:<8} ", r[2]);
+        }
+        for (i, _) in &axes {
+            let _ = write!(line, "{:>8} ", r[*i]);
+        }
+        for (name, _, w, d) in SHOWN {
+            let text = col(name).map(|i| r[i].as_str()).unwrap_or("");
+            let shown = match text.parse::<f64>() {
+                Ok(v) if name == "saturation_frac" => format!("{:.d$}", v * 100.0),
+                Ok(v) => format!("{v:.d$}"),
+                Err(_) if text.is_empty() => "-".into(),
+                Err(_) => text.to_string(),
+            };
+            let _ = write!(line, "{shown:>w$} ");
+        }
+        let _ = writeln!(s, "{}", line.trim_end());
+    }
+    // the steadiest healthy cell
+    if let (Some(si), Some(st)) = (col("last_1s_std_mm"), col("status")) {
+        let best = o
+            .rows
+            .iter()
+            .filter(|r| r[st] == "ok")
+            .filter_map(|r| r[si].parse::<f64>().ok().map(|v| (v, r)))
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some((v, r)) = best {
+            let label = if r[2].is_empty() {
+                r[1].clone()
+            } else {
+                format!("{} ({})", r[2], r[1])
+            };
+            let _ = writeln!(s, "\nsteadiest: {label}, last-1s std {v:.4} mm");
+        }
+    }
+    let bad = o
+        .rows
+        .iter()
+        .filter(|r| col("status").is_some_and(|i| r[i] != "ok"))
+        .count();
+    if bad > 0 {
+        let _ = writeln!(
+            s,
+            "{bad} cell(s) fell or diverged: see the status and event_time columns"
+        );
+    }
+    if let Some(d) = &o.out {
+        let _ = writeln!(
+            s,
+            "{} cells in {:.2} s (mujoco {}); wrote {}/summary.csv",
+            o.cells_run,
+            o.wall_seconds,
+            o.mujoco_version,
+            d.display()
+        );
+    }
+    s
+}
+
+/// The summary rows as JSON objects, numbers as numbers.
+pub fn rows_json(o: &SweepOutcome) -> serde_json::Value {
+    let rows: Vec<serde_json::Value> = o
+        .rows
+        .iter()
+        .map(|r| {
+            let mut m = serde_json::Map::new();
+            for (h, v) in o.header.iter().zip(r) {
+                let val = match (h.as_str(), v.parse::<f64>()) {
+                    ("id" | "name" | "status", _) => serde_json::Value::String(v.clone()),
+                    (_, Ok(x)) => serde_json::json!(x),
+                    _ => serde_json::Value::Null,
+                };
+                m.insert(h.clone(), val);
+            }
+            serde_json::Value::Object(m)
+        })
+        .collect();
+    serde_json::json!({
+        "out": o.out,
+        "complete": o.complete,
+        "cells": rows,
+    })
+}
