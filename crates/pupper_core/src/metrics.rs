@@ -217,18 +217,18 @@ impl Recorder {
             last_1s_std_mm: nan_if(self.tail.std() * 1e3),
             push_dip_mm: nan_if(self.dip.as_ref().map_or(f64::NAN, |d| d.value() * 1e3)),
             settle_time_s: nan_if(settle),
-            max_tilt_deg: self.max_tilt,
-            peak_torque: self.peak_torque,
-            saturation_frac: if self.actuator_steps == 0 {
+            max_tilt_deg: nan_if(self.max_tilt),
+            peak_torque: nan_if(self.peak_torque),
+            saturation_frac: nan_if(if self.actuator_steps == 0 {
                 0.0
             } else {
                 self.saturated as f64 / self.actuator_steps as f64
-            },
-            tracking_rms: if self.track_n == 0 {
+            }),
+            tracking_rms: nan_if(if self.track_n == 0 {
                 f64::NAN
             } else {
                 (self.track_sq / self.track_n as f64).sqrt()
-            },
+            }),
             status: self.status,
             event_time: self.event_time,
         };
