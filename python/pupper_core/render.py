@@ -603,8 +603,25 @@ def _atomic_save(img_or_frames: Any, path: Path, fmt: str, **kw: Any) -> None:
             tmp.unlink()
 
 
+_LABEL_COLOURS = [(255, 60, 60), (230, 30, 30), (255, 255, 255), (255, 200, 60), (20, 20, 20), (60, 60, 60), (245, 245, 245), (0, 0, 0)]
+
+
+def _palette_of(img: "PILImage.Image", colors: int) -> list[tuple[int, int, int]]:
+    """The colours (at most ``colors``) of a median-cut quantization of ``img``."""
+    from PIL import Image
+
+    q = img.quantize(colors=colors, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    pal = q.getpalette() or []
+    used = sorted({c for _, c in (q.getcolors(colors) or [])})
+    return [tuple(pal[3 * i : 3 * i + 3]) for i in used]  # type: ignore[misc]
+
+
 def _shared_palette(frames: Sequence["PILImage.Image"]) -> list["PILImage.Image"]:
-    """Quantizes all frames to one 255-colour palette (smaller, steadier GIFs)."""
+    """Quantizes all frames to one palette (smaller, flicker-free GIFs).
+
+    The palette mixes the common colours of a few sample frames, the vivid
+    ones (the legs, which are small) and the label colours.
+    """
     from PIL import Image
 
     n = len(frames)
@@ -613,14 +630,18 @@ def _shared_palette(frames: Sequence["PILImage.Image"]) -> list["PILImage.Image"
     mosaic = Image.new("RGB", (w, h * len(picks)))
     for j, i in enumerate(picks):
         mosaic.paste(frames[i], (0, h * j))
-    # reserve the label colours so text stays crisp
-    swatch = Image.new("RGB", (w, 8))
-    for x, c in enumerate([(255, 60, 60), (230, 30, 30), (255, 255, 255), (255, 200, 60), (20, 20, 20)]):
-        swatch.paste(c, (x * 8, 0, x * 8 + 8, 8))
-    both = Image.new("RGB", (w, mosaic.height + 8))
-    both.paste(mosaic, (0, 0))
-    both.paste(swatch, (0, mosaic.height))
-    pal = both.quantize(colors=255, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    colours = list(_LABEL_COLOURS)
+    arr = np.asarray(mosaic).reshape(-1, 3).astype(np.int16)
+    vivid = arr[(arr.max(axis=1) - arr.min(axis=1)) > 90]
+    if len(vivid) > 64:
+        vivid_img = Image.fromarray(vivid.astype(np.uint8)[None, :, :], "RGB")
+        colours += _palette_of(vivid_img, 48)
+    colours += _palette_of(mosaic, 256 - len(colours))
+    colours = colours[:256]
+    flat = [v for c in colours for v in c]
+    flat += flat[-3:] * (256 - len(colours))
+    pal = Image.new("P", (1, 1))
+    pal.putpalette(flat)
     return [f.quantize(palette=pal, dither=Image.Dither.NONE) for f in frames]
 
 

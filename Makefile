@@ -1,0 +1,37 @@
+# The two commands of README.md:
+#   make sweep   set everything up, then run the default sweep on the built-in model
+#   make test    set everything up, then run every test (cargo test and pytest)
+SHELL := /bin/bash
+ROOT := $(abspath .)
+export PYO3_PYTHON := $(ROOT)/.venv/bin/python
+# Offscreen rendering in tests and plots, without a display.
+export MUJOCO_GL ?= egl
+PUPPER := target/release/pupper
+PY := .venv/bin/python
+
+.PHONY: setup sweep test test-rust test-python bench lint clean
+
+setup:
+	@bash scripts/setup.sh
+
+sweep: setup
+	$(PUPPER) sweep --grid kp=10,30,60,120 --grid kd=0.5,1,2,5
+
+test: setup test-rust test-python
+
+test-rust:
+	cargo test --workspace --release
+
+test-python:
+	$(PY) -m pytest tests
+
+bench: setup
+	$(PY) benches/bench_sweep.py
+
+lint:
+	cargo fmt --all -- --check
+	cargo clippy --workspace --all-targets --release -- -D warnings
+	cargo clippy -p pupper_core --features python --release -- -D warnings
+
+clean:
+	rm -rf target .venv runs

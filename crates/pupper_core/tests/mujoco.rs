@@ -1,0 +1,145 @@
+//! Integration tests on real MuJoCo: the built-in models, stand, and small
+//! sweeps in both modes. They embed CPython and find the project venv the way
+//! the `pupper` binary does.
+
+use std::sync::Once;
+
+use pupper_core::api;
+use pupper_core::experiment::{Defaults, NoHooks, RunOptions, SweepConfig};
+use pupper_core::grid::Grid;
+use pupper_core::metrics::Status;
+use pupper_core::model::ModelSource;
+use pupper_core::physics::Mode;
+use pupper_core::schedule::{InitialState, Schedule};
+
+fn init() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        let python = pupper_core::embed::find_python(option_env!("PYO3_PYTHON"));
+        pupper_core::embed::start(python.as_deref());
+    });
+}
+
+fn builtin(name: &str) -> ModelSource {
+    ModelSource::parse(name).unwrap()
+}
+
+#[test]
+fn builtin_models_have_the_expected_sizes() {
+    init();
+    let f = api::info(&builtin("pupper_v3")).unwrap();
+    assert_eq!((f.nq, f.nv, f.nu, f.nbody), (19, 18, 12, 14));
+    assert_eq!(f.joints[0].kind, "free");
+    assert_eq!(f.actuators[0].name, "leg_front_r_1");
+    assert_eq!(f.actuators[11].name, "leg_back_l_3");
+    assert_eq!(f.actuators[0].kp_kd(), (5.0, 0.1));
+    assert_eq!(f.actuators[0].forcerange, Some([-3.0, 3.0]));
+    assert_eq!(f.keyframes[0].name, "home");
+    assert_eq!(f.keyframes[0].qpos[2], 0.28);
+    assert_eq!(f.sensors.len(), 7);
+    assert!((f.total_mass - 3.17).abs() < 1e-9, "{}", f.total_mass);
+    let x = api::info(&builtin("pupper_v3_fixed")).unwrap();
+    assert_eq!((x.nq, x.nv, x.nu, x.nbody), (12, 12, 12, 14));
+}
+
+#[test]
+fn stand_settles_at_the_reference_height() {
+    init();
+    let r = api::stand(
+        &builtin("pupper_v3"),
+        10.0,
+        5.0,
+        0.1,
+        InitialState::Keyframe("home".into()),
+        Mode::Servo,
+    )
+    .unwrap();
+    assert!((r.final_z - 0.120).abs() < 0.0005, "{}", r.final_z);
+    assert_eq!(r.status, Status::Ok);
+    assert!(r.last_1s_std_mm < 0.01);
+}
+
+#[test]
+fn stand_needs_a_floating_base() {
+    init();
+    let e = api::stand(
+        &builtin("pupper_v3_fixed"),
+        1.0,
+        5.0,
+        0.1,
+        InitialState::Keyframe("home".into()),
+        Mode::Servo,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("no free-joint base"), "{e}");
+    assert!(e.is_user_error());
+}
+
+fn small_sweep(
+    mode: Mode,
+    threads: usize,
+    chunk_cells: usize,
+) -> Vec<pupper_core::experiment::CellResult> {
+    let cfg = SweepConfig {
+        model: builtin("pupper_v3"),
+        grid: Grid::parse(&["kp=10,60", "kd=0.5,2"]).unwrap(),
+        schedule: Schedule {
+            duration: 3.0,
+            ..Schedule::default()
+        },
+        mode,
+        defaults: Defaults::default(),
+    };
+    let opts = RunOptions {
+        threads,
+        chunk_cells,
+        ..RunOptions::default()
+    };
+    api::sweep(&cfg, None, opts, &mut NoHooks).unwrap()
+}
+
+#[test]
+fn sweeps_in_both_modes_stand_and_reject_the_push() {
+    init();
+    for mode in [Mode::Servo, Mode::Torque] {
+        let r = small_sweep(mode, 0, 256);
+        assert_eq!(r.len(), 4);
+        for c in &r {
+            assert_eq!(c.metrics.status, Status::Ok, "{mode:?} {}", c.cell.id);
+            assert!(
+                c.metrics.final_z > 0.1 && c.metrics.final_z < 0.14,
+                "{}",
+                c.metrics.final_z
+            );
+            assert!(c.metrics.push_dip_mm > 0.0, "the push must show");
+            assert!(c.metrics.peak_torque <= 3.0 + 1e-9);
+        }
+        // stiffer legs dip less
+        assert!(r[2].metrics.push_dip_mm < r[0].metrics.push_dip_mm);
+    }
+}
+
+#[test]
+fn numbers_do_not_depend_on_threads_or_chunking() {
+    init();
+    for mode in [Mode::Servo, Mode::Torque] {
+        let a = small_sweep(mode, 1, 256);
+        let b = small_sweep(mode, 2, 1);
+        for (x, y) in a.iter().zip(&b) {
+            assert_eq!(x.cell, y.cell);
+            // bit for bit: NaN-free metrics compare equal
+            assert_eq!(format!("{:?}", x.metrics), format!("{:?}", y.metrics));
+        }
+    }
+}
+
+#[test]
+fn a_broken_model_is_a_model_error() {
+    init();
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("broken.xml");
+    std::fs::write(&p, "<mujoco><worldbody><body></mujoco>").unwrap();
+    let e = api::info(&ModelSource::parse(p.to_str().unwrap()).unwrap()).unwrap_err();
+    assert_eq!(e.kind(), pupper_core::ErrorKind::Model, "{e}");
+    assert!(!e.to_string().contains('\n'), "one line: {e}");
+}
