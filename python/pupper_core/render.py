@@ -748,7 +748,7 @@ def write_effects(
     def status(r: _CellRun, i: int) -> str:
         if r.diverged_at is not None and r.times[i] >= r.diverged_at:
             return "DIVERGED"
-        return ""
+        return f"base z {r.z[i] * 1000:.0f} mm"
 
     nframes = min(len(r.frames) for r in runs)
     gif_frames: list[Image.Image] = []
@@ -761,8 +761,7 @@ def write_effects(
     finals = []
     for r in runs:
         i = len(r.frames) - 1
-        st_txt = status(r, i) or f"base z {r.z[i] * 1000:.0f} mm"
-        finals.append(_panel(r.frames[i], r.label, r.params, r.times[i], False, push_text, st_txt, fonts, header_h))
+        finals.append(_panel(r.frames[i], r.label, r.params, r.times[i], False, push_text, status(r, i), fonts, header_h))
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     png_path = out / f"{stem}.png"

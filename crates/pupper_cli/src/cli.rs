@@ -476,7 +476,7 @@ fn sweep(a: SweepArgs, stop: Arc<AtomicBool>) -> Result<ExitCode> {
         for p in bridge::call_helper(
             "pupper_core.plots",
             "write_run_plots",
-            &[dir_s.clone()],
+            std::slice::from_ref(&dir_s),
             &[],
         )? {
             eprintln!("wrote {p}");

@@ -329,6 +329,9 @@ impl<'py> Mujoco<'py> {
     }
 }
 
+/// A compiled body variant, keyed by the bits of (leg_scale, torso_mass_scale).
+type Variant<'py> = ((u64, u64), Bound<'py, PyAny>);
+
 /// A compiled model and what was read from it.
 pub struct LoadedModel<'py> {
     mj: Mujoco<'py>,
@@ -337,7 +340,7 @@ pub struct LoadedModel<'py> {
     info: ModelInfo,
     layout: Option<Layout>,
     /// Compiled body variants by (leg_scale, torso_mass_scale) bits.
-    variants: RefCell<Vec<((u64, u64), Bound<'py, PyAny>)>>,
+    variants: RefCell<Vec<Variant<'py>>>,
 }
 
 impl<'py> LoadedModel<'py> {

@@ -143,7 +143,12 @@ impl Settle {
         if t < self.from {
             return;
         }
-        self.out_now = !((z - reference).abs() <= self.band);
+        // NaN counts as outside
+        use std::cmp::Ordering::{Equal, Less};
+        self.out_now = !matches!(
+            (z - reference).abs().partial_cmp(&self.band),
+            Some(Less | Equal)
+        );
         if self.out_now {
             self.last_out = Some(t);
         }
