@@ -1,0 +1,706 @@
+"""Plots of sweep results (matplotlib, imported lazily).
+
+Every function returns a ``matplotlib.figure.Figure`` built without pyplot
+when it makes its own figure, so nothing accumulates in pyplot's registry
+and a script needs no display; in a notebook, a returned figure shows once
+when it is a cell's last expression (or via ``display(fig)``). Pass ``ax=`` to
+draw into your own axes instead.
+
+``table`` arguments are mappings column name -> sequence, with the columns of
+``summary.csv`` (``read_run`` returns one; so does ``SweepResult.table``).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Iterator, Mapping, Sequence, Union
+
+import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+__all__ = ["base_z", "heatmap", "metric_vs_axis", "bars", "read_run", "write_run_plots"]
+
+Table = Mapping[str, Union[Sequence[Any], np.ndarray]]
+Traces = Mapping[str, tuple[np.ndarray, np.ndarray]]
+
+#: Columns of summary.csv that are text, not numbers.
+TEXT_COLUMNS = ("id", "name", "status")
+#: Metric columns of summary.csv, in file order (everything between the axes and these is an axis).
+METRICS = (
+    "final_z",
+    "last_1s_std_mm",
+    "push_dip_mm",
+    "settle_time_s",
+    "max_tilt_deg",
+    "peak_torque",
+    "saturation_frac",
+    "tracking_rms",
+    "status",
+    "event_time",
+)
+#: Human labels with units.
+LABELS: dict[str, str] = {
+    "kp": "Kp (N·m/rad)",
+    "kd": "Kd (N·m·s/rad)",
+    "push_force": "push force, world z (N)",
+    "max_torque": "torque limit (N·m)",
+    "friction": "sliding friction μ",
+    "timestep": "timestep (s)",
+    "leg_scale": "leg length scale (×)",
+    "torso_mass_scale": "torso mass scale (×)",
+    "final_z": "final base height (m)",
+    "last_1s_std_mm": "base-height std, last 1 s (mm)",
+    "push_dip_mm": "push dip of base height (mm)",
+    "settle_time_s": "settle time after push (s)",
+    "max_tilt_deg": "max tilt (°)",
+    "peak_torque": "peak joint torque (N·m)",
+    "saturation_frac": "fraction of torque samples saturated",
+    "tracking_rms": "joint tracking RMS error (rad)",
+    "event_time": "fall / divergence time (s)",
+}
+SHORT: dict[str, str] = {
+    "kp": "Kp",
+    "kd": "Kd",
+    "push_force": "push",
+    "max_torque": "τmax",
+    "friction": "μ",
+    "timestep": "dt",
+    "leg_scale": "leg×",
+    "torso_mass_scale": "torso×",
+}
+DPI = 120
+_RC = {
+    "font.size": 11,
+    "axes.titlesize": 12,
+    "axes.labelsize": 11,
+    "xtick.labelsize": 10,
+    "ytick.labelsize": 10,
+    "legend.fontsize": 9,
+    "figure.titlesize": 13,
+    "axes.grid": False,
+}
+_BAD_GREY = "#c8c8c8"
+
+
+# ---------------------------------------------------------------------------
+# helpers
+
+
+def _ensure_backend() -> None:
+    """Selects Agg when no backend was chosen and there is no display."""
+    import matplotlib
+
+    if os.environ.get("MPLBACKEND"):
+        return
+    chosen = getattr(matplotlib.rcParams, "_get_backend_or_none", lambda: "?")()
+    headless = not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    if chosen is None and headless and sys.platform.startswith("linux"):
+        matplotlib.use("Agg")
+
+
+@contextmanager
+def _style() -> Iterator[None]:
+    _ensure_backend()
+    import matplotlib
+
+    with matplotlib.rc_context(_RC):
+        yield
+
+
+def _new_figure(figsize: tuple[float, float]) -> "Figure":
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=figsize, dpi=DPI, layout="constrained")
+
+
+def label_of(column: str) -> str:
+    """Axis/colorbar label with units for a summary column."""
+    return LABELS.get(column, column)
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, str):
+        return v
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return str(v)
+    if math.isnan(f):
+        return "—"
+    return f"{f:g}"
+
+
+def _col(table: Table, name: str) -> np.ndarray:
+    if name not in table:
+        raise KeyError(f"column '{name}' is not in the table (columns: {', '.join(table)})")
+    return np.asarray(table[name])
+
+
+def _num(table: Table, name: str) -> np.ndarray:
+    a = _col(table, name)
+    if a.dtype.kind in "fiub":
+        return a.astype(float)
+    out = np.full(a.shape, np.nan)
+    for i, v in enumerate(a):
+        try:
+            out[i] = float(v) if v not in ("", None) else np.nan
+        except (TypeError, ValueError):
+            pass
+    return out
+
+
+def _nrows(table: Table) -> int:
+    return len(next(iter(table.values()))) if table else 0
+
+
+def _status(table: Table) -> np.ndarray:
+    if "status" in table:
+        return np.asarray([str(s) for s in table["status"]], dtype=object)
+    return np.asarray(["ok"] * _nrows(table), dtype=object)
+
+
+def _distinct(values: np.ndarray) -> list[Any]:
+    """Distinct values in sorted order (numbers numerically, NaN dropped)."""
+    if values.dtype.kind in "fiub":
+        v = values[~np.isnan(values.astype(float))]
+        return sorted(set(v.tolist()))
+    return sorted(set(values.tolist()), key=str)
+
+
+def _best_index(values: np.ndarray, status: np.ndarray, minimize: bool) -> int | None:
+    """Row of the best finite value among cells whose status is ok (else any)."""
+    finite = np.isfinite(values)
+    ok = finite & (status == "ok")
+    pool = ok if ok.any() else finite
+    if not pool.any():
+        return None
+    idx = np.flatnonzero(pool)
+    sub = values[idx]
+    return int(idx[np.argmin(sub) if minimize else np.argmax(sub)])
+
+
+def _row_label(table: Table, i: int, axes: Sequence[str] | None = None, label: str = "name") -> str:
+    name = str(table[label][i]) if label in table else ""
+    if axes is None:
+        axes = [a for a in SHORT if a in table]
+    vals = ", ".join(f"{SHORT.get(a, a)} {_fmt(table[a][i])}" for a in axes)
+    if name and vals:
+        return f"{name} ({vals})"
+    return name or vals or (str(table["id"][i]) if "id" in table else str(i))
+
+
+def _push_tuple(push: Any) -> tuple[float, float, float | None] | None:
+    if push is None:
+        return None
+    if isinstance(push, Mapping):
+        f = push.get("force")
+        fz = float(f[2]) if f is not None and len(f) > 2 else None
+        return float(push["start"]), float(push["duration"]), fz
+    seq = list(push)
+    fz = None
+    if len(seq) > 2:
+        f = seq[2]
+        fz = float(f) if np.ndim(f) == 0 else float(np.asarray(f, dtype=float)[-1])
+    return float(seq[0]), float(seq[1]), fz
+
+
+# ---------------------------------------------------------------------------
+# plots
+
+
+def base_z(
+    traces: Traces,
+    push: Any = None,
+    ax: "Axes | None" = None,
+    labels: Mapping[str, str] | Sequence[str] | None = None,
+    *,
+    title: str | None = None,
+) -> "Figure":
+    """Base height (mm) against time, one line per trace; the push window is shaded.
+
+    ``traces``: id -> (t in s, z in m). ``push``: (start, duration[, force z]) or
+    a manifest push dict or None. ``labels``: id -> label, or a list in trace order.
+    """
+    with _style():
+        fig = _new_figure((9.0, 4.8)) if ax is None else ax.figure
+        ax = fig.add_subplot() if ax is None else ax
+        ids = list(traces)
+        if labels is None:
+            names = {k: str(k) for k in ids}
+        elif isinstance(labels, Mapping):
+            names = {k: str(labels.get(k, k)) for k in ids}
+        else:
+            names = {k: str(lab) for k, lab in zip(ids, labels)}
+        n = len(ids)
+        if n > 10:
+            import matplotlib
+
+            cmap = matplotlib.colormaps["viridis"]
+            colours = [cmap(i / max(1, n - 1)) for i in range(n)]
+        else:
+            colours = [f"C{i}" for i in range(n)]
+        for k, c in zip(ids, colours):
+            t, z = traces[k]
+            ax.plot(np.asarray(t, float), np.asarray(z, float) * 1000.0, color=c, lw=1.4, label=names[k])
+        p = _push_tuple(push)
+        if p is not None:
+            start, dur, fz = p
+            what = f"push {fz:+g} N" if fz is not None else "push"
+            ax.axvspan(start, start + dur, color="tab:red", alpha=0.15, lw=0, label=f"{what} ({dur:g} s)")
+            ax.axvline(start, color="tab:red", lw=0.8, alpha=0.6)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("base height z (mm)")
+        ax.grid(True, alpha=0.3)
+        if title is not None:
+            ax.set_title(title)
+        if n <= 24:
+            ncol = 1 if n <= 8 else 2
+            ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), ncol=ncol, frameon=False)
+        return fig
+
+
+def heatmap(
+    table: Table,
+    metric: str = "last_1s_std_mm",
+    x: str = "kp",
+    y: str = "kd",
+    by: str | None = None,
+    ax: "Axes | None" = None,
+    minimize: bool = True,
+    *,
+    title: str | None = None,
+    log: bool | None = None,
+) -> "Figure":
+    """Heatmap of ``metric`` over ``x`` × ``y``, one panel per value of ``by``.
+
+    Values are annotated; the best cell (min if ``minimize``, among cells whose
+    status is ok when any is) is boxed with a star; NaN and diverged cells are
+    grey. ``log=None`` picks a log colour scale for positive data spanning
+    more than 100×. The figure's ``pupper_best`` attribute lists the marked
+    cells as dicts ``{"panel", x, y, metric}``.
+    """
+    from matplotlib.colors import LogNorm, Normalize
+    from matplotlib.patches import Rectangle
+
+    with _style():
+        vals = _num(table, metric)
+        xs_all = _num(table, x)
+        ys_all = _num(table, y)
+        status = _status(table)
+        xv = _distinct(xs_all)
+        yv = _distinct(ys_all)
+        if by is not None:
+            bcol = _col(table, by)
+            panels: list[Any] = _distinct(bcol if bcol.dtype.kind not in "fiub" else bcol.astype(float))
+        else:
+            bcol = None
+            panels = [None]
+        if ax is not None and len(panels) > 1:
+            raise ValueError("heatmap: ax= draws one panel; drop ax or by")
+
+        # grids per panel
+        grids = []
+        for pv in panels:
+            sel = np.ones(len(vals), bool) if bcol is None else (bcol == pv)
+            grid = np.full((len(yv), len(xv)), np.nan)
+            stat = np.full((len(yv), len(xv)), "", dtype=object)
+            seen = np.zeros((len(yv), len(xv)), bool)
+            for i in np.flatnonzero(sel):
+                if not (np.isfinite(xs_all[i]) and np.isfinite(ys_all[i])):
+                    continue
+                c, r = xv.index(xs_all[i]), yv.index(ys_all[i])
+                if seen[r, c]:
+                    raise ValueError(
+                        f"heatmap: several rows share {x}={_fmt(xs_all[i])}, {y}={_fmt(ys_all[i])}; "
+                        "pass by=<the other axis> or filter the table"
+                    )
+                seen[r, c] = True
+                grid[r, c] = vals[i] if status[i] != "diverged" else np.nan
+                stat[r, c] = status[i]
+            grids.append((pv, grid, stat, seen))
+
+        finite = np.concatenate([g[1][np.isfinite(g[1])] for g in grids]) if grids else np.array([])
+        if log is None:
+            log = bool(finite.size and finite.min() > 0 and finite.max() / finite.min() > 100)
+        if finite.size == 0:
+            norm: Normalize = Normalize(0, 1)
+        elif log:
+            norm = LogNorm(max(finite.min(), 1e-12), max(finite.max(), finite.min() * 1.0001))
+        else:
+            lo, hi = float(finite.min()), float(finite.max())
+            norm = Normalize(lo, hi if hi > lo else lo + 1e-9)
+        import matplotlib
+
+        cmap = matplotlib.colormaps["viridis_r" if minimize else "viridis"].copy()
+        cmap.set_bad(_BAD_GREY)
+
+        npan = len(panels)
+        cw = max(0.75, min(1.1, 9.0 / max(1, len(xv))))
+        pw = cw * len(xv) + 1.2
+        ph = 0.55 * len(yv) + 1.6
+        if ax is None:
+            ncols = min(npan, 3)
+            nrows = math.ceil(npan / ncols)
+            fig = _new_figure((pw * ncols + 1.4, ph * nrows + (0.5 if title else 0.2)))
+            axs = list(np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False).ravel()))
+            for extra in axs[npan:]:
+                extra.set_visible(False)
+            axs = axs[:npan]
+        else:
+            fig = ax.figure
+            axs = [ax]
+        best_marks: list[dict[str, Any]] = []
+        im = None
+        fs = 9 if len(xv) > 7 else 10
+        for a, (pv, grid, stat, seen) in zip(axs, grids):
+            im = a.imshow(np.ma.masked_invalid(grid), cmap=cmap, norm=norm, origin="lower", aspect="auto")
+            a.set_xticks(range(len(xv)), [_fmt(v) for v in xv])
+            a.set_yticks(range(len(yv)), [_fmt(v) for v in yv])
+            a.set_xlabel(label_of(x))
+            a.set_ylabel(label_of(y))
+            a.set_xticks(np.arange(-0.5, len(xv)), minor=True)
+            a.set_yticks(np.arange(-0.5, len(yv)), minor=True)
+            a.grid(which="minor", color="white", lw=1.5)
+            a.tick_params(which="minor", length=0)
+            for r in range(len(yv)):
+                for c in range(len(xv)):
+                    if not seen[r, c]:
+                        continue
+                    v = grid[r, c]
+                    if stat[r, c] == "diverged":
+                        txt, colour = "diverged", "#444444"
+                    elif not np.isfinite(v):
+                        txt, colour = "n/a", "#444444"
+                    else:
+                        txt = f"{v:.3g}"
+                        rgba = cmap(norm(v))
+                        lum = 0.299 * rgba[0] + 0.587 * rgba[1] + 0.114 * rgba[2]
+                        colour = "black" if lum > 0.55 else "white"
+                        if stat[r, c] == "fell":
+                            txt += "\nfell"
+                    a.text(c, r, txt, ha="center", va="center", color=colour, fontsize=fs)
+            # best cell
+            sel_rows = np.ones(len(vals), bool) if bcol is None else (bcol == pv)
+            v2 = np.where(sel_rows & (status != "diverged"), vals, np.nan)
+            bi = _best_index(v2, status, minimize)
+            if bi is not None:
+                c, r = xv.index(xs_all[bi]), yv.index(ys_all[bi])
+                a.add_patch(
+                    Rectangle((c - 0.5, r - 0.5), 1, 1, fill=False, ec="red", lw=3, zorder=5, gid="best")
+                )
+                a.plot(c + 0.5 - 0.14, r + 0.5 - 0.17, marker="*", ms=12, color="red", mec="white",
+                       mew=0.8, zorder=6, gid="best_star")
+                best_marks.append({"panel": pv, x: xv[c], y: yv[r], metric: float(vals[bi])})
+            if pv is not None:
+                a.set_title(f"{by} = {_fmt(pv)}" if by in SHORT or by in LABELS else str(pv))
+        if im is not None:
+            cb = fig.colorbar(im, ax=axs, shrink=0.9 if len(yv) > 3 else 1.0)
+            cb.set_label(label_of(metric))
+        best_word = "lowest" if minimize else "highest"
+        sub = f"★ = {best_word}" + (" among cells that stayed up" if (status != "ok").any() else "")
+        head = title if title is not None else label_of(metric)
+        if ax is None:
+            fig.suptitle(f"{head}\n{sub}", fontsize=12)
+        else:
+            ax.set_title(f"{head}\n{sub}", fontsize=11)
+        fig.pupper_best = best_marks  # type: ignore[attr-defined]
+        return fig
+
+
+def metric_vs_axis(
+    table: Table,
+    metric: str,
+    axis: str,
+    group: str | None = None,
+    *,
+    ax: "Axes | None" = None,
+    title: str | None = None,
+) -> "Figure":
+    """``metric`` against one grid axis, one line per value of ``group``.
+
+    Cells that fell are drawn with a red ×; diverged / NaN cells are left out.
+    """
+    with _style():
+        xs = _num(table, axis)
+        vs = _num(table, metric)
+        status = _status(table)
+        fig = _new_figure((7.5, 4.6)) if ax is None else ax.figure
+        ax = fig.add_subplot() if ax is None else ax
+        if group is not None:
+            gcol = _col(table, group)
+            groups: list[Any] = _distinct(gcol.astype(float) if gcol.dtype.kind in "fiub" else gcol)
+        else:
+            gcol = None
+            groups = [None]
+        fell_drawn = False
+        for gi, gv in enumerate(groups):
+            sel = np.ones(len(xs), bool) if gcol is None else (gcol == gv)
+            sel &= np.isfinite(xs)
+            order = np.flatnonzero(sel)[np.argsort(xs[sel], kind="stable")]
+            good = order[(status[order] != "diverged") & np.isfinite(vs[order])]
+            lab = None if gv is None else f"{SHORT.get(group or '', group)} = {_fmt(gv)}"
+            ax.plot(xs[good], vs[good], marker="o", ms=5, lw=1.6, color=f"C{gi % 10}", label=lab)
+            fell = good[status[good] == "fell"]
+            if fell.size:
+                ax.plot(xs[fell], vs[fell], ls="none", marker="x", ms=10, mew=2, color="red",
+                        label=None if fell_drawn else "fell", zorder=5)
+                fell_drawn = True
+        pos = xs[np.isfinite(xs)]
+        if pos.size and pos.min() > 0 and pos.max() / pos.min() > 30:
+            ax.set_xscale("log")
+        ax.set_xlabel(label_of(axis))
+        ax.set_ylabel(label_of(metric))
+        ax.grid(True, alpha=0.3)
+        if group is not None or fell_drawn:
+            ax.legend(title=label_of(group) if group else None, frameon=False,
+                      loc="center left", bbox_to_anchor=(1.01, 0.5))
+        ax.set_title(title if title is not None else f"{label_of(metric)} vs {SHORT.get(axis, axis)}")
+        return fig
+
+
+def bars(
+    table: Table,
+    metric: str,
+    label: str = "name",
+    *,
+    ax: "Axes | None" = None,
+    minimize: bool = True,
+    title: str | None = None,
+) -> "Figure":
+    """Bar chart of ``metric`` per cell (e.g. named presets), values annotated.
+
+    Bars of cells that fell are orange, diverged / NaN cells are marked; the
+    best ok cell (min if ``minimize``) is outlined in red.
+    """
+    with _style():
+        vs = _num(table, metric)
+        status = _status(table)
+        n = len(vs)
+        axes_cols = [a for a in SHORT if a in table and len(_distinct(_num(table, a))) > 1]
+        names = []
+        for i in range(n):
+            nm = str(table[label][i]) if label in table else ""
+            params = ", ".join(f"{SHORT[a]} {_fmt(table[a][i])}" for a in axes_cols)
+            if not nm:
+                nm = params or (str(table["id"][i]) if "id" in table else str(i))
+            elif params:
+                nm = f"{nm}\n{params}"
+            names.append(nm)
+        fig = _new_figure((max(5.0, 1.1 * n + 2.0), 4.8)) if ax is None else ax.figure
+        ax = fig.add_subplot() if ax is None else ax
+        heights = np.where(np.isfinite(vs) & (status != "diverged"), vs, 0.0)
+        colours = ["#f28e2b" if s == "fell" else ("#bbbbbb" if s == "diverged" else "#4e79a7") for s in status]
+        rects = ax.bar(range(n), heights, color=colours, edgecolor="none")
+        best = _best_index(np.where(status != "diverged", vs, np.nan), status, minimize)
+        top = np.nanmax(np.abs(heights)) if n and np.isfinite(heights).any() else 1.0
+        for i, rect in enumerate(rects):
+            if status[i] == "diverged":
+                txt = "diverged"
+            elif not np.isfinite(vs[i]):
+                txt = "n/a"
+            else:
+                txt = f"{vs[i]:.3g}" + (" (fell)" if status[i] == "fell" else "")
+            ax.annotate(txt, (rect.get_x() + rect.get_width() / 2, heights[i]), xytext=(0, 3),
+                        textcoords="offset points", ha="center", va="bottom", fontsize=9)
+            if best is not None and i == best:
+                rect.set_edgecolor("red")
+                rect.set_linewidth(2.5)
+                rect.set_gid("best")
+        ax.set_ylim(0, top * 1.18 if top > 0 else 1.0)
+        ax.set_xticks(range(n), names, fontsize=9 if n > 6 else 10)
+        if n > 8:
+            for tl in ax.get_xticklabels():
+                tl.set_rotation(45)
+                tl.set_ha("right")
+        ax.set_ylabel(label_of(metric))
+        ax.grid(True, axis="y", alpha=0.3)
+        best_word = "lowest" if minimize else "highest"
+        ax.set_title(title if title is not None else f"{label_of(metric)}\n(red outline = {best_word})")
+        fig.pupper_best = (  # type: ignore[attr-defined]
+            [] if best is None else [{"row": best, "label": names[best].split("\n")[0], metric: float(vs[best])}]
+        )
+        return fig
+
+
+# ---------------------------------------------------------------------------
+# run directories
+
+
+def read_run(run_dir: str | os.PathLike) -> tuple[dict[str, Any], dict[str, Any], dict[str, tuple[np.ndarray, np.ndarray]]]:
+    """Reads ``summary.csv``, ``manifest.json`` and (if present) ``traces.csv``.
+
+    Returns ``(table, manifest, traces)``: numeric columns as float arrays
+    (empty field = NaN), ``id``/``name``/``status`` as lists of str; traces
+    id -> (t, z) arrays in file order ({} when there is no traces.csv).
+    """
+    d = Path(run_dir)
+    summary = d / "summary.csv"
+    if not summary.exists():
+        raise FileNotFoundError(f"{d} has no summary.csv: is it a pupper run directory?")
+    with summary.open(newline="") as f:
+        reader = csv.reader(f)
+        header = next(reader, None)
+        if header is None:
+            raise ValueError(f"{summary} is empty")
+        rows = [r for r in reader if r]
+    table: dict[str, Any] = {}
+    for j, name in enumerate(header):
+        col = [r[j] if j < len(r) else "" for r in rows]
+        if name in TEXT_COLUMNS:
+            table[name] = col
+        else:
+            table[name] = np.array([float(v) if v.strip() else np.nan for v in col], dtype=float)
+    manifest: dict[str, Any] = {}
+    mp = d / "manifest.json"
+    if mp.exists():
+        manifest = json.loads(mp.read_text())
+    traces: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    tp = d / "traces.csv"
+    if tp.exists():
+        acc: dict[str, tuple[list[float], list[float]]] = {}
+        with tp.open(newline="") as f:
+            reader = csv.reader(f)
+            head = next(reader, None) or []
+            ci, ti, zi = (head.index(k) for k in ("id", "t", "z"))
+            for r in reader:
+                if not r:
+                    continue
+                ts, zs = acc.setdefault(r[ci], ([], []))
+                ts.append(float(r[ti]) if r[ti] else np.nan)
+                zs.append(float(r[zi]) if r[zi] else np.nan)
+        traces = {k: (np.asarray(t, float), np.asarray(z, float)) for k, (t, z) in acc.items()}
+    return table, manifest, traces
+
+
+def grid_axes(table: Table) -> list[str]:
+    """The grid-axis columns of a summary table (between ``name`` and the metrics)."""
+    cols = list(table)
+    start = cols.index("name") + 1 if "name" in cols else 0
+    out = []
+    for c in cols[start:]:
+        if c in METRICS:
+            break
+        out.append(c)
+    return out
+
+
+def describe(manifest: Mapping[str, Any], n_cells: int | None = None) -> str:
+    """One line saying what a sweep was: mode, model, push, duration."""
+    cfg = manifest.get("config", {}) or {}
+    parts = []
+    mode = cfg.get("mode")
+    if mode:
+        parts.append(f"{mode} mode")
+    m = cfg.get("model") or {}
+    if isinstance(m, Mapping):
+        if "builtin" in m:
+            parts.append(str(m["builtin"]))
+        elif "path" in m:
+            parts.append(Path(str(m["path"])).name)
+    sched = cfg.get("schedule", {}) or {}
+    p = _push_tuple(sched.get("push"))
+    if sched and p is None:
+        parts.append("no push")
+    elif p is not None:
+        f = (sched.get("push") or {}).get("force")
+        ftxt = "[" + ", ".join(_fmt(v) for v in f) + "] N" if f is not None else ""
+        parts.append(f"push {ftxt} at {p[0]:g} s for {p[1]:g} s")
+    if sched.get("duration") is not None:
+        parts.append(f"{float(sched['duration']):g} s simulated")
+    defaults = cfg.get("defaults") or {}
+    if defaults:
+        parts.append("defaults " + ", ".join(f"{SHORT.get(k, k)} {_fmt(v)}" for k, v in defaults.items()))
+    if n_cells is not None:
+        parts.append(f"{n_cells} cells")
+    return " · ".join(parts)
+
+
+def _save(fig: "Figure", path: Path) -> Path:
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        fig.savefig(tmp, format="png", dpi=DPI)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def _is_product(table: Table, varying: Sequence[str], manifest: Mapping[str, Any]) -> bool:
+    grid = ((manifest.get("config") or {}).get("grid") or {}) if manifest else {}
+    if grid.get("explicit"):
+        return False
+    n = _nrows(table)
+    combos = {tuple(_num(table, a)[i] for a in varying) for i in range(n)}
+    return len(combos) == n == math.prod(len(_distinct(_num(table, a))) for a in varying)
+
+
+def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
+    """Writes the standard plots of a run into ``<run_dir>/plots/``; returns their paths.
+
+    ``base_z.png`` when traces exist; for a Kp × Kd product grid
+    ``heatmap_<metric>.png`` (a panel per value of a third axis), for one
+    varying axis ``<metric>_vs_<axis>.png``, for two varying axes other than
+    Kp × Kd ``<metric>_vs_<axis1>.png`` grouped by the other, else (presets,
+    non-product grids) ``bars_<metric>.png``; metrics last_1s_std_mm and
+    push_dip_mm. Files are written atomically.
+    """
+    d = Path(run_dir)
+    table, manifest, traces = read_run(d)
+    out = d / "plots"
+    out.mkdir(parents=True, exist_ok=True)
+    n = _nrows(table)
+    what = describe(manifest, n)
+    axes = grid_axes(table)
+    varying = [a for a in axes if len(_distinct(_num(table, a))) > 1]
+    written: list[Path] = []
+    sched = ((manifest.get("config") or {}).get("schedule") or {}) if manifest else {}
+    push = sched.get("push")
+
+    def finish(fig: "Figure", name: str, head: str) -> None:
+        fig.suptitle(f"{head}\n{what}", fontsize=11)
+        written.append(_save(fig, out / name))
+
+    if traces:
+        labels = {}
+        if "id" in table:
+            for i, cid in enumerate(table["id"]):
+                labels[cid] = _row_label(table, i, varying or axes)
+        fig = base_z(traces, push=push, labels=labels)
+        finish(fig, "base_z.png", "Base height during the sweep")
+
+    metrics = [m for m in ("last_1s_std_mm", "push_dip_mm") if m in table]
+    product = _is_product(table, varying, manifest) if varying else False
+    for metric in metrics:
+        if product and "kp" in varying and "kd" in varying:
+            others = [a for a in varying if a not in ("kp", "kd")]
+            t2: dict[str, Any] = dict(table)
+            by = None
+            if len(others) == 1:
+                by = others[0]
+            elif len(others) > 1:
+                by = "_panel"
+                t2[by] = [", ".join(f"{SHORT.get(a, a)} = {_fmt(table[a][i])}" for a in others) for i in range(n)]
+            fig = heatmap(t2, metric, "kp", "kd", by=by)
+            fig.suptitle(f"{label_of(metric)}  (★ = lowest among cells that stayed up)\n{what}", fontsize=11)
+            written.append(_save(fig, out / f"heatmap_{metric}.png"))
+        elif product and len(varying) in (1, 2):
+            axis = varying[0]
+            group = varying[1] if len(varying) == 2 else None
+            if group is not None and axis not in ("kp", "kd") and group in ("kp", "kd"):
+                axis, group = group, axis
+            fig = metric_vs_axis(table, metric, axis, group)
+            finish(fig, f"{metric}_vs_{axis}.png", f"{label_of(metric)} vs {label_of(axis)}")
+        else:
+            fig = bars(table, metric)
+            finish(fig, f"bars_{metric}.png", label_of(metric) + "  (red outline = lowest)")
+    return written
