@@ -37,7 +37,12 @@ fi
 # 3 and 4. Build against the venv's interpreter.
 export PYO3_PYTHON="$root/.venv/bin/python"
 say "building the pupper_core Python module"
-(cd python && VIRTUAL_ENV="$root/.venv" "$root/.venv/bin/maturin" develop --release -q)
+log=.venv/maturin.log
+if ! (cd python && VIRTUAL_ENV="$root/.venv" "$root/.venv/bin/maturin" develop --release) >"$log" 2>&1; then
+  cat "$log" >&2
+  say "error: building the Python module failed (full log above, also in $log)"
+  exit 1
+fi
 say "building the pupper binary"
 cargo build --release -q -p pupper_cli
 say "ready: target/release/pupper ($(target/release/pupper --version))"

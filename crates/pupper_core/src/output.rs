@@ -171,6 +171,7 @@ pub struct RunWriter {
     want_traces: bool,
     pub manifest: Manifest,
     created: bool,
+    overwrite: bool,
     started: std::time::Instant,
 }
 
@@ -197,6 +198,7 @@ impl RunWriter {
                 want_traces: manifest.config.schedule.trace_every > 0,
                 manifest,
                 created: true,
+                overwrite: false,
                 started: std::time::Instant::now(),
             });
         };
@@ -242,6 +244,7 @@ impl RunWriter {
             want_traces,
             manifest,
             created: false,
+            overwrite: existing == Existing::Overwrite,
             started: std::time::Instant::now(),
         })
     }
@@ -273,6 +276,15 @@ impl RunWriter {
     pub fn create(&mut self) -> Result<()> {
         let Some(dir) = &self.dir else { return Ok(()) };
         std::fs::create_dir_all(dir).map_err(|e| Error::io("create", dir, e))?;
+        if self.overwrite {
+            // an overwritten run must not keep files of the old one
+            for f in [SUMMARY, TRACES] {
+                let p = dir.join(f);
+                if p.exists() {
+                    std::fs::remove_file(&p).map_err(|e| Error::io("remove", &p, e))?;
+                }
+            }
+        }
         self.created = true;
         self.manifest.cells_done = self.rows.len();
         self.write_manifest()
