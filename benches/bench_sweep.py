@@ -89,19 +89,32 @@ def servo_model(base_model: mujoco.MjModel, kp: float, kd: float) -> mujoco.MjMo
 # --- the three ways ---------------------------------------------------------
 
 
-def run_pupper(threads: int) -> tuple[float, dict]:
-    t0 = time.perf_counter()
-    res = pupper_core.sweep({"kp": KP, "kd": KD}, seconds=SECONDS, progress=False, threads=threads)
-    wall = time.perf_counter() - t0
+class Clock:
+    """Wall and process CPU seconds (all threads) of a block."""
+
+    def __enter__(self) -> "Clock":
+        self.t0, self.c0 = time.perf_counter(), time.process_time()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.wall = time.perf_counter() - self.t0
+        self.cpu = time.process_time() - self.c0
+
+
+def run_pupper(threads: int) -> tuple[Clock, dict]:
+    with Clock() as clock:
+        res = pupper_core.sweep(
+            {"kp": KP, "kd": KD}, seconds=SECONDS, progress=False, threads=threads
+        )
     cells = {}
     for i in range(len(res)):
         r = res.row(i)
         cells[(r["kp"], r["kd"])] = (r["final_z"], r["last_1s_std_mm"], r["push_dip_mm"])
-    return wall, cells
+    return clock, cells
 
 
-def run_plain(base_model: mujoco.MjModel, base: int) -> tuple[float, dict]:
-    t0 = time.perf_counter()
+def run_plain(base_model: mujoco.MjModel, base: int) -> tuple[Clock, dict]:
+    clock = Clock().__enter__()
     cells = {}
     for kp in KP:
         for kd in KD:
@@ -125,11 +138,14 @@ def run_plain(base_model: mujoco.MjModel, base: int) -> tuple[float, dict]:
             low = z[(t >= PUSH_START) & (t < PUSH_END + 1.5)].min()
             dip_mm = max(pre - low, 0.0) * 1e3
             cells[(kp, kd)] = (float(final_z), float(std_mm), float(dip_mm))
-    return time.perf_counter() - t0, cells
+    clock.__exit__()
+    return clock, cells
 
 
-def run_physics(base_model: mujoco.MjModel, base: int) -> float:
-    t0 = time.perf_counter()
+def run_physics(base_model: mujoco.MjModel, base: int) -> tuple[Clock, dict]:
+    """Serial bare stepping; also each cell's seconds (for load-balance figures)."""
+    clock = Clock().__enter__()
+    per_cell = {}
     for kp in KP:
         for kd in KD:
             model = servo_model(base_model, kp, kd)
@@ -140,13 +156,16 @@ def run_physics(base_model: mujoco.MjModel, base: int) -> float:
             mujoco.mj_step(model, data, PUSH_STEPS)
             data.xfrc_applied[base, 2] = 0.0
             mujoco.mj_step(model, data, POST_PUSH)
-    return time.perf_counter() - t0
+            per_cell[(kp, kd)] = time.perf_counter() - clock.t0 - sum(per_cell.values())
+    clock.__exit__()
+    return clock, per_cell
 
 
 # --- optional: where does pupper's time go? ---------------------------------
 
 
 def batch_for_grid(base_model: mujoco.MjModel, nthread: int):
+    """A bare mujoco.batch.Batch holding the 16 cells, reset to `home`."""
     import mujoco.batch
 
     b = mujoco.batch.Batch(base_model, NCELL, nthread)
@@ -159,57 +178,84 @@ def batch_for_grid(base_model: mujoco.MjModel, nthread: int):
     return b
 
 
-def breakdown(base_model: mujoco.MjModel, base: int, repeat: int) -> dict[str, float]:
-    """Bare Batch timings on the 16 cells (no push: it does not change the cost)."""
-    rec = ("qpos", "actuator_force")
-
-    def chunks():
-        k = 0
-        while k < NSTEP:
-            end = min(k + 250, NSTEP)
-            for bnd in (PRE_PUSH, PRE_PUSH + PUSH_STEPS):
-                if k < bnd < end:
-                    end = bnd
-            yield end - k
-            k = end
-
-    cases = {
-        "batch.step(nstep=5000), all threads": lambda b: b.step(nstep=NSTEP),
-        "batch.rollout(5000, record=qpos+act), all threads": lambda b: b.rollout(NSTEP, record=rec),
-        "batch.rollout in pupper's 250-step chunks, all threads": lambda b: [
-            b.rollout(n, record=rec) for n in chunks()
-        ],
-        "batch.step(nstep=5000), 1 thread": lambda b: b.step(nstep=NSTEP),
-    }
-    out = {}
-    for name, fn in cases.items():
-        nthread = 1 if name.endswith("1 thread") else 0
-        times = []
-        for _ in range(repeat):
-            b = batch_for_grid(base_model, nthread)
-            t0 = time.perf_counter()
-            fn(b)
-            times.append(time.perf_counter() - t0)
-        out[name] = statistics.median(times)
+def pupper_chunks() -> list[int]:
+    """nstep of each rollout call pupper makes (250-step chunks cut at the push)."""
+    out, k = [], 0
+    while k < NSTEP:
+        end = min(k + 250, NSTEP)
+        for bnd in (PRE_PUSH, PRE_PUSH + PUSH_STEPS):
+            if k < bnd < end:
+                end = bnd
+        out.append(end - k)
+        k = end
     return out
 
 
+def breakdown(base_model: mujoco.MjModel, repeat: int) -> dict[str, tuple[float, float]]:
+    """Median (wall, cpu) of bare Batch calls on the 16 cells (push left out:
+    it changes the work by well under 1%)."""
+    rec = ("qpos", "actuator_force")
+    cases = [
+        ("Batch(...,1).step(nstep=5000)", 1, lambda b: b.step(nstep=NSTEP)),
+        ("Batch(...,0).step(nstep=5000)", 0, lambda b: b.step(nstep=NSTEP)),
+        ("Batch(...,0).rollout(5000, record=qpos+act)", 0, lambda b: b.rollout(NSTEP, record=rec)),
+        ("Batch(...,0).rollout, pupper's 250-step chunks", 0,
+         lambda b: [b.rollout(n, record=rec) for n in pupper_chunks()]),
+        ("Batch(...,1).rollout, pupper's 250-step chunks", 1,
+         lambda b: [b.rollout(n, record=rec) for n in pupper_chunks()]),
+    ]
+    samples: dict[str, list[Clock]] = {name: [] for name, _, _ in cases}
+    for _ in range(repeat):
+        for name, nthread, fn in cases:  # interleaved, like the main timings
+            b = batch_for_grid(base_model, nthread)
+            with Clock() as c:
+                fn(b)
+            samples[name].append(c)
+    return {
+        name: (statistics.median(c.wall for c in cs), statistics.median(c.cpu for c in cs))
+        for name, cs in samples.items()
+    }
+
+
+def makespans(per_cell: dict, ncpu: int) -> dict[str, float]:
+    """Load balance of the 16 cells' serial costs over ncpu threads."""
+    costs = [per_cell[(kp, kd)] for kp in KP for kd in KD]  # grid order
+    lpt = [0.0] * ncpu
+    for c in sorted(costs, reverse=True):
+        lpt[lpt.index(min(lpt))] += c
+    per = -(-len(costs) // ncpu)
+    contiguous = [sum(costs[i : i + per]) for i in range(0, len(costs), per)]
+    return {
+        "perfect (sum / ncpu)": sum(costs) / ncpu,
+        "best assignment (LPT)": max(lpt),
+        "contiguous blocks in grid order": max(contiguous),
+        "costliest cell": max(costs),
+    }
+
+
 # --- main -------------------------------------------------------------------
+
+
+def median_clock(cs: list[Clock]) -> tuple[float, float]:
+    return statistics.median(c.wall for c in cs), statistics.median(c.cpu for c in cs)
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3, help="repeats per way (median taken)")
     ap.add_argument("--json", metavar="FILE", help="write the numbers as JSON to FILE")
-    ap.add_argument("--breakdown", action="store_true", help="also time bare Batch calls")
+    ap.add_argument("--breakdown", action="store_true",
+                    help="also time bare mujoco.batch.Batch calls and the cells' load balance")
     args = ap.parse_args()
     repeat = max(1, args.repeat)
     ncpu = os.cpu_count() or 1
+    load0 = os.getloadavg()
 
     base_model, base = load_model()
     print(
         f"pupper_core {pupper_core.__version__}, mujoco {mujoco.__version__}, "
-        f"os.cpu_count() = {ncpu}, {NCELL} cells x {NSTEP} steps, repeat {repeat}",
+        f"os.cpu_count() = {ncpu}, {NCELL} cells x {NSTEP} steps, repeat {repeat}, "
+        f"load average {load0[0]:.2f}",
         flush=True,
     )
 
@@ -220,20 +266,23 @@ def main() -> int:
     mujoco.mj_resetDataKeyframe(m, d, 0)
     mujoco.mj_step(m, d, 200)
 
-    t_pupper, t_pupper1, t_plain, t_phys = [], [], [], []
+    runs: dict[str, list[Clock]] = {"pupper": [], "pupper1": [], "plain": [], "physics": []}
+    per_cell_runs: list[dict] = []
     pupper_cells = plain_cells = None
     for r in range(repeat):
-        # interleaved so that drift in the machine's speed hits every way alike
-        w, pupper_cells = run_pupper(threads=0)
-        t_pupper.append(w)
-        w, _ = run_pupper(threads=1)
-        t_pupper1.append(w)
-        w, plain_cells = run_plain(base_model, base)
-        t_plain.append(w)
-        t_phys.append(run_physics(base_model, base))
+        # interleaved, so that drift in the machine's speed hits every way alike
+        c, pupper_cells = run_pupper(threads=0)
+        runs["pupper"].append(c)
+        c, _ = run_pupper(threads=1)
+        runs["pupper1"].append(c)
+        c, plain_cells = run_plain(base_model, base)
+        runs["plain"].append(c)
+        c, per_cell = run_physics(base_model, base)
+        runs["physics"].append(c)
+        per_cell_runs.append(per_cell)
         print(
-            f"  repeat {r + 1}/{repeat}: pupper {t_pupper[-1]:.3f} s, pupper threads=1 "
-            f"{t_pupper1[-1]:.3f} s, plain {t_plain[-1]:.3f} s, physics {t_phys[-1]:.3f} s",
+            f"  repeat {r + 1}/{repeat}: "
+            + ", ".join(f"{k} {v[-1].wall:.3f} s (cpu {v[-1].cpu:.3f})" for k, v in runs.items()),
             flush=True,
         )
 
@@ -247,42 +296,45 @@ def main() -> int:
         if got is None:
             continue
         for n, a, b in zip(names, got, want):
-            diff = abs(a - b) if (np.isfinite(a) and np.isfinite(b)) else (
-                0.0 if (np.isnan(a) and np.isnan(b)) else float("inf")
-            )
+            if np.isnan(a) and np.isnan(b):
+                diff = 0.0
+            elif np.isfinite(a) and np.isfinite(b):
+                diff = abs(a - b)
+            else:
+                diff = float("inf")
             maxdiff[n] = max(maxdiff[n], diff)
-    worst = max(maxdiff.values())
-    correct = worst <= TOL and not missing
+    correct = max(maxdiff.values()) <= TOL and not missing
 
-    pupper = statistics.median(t_pupper)
-    pupper1 = statistics.median(t_pupper1)
-    plain = statistics.median(t_plain)
-    phys = statistics.median(t_phys)
+    (pupper, pupper_cpu), (pupper1, pupper1_cpu) = median_clock(runs["pupper"]), median_clock(runs["pupper1"])
+    (plain, plain_cpu), (phys, phys_cpu) = median_clock(runs["plain"]), median_clock(runs["physics"])
     floor = phys / ncpu
     speedup = plain / pupper
     over_floor = pupper / floor
     us = lambda s: s / (NCELL * NSTEP) * 1e6  # noqa: E731
 
     print()
-    print(f"{'way':<34}{'seconds':>10}{'us/step':>10}")
+    print(f"{'way (median of ' + str(repeat) + ')':<36}{'seconds':>9}{'us/step':>9}{'cpu s':>8}{'cpu/wall':>9}")
     rows = [
-        ("pupper sweep (threads=0)", pupper),
-        ("pupper sweep (threads=1)", pupper1),
-        ("plain Python loop (serial)", plain),
-        ("physics alone (serial, 1 core)", phys),
-        (f"physics floor (= physics / {ncpu})", floor),
+        ("pupper sweep (threads=0)", pupper, pupper_cpu),
+        ("pupper sweep (threads=1)", pupper1, pupper1_cpu),
+        ("plain Python loop (serial)", plain, plain_cpu),
+        ("physics alone (serial, 1 core)", phys, phys_cpu),
+        (f"physics floor (= physics / {ncpu})", floor, None),
     ]
-    for name, s in rows:
-        print(f"{name:<34}{s:>10.3f}{us(s):>10.2f}")
+    for name, s, c in rows:
+        cpu = f"{c:>8.3f}{c / s:>9.2f}" if c is not None else ""
+        print(f"{name:<36}{s:>9.3f}{us(s):>9.2f}{cpu}")
     print()
     ok1 = speedup >= SPEEDUP_TARGET
     ok2 = over_floor <= FLOOR_TARGET
-    print(f"speedup vs plain loop  = plain / pupper        = {speedup:6.2f}   "
+    print(f"speedup vs plain loop  = plain / pupper          = {speedup:6.2f}   "
           f"target >= {SPEEDUP_TARGET}  {'PASS' if ok1 else 'MISS'}")
-    print(f"pupper / physics floor = pupper / (phys/{ncpu})   = {over_floor:6.2f}   "
+    print(f"pupper / physics floor = pupper / (physics / {ncpu}) = {over_floor:6.2f}   "
           f"target <= {FLOOR_TARGET} {'PASS' if ok2 else 'MISS'}")
-    print(f"pupper threads=1 / threads=0 (scaling)         = {pupper1 / pupper:6.2f}")
-    print(f"pupper threads=1 / physics (serial overhead)   = {pupper1 / phys:6.2f}")
+    print(f"scaling: pupper threads=1 / threads=0            = {pupper1 / pupper:6.2f}")
+    print(f"serial overhead: pupper threads=1 / physics      = {pupper1 / phys:6.2f}")
+    print(f"Python per-step cost: (plain - physics) / steps  = {us(plain - phys):6.2f} us")
+    print(f"best possible speedup on {ncpu} cores: plain / floor  = {plain / floor:6.2f}")
     print()
     print("correctness (pupper vs plain loop, max abs diff over 16 cells): "
           + ", ".join(f"{n} {v:.3g}" for n, v in maxdiff.items())
@@ -290,13 +342,26 @@ def main() -> int:
     if missing:
         print(f"cells missing from one side: {missing}")
 
-    bd = None
+    # a busy machine makes single-threaded work get less than a core
+    load1 = os.getloadavg()
+    busy = min(plain_cpu / plain, phys_cpu / phys) < 0.9
+    if busy:
+        print(f"\nWARNING: the serial ways got {min(plain_cpu / plain, phys_cpu / phys):.2f} of a core "
+              f"(load average {load0[0]:.2f} -> {load1[0]:.2f}): other processes shared the CPUs, "
+              "so these timings are unreliable; rerun on an idle machine.")
+
+    bd = spans = None
     if args.breakdown:
-        bd = breakdown(base_model, base, repeat)
+        bd = breakdown(base_model, repeat)
         print()
-        print("breakdown: bare mujoco.batch.Batch on the 16 cells (median)")
-        for name, s in bd.items():
-            print(f"  {name:<56}{s:>8.3f} s {us(s):>7.2f} us/step")
+        print(f"breakdown: bare mujoco.batch.Batch on the 16 cells (median of {repeat})")
+        for name, (s, c) in bd.items():
+            print(f"  {name:<48}{s:>8.3f} s {us(s):>7.2f} us/step  cpu {c:.3f} s  cpu/wall {c / s:.2f}")
+        cell_med = {k: statistics.median(pc[k] for pc in per_cell_runs) for k in per_cell_runs[0]}
+        spans = makespans(cell_med, ncpu)
+        print(f"load balance of the cells' serial costs over {ncpu} threads (physics way):")
+        for name, s in spans.items():
+            print(f"  {name:<48}{s:>8.3f} s")
 
     if args.json:
         payload = {
@@ -304,6 +369,8 @@ def main() -> int:
             "repeat": repeat,
             "cells": NCELL,
             "steps": NSTEP,
+            "load_average": [load0[0], load1[0]],
+            "machine_busy": busy,
             "seconds": {
                 "pupper": pupper,
                 "pupper_threads1": pupper1,
@@ -311,12 +378,13 @@ def main() -> int:
                 "physics_serial": phys,
                 "physics_floor": floor,
             },
-            "samples": {
-                "pupper": t_pupper,
-                "pupper_threads1": t_pupper1,
-                "plain": t_plain,
-                "physics_serial": t_phys,
+            "cpu_seconds": {
+                "pupper": pupper_cpu,
+                "pupper_threads1": pupper1_cpu,
+                "plain": plain_cpu,
+                "physics_serial": phys_cpu,
             },
+            "samples": {k: [c.wall for c in v] for k, v in runs.items()},
             "us_per_step": {
                 "pupper": us(pupper),
                 "pupper_threads1": us(pupper1),
@@ -332,7 +400,8 @@ def main() -> int:
             "floor_pass": ok2,
             "correctness_max_abs_diff": maxdiff,
             "correct": correct,
-            "breakdown_seconds": bd,
+            "breakdown": None if bd is None else {k: {"wall": w, "cpu": c} for k, (w, c) in bd.items()},
+            "load_balance_seconds": spans,
         }
         with open(args.json, "w") as f:
             json.dump(payload, f, indent=2)

@@ -89,6 +89,7 @@ _RC = {
     "axes.grid": False,
 }
 _BAD_GREY = "#c8c8c8"
+_FELL = "#f6c9b8"
 
 
 # ---------------------------------------------------------------------------
@@ -119,7 +120,48 @@ def _style() -> Iterator[None]:
 def _new_figure(figsize: tuple[float, float]) -> "Figure":
     from matplotlib.figure import Figure
 
+    _ipython_display()
     return Figure(figsize=figsize, dpi=DPI, layout="constrained")
+
+
+_ipython_done = False
+
+
+def _ipython_display() -> None:
+    """In IPython/Jupyter, lets a returned Figure show as a PNG (once).
+
+    Our figures are made without pyplot (so nothing piles up in its registry);
+    IPython only knows how to show a Figure once matplotlib's inline support
+    registered a formatter, so register one when none is there.
+    """
+    global _ipython_done
+    if _ipython_done or "IPython" not in sys.modules:
+        return
+    _ipython_done = True
+    try:
+        from IPython import get_ipython
+        from matplotlib.figure import Figure
+
+        ip = get_ipython()
+        if ip is None:
+            return
+        fmt = ip.display_formatter.formatters["image/png"]
+        try:
+            fmt.lookup_by_type(Figure)
+            return  # inline backend (or the user) already handles figures
+        except KeyError:
+            pass
+
+        def png(fig: "Figure") -> bytes:
+            import io
+
+            buf = io.BytesIO()
+            fig.savefig(buf, format="png", dpi=fig.dpi)
+            return buf.getvalue()
+
+        fmt.for_type(Figure, png)
+    except Exception:  # noqa: BLE001 - display is a nicety, never an error
+        pass
 
 
 def label_of(column: str) -> str:
@@ -198,6 +240,33 @@ def _row_label(table: Table, i: int, axes: Sequence[str] | None = None, label: s
     return name or vals or (str(table["id"][i]) if "id" in table else str(i))
 
 
+def _key_line(best_word: str, status: np.ndarray) -> str:
+    """'★ = lowest …' plus the colours used for fallen / diverged cells."""
+    parts = [f"★ = {best_word}" + (" among cells that stayed up" if (status != "ok").any() else "")]
+    if (status == "fell").any():
+        parts.append("pink = fell")
+    if (status == "diverged").any():
+        parts.append("grey = diverged")
+    return " · ".join(parts)
+
+
+def _wrap_parts(text: str, width_in: float, fontsize: float = 11.0) -> str:
+    """Breaks a ' · '-separated line so it fits ``width_in`` inches."""
+    limit = max(30, int(width_in * 72 / (0.55 * fontsize)))
+    lines: list[str] = []
+    cur = ""
+    for part in text.split(" · "):
+        cand = part if not cur else f"{cur} · {part}"
+        if len(cand) > limit and cur:
+            lines.append(cur)
+            cur = part
+        else:
+            cur = cand
+    if cur:
+        lines.append(cur)
+    return "\n".join(lines)
+
+
 def _push_tuple(push: Any) -> tuple[float, float, float | None] | None:
     if push is None:
         return None
@@ -224,15 +293,26 @@ def base_z(
     labels: Mapping[str, str] | Sequence[str] | None = None,
     *,
     title: str | None = None,
+    zoom: bool | None = None,
 ) -> "Figure":
     """Base height (mm) against time, one line per trace; the push window is shaded.
 
     ``traces``: id -> (t in s, z in m). ``push``: (start, duration[, force z]) or
     a manifest push dict or None. ``labels``: id -> label, or a list in trace order.
+    With a push and no ``ax``, a second panel zooms on the push (0.5 s before
+    to 1.5 s after, the window of push_dip_mm); ``zoom=False`` turns it off.
     """
     with _style():
-        fig = _new_figure((9.0, 4.8)) if ax is None else ax.figure
-        ax = fig.add_subplot() if ax is None else ax
+        p = _push_tuple(push)
+        zoom = (p is not None and ax is None) if zoom is None else (zoom and p is not None and ax is None)
+        if ax is None:
+            fig = _new_figure((12.5, 4.8) if zoom else (9.0, 4.8))
+            if zoom:
+                ax, zax = fig.subplots(1, 2, width_ratios=[1.5, 1.0])
+            else:
+                ax, zax = fig.add_subplot(), None
+        else:
+            fig, zax = ax.figure, None
         ids = list(traces)
         if labels is None:
             names = {k: str(k) for k in ids}
@@ -248,23 +328,41 @@ def base_z(
             colours = [cmap(i / max(1, n - 1)) for i in range(n)]
         else:
             colours = [f"C{i}" for i in range(n)]
-        for k, c in zip(ids, colours):
-            t, z = traces[k]
-            ax.plot(np.asarray(t, float), np.asarray(z, float) * 1000.0, color=c, lw=1.4, label=names[k])
-        p = _push_tuple(push)
-        if p is not None:
-            start, dur, fz = p
-            what = f"push {fz:+g} N" if fz is not None else "push"
-            ax.axvspan(start, start + dur, color="tab:red", alpha=0.15, lw=0, label=f"{what} ({dur:g} s)")
-            ax.axvline(start, color="tab:red", lw=0.8, alpha=0.6)
-        ax.set_xlabel("time (s)")
+        panels = [a for a in (ax, zax) if a is not None]
+        for a in panels:
+            for k, c in zip(ids, colours):
+                t, z = traces[k]
+                a.plot(np.asarray(t, float), np.asarray(z, float) * 1000.0, color=c, lw=1.4,
+                       label=names[k] if a is panels[-1] else None)
+            if p is not None:
+                start, dur, fz = p
+                what = f"push {fz:+g} N" if fz is not None else "push"
+                a.axvspan(start, start + dur, color="tab:red", alpha=0.15, lw=0,
+                          label=f"{what} ({dur:g} s)" if a is panels[-1] else None)
+            a.set_xlabel("time (s)")
+            a.grid(True, alpha=0.3)
         ax.set_ylabel("base height z (mm)")
-        ax.grid(True, alpha=0.3)
+        if zax is not None and p is not None:
+            lo_t, hi_t = p[0] - 0.5, p[0] + p[1] + 1.5
+            zs = []
+            for k in ids:
+                t, z = (np.asarray(v, float) for v in traces[k])
+                w = (t >= lo_t) & (t <= hi_t) & np.isfinite(z)
+                if w.any():
+                    zs.append(z[w] * 1000.0)
+            zax.set_xlim(lo_t, hi_t)
+            if zs:
+                allz = np.concatenate(zs)
+                lo, hi = float(allz.min()), float(allz.max())
+                pad = max(0.08 * (hi - lo), 0.05)
+                zax.set_ylim(lo - pad, hi + pad)
+            zax.set_title("around the push", fontsize=11)
+            ax.set_title("whole run", fontsize=11)
         if title is not None:
-            ax.set_title(title)
+            (fig.suptitle if zax is not None else ax.set_title)(title)
         if n <= 24:
             ncol = 1 if n <= 8 else 2
-            ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), ncol=ncol, frameon=False)
+            panels[-1].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), ncol=ncol, frameon=False)
         return fig
 
 
@@ -328,7 +426,12 @@ def heatmap(
                 stat[r, c] = status[i]
             grids.append((pv, grid, stat, seen))
 
-        finite = np.concatenate([g[1][np.isfinite(g[1])] for g in grids]) if grids else np.array([])
+        # the colour scale spans the cells that stayed up (a fallen robot lying
+        # still has a tiny, misleading std); fallen cells get their own colour
+        okv = [g[1][np.isfinite(g[1]) & (g[2] == "ok")] for g in grids]
+        finite = np.concatenate(okv) if okv else np.array([])
+        if finite.size == 0:
+            finite = np.concatenate([g[1][np.isfinite(g[1])] for g in grids]) if grids else np.array([])
         if log is None:
             log = bool(finite.size and finite.min() > 0 and finite.max() / finite.min() > 100)
         if finite.size == 0:
@@ -340,8 +443,7 @@ def heatmap(
             norm = Normalize(lo, hi if hi > lo else lo + 1e-9)
         import matplotlib
 
-        cmap = matplotlib.colormaps["viridis_r" if minimize else "viridis"].copy()
-        cmap.set_bad(_BAD_GREY)
+        cmap = matplotlib.colormaps["viridis_r" if minimize else "viridis"].with_extremes(bad=_BAD_GREY)
 
         npan = len(panels)
         cw = max(0.75, min(1.1, 9.0 / max(1, len(xv))))
@@ -362,11 +464,13 @@ def heatmap(
         im = None
         fs = 9 if len(xv) > 7 else 10
         for a, (pv, grid, stat, seen) in zip(axs, grids):
-            im = a.imshow(np.ma.masked_invalid(grid), cmap=cmap, norm=norm, origin="lower", aspect="auto")
+            shown = np.where(stat == "fell", np.nan, grid) if (stat == "ok").any() else grid
+            im = a.imshow(np.ma.masked_invalid(shown), cmap=cmap, norm=norm, origin="lower", aspect="auto")
             a.set_xticks(range(len(xv)), [_fmt(v) for v in xv])
             a.set_yticks(range(len(yv)), [_fmt(v) for v in yv])
             a.set_xlabel(label_of(x))
-            a.set_ylabel(label_of(y))
+            if a is axs[0] or (ax is None and axs.index(a) % min(npan, 3) == 0):
+                a.set_ylabel(label_of(y))
             a.set_xticks(np.arange(-0.5, len(xv)), minor=True)
             a.set_yticks(np.arange(-0.5, len(yv)), minor=True)
             a.grid(which="minor", color="white", lw=1.5)
@@ -380,14 +484,15 @@ def heatmap(
                         txt, colour = "diverged", "#444444"
                     elif not np.isfinite(v):
                         txt, colour = "n/a", "#444444"
+                    elif not np.isfinite(shown[r, c]):  # fell
+                        a.add_patch(Rectangle((c - 0.5, r - 0.5), 1, 1, color=_FELL, lw=0, zorder=1))
+                        txt, colour = f"fell\n{v:.3g}", "#7a2a12"
                     else:
                         txt = f"{v:.3g}"
                         rgba = cmap(norm(v))
                         lum = 0.299 * rgba[0] + 0.587 * rgba[1] + 0.114 * rgba[2]
                         colour = "black" if lum > 0.55 else "white"
-                        if stat[r, c] == "fell":
-                            txt += "\nfell"
-                    a.text(c, r, txt, ha="center", va="center", color=colour, fontsize=fs)
+                    a.text(c, r, txt, ha="center", va="center", color=colour, fontsize=fs, zorder=3)
             # best cell
             sel_rows = np.ones(len(vals), bool) if bcol is None else (bcol == pv)
             v2 = np.where(sel_rows & (status != "diverged"), vals, np.nan)
@@ -406,7 +511,7 @@ def heatmap(
             cb = fig.colorbar(im, ax=axs, shrink=0.9 if len(yv) > 3 else 1.0)
             cb.set_label(label_of(metric))
         best_word = "lowest" if minimize else "highest"
-        sub = f"★ = {best_word}" + (" among cells that stayed up" if (status != "ok").any() else "")
+        sub = _key_line(best_word, status)
         head = title if title is not None else label_of(metric)
         if ax is None:
             fig.suptitle(f"{head}\n{sub}", fontsize=12)
@@ -441,19 +546,24 @@ def metric_vs_axis(
         else:
             gcol = None
             groups = [None]
-        fell_drawn = False
+        fell_all: list[int] = []
         for gi, gv in enumerate(groups):
             sel = np.ones(len(xs), bool) if gcol is None else (gcol == gv)
             sel &= np.isfinite(xs)
             order = np.flatnonzero(sel)[np.argsort(xs[sel], kind="stable")]
-            good = order[(status[order] != "diverged") & np.isfinite(vs[order])]
+            shown = order[(status[order] != "diverged") & np.isfinite(vs[order])]
+            up = shown[status[shown] != "fell"]
             lab = None if gv is None else f"{SHORT.get(group or '', group)} = {_fmt(gv)}"
-            ax.plot(xs[good], vs[good], marker="o", ms=5, lw=1.6, color=f"C{gi % 10}", label=lab)
-            fell = good[status[good] == "fell"]
+            colour = f"C{gi % 10}"
+            ax.plot(xs[up], vs[up], marker="o", ms=5, lw=1.6, color=colour, label=lab)
+            fell = shown[status[shown] == "fell"]
             if fell.size:
-                ax.plot(xs[fell], vs[fell], ls="none", marker="x", ms=10, mew=2, color="red",
-                        label=None if fell_drawn else "fell", zorder=5)
-                fell_drawn = True
+                ax.plot(xs[fell], vs[fell], ls="none", marker="o", ms=5, color=colour, alpha=0.5)
+                fell_all.extend(fell.tolist())
+        fell_drawn = bool(fell_all)
+        if fell_drawn:
+            ax.plot(xs[fell_all], vs[fell_all], ls="none", marker="x", ms=10, mew=2, color="red",
+                    label="fell (not joined)", zorder=5)
         pos = xs[np.isfinite(xs)]
         if pos.size and pos.min() > 0 and pos.max() / pos.min() > 30:
             ax.set_xscale("log")
@@ -539,7 +649,8 @@ def read_run(run_dir: str | os.PathLike) -> tuple[dict[str, Any], dict[str, Any]
     """Reads ``summary.csv``, ``manifest.json`` and (if present) ``traces.csv``.
 
     Returns ``(table, manifest, traces)``: numeric columns as float arrays
-    (empty field = NaN), ``id``/``name``/``status`` as lists of str; traces
+    (empty field = NaN; ``index`` int64, as in ``SweepResult.table``),
+    ``id``/``name``/``status`` as lists of str; traces
     id -> (t, z) arrays in file order ({} when there is no traces.csv).
     """
     d = Path(run_dir)
@@ -557,6 +668,8 @@ def read_run(run_dir: str | os.PathLike) -> tuple[dict[str, Any], dict[str, Any]
         col = [r[j] if j < len(r) else "" for r in rows]
         if name in TEXT_COLUMNS:
             table[name] = col
+        elif name == "index":  # as in SweepResult.table
+            table[name] = np.array([int(v) for v in col], dtype=np.int64)
         else:
             table[name] = np.array([float(v) if v.strip() else np.nan for v in col], dtype=float)
     manifest: dict[str, Any] = {}
@@ -667,7 +780,7 @@ def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
     push = sched.get("push")
 
     def finish(fig: "Figure", name: str, head: str) -> None:
-        fig.suptitle(f"{head}\n{what}", fontsize=11)
+        fig.suptitle(f"{head}\n{_wrap_parts(what, fig.get_figwidth(), 10)}", fontsize=11)
         written.append(_save(fig, out / name))
 
     if traces:
@@ -675,6 +788,9 @@ def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
         if "id" in table:
             for i, cid in enumerate(table["id"]):
                 labels[cid] = _row_label(table, i, varying or axes)
+                st = str(table["status"][i]) if "status" in table else "ok"
+                if st != "ok":
+                    labels[cid] += f" — {st}"
         fig = base_z(traces, push=push, labels=labels)
         finish(fig, "base_z.png", "Base height during the sweep")
 
@@ -691,16 +807,17 @@ def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
                 by = "_panel"
                 t2[by] = [", ".join(f"{SHORT.get(a, a)} = {_fmt(table[a][i])}" for a in others) for i in range(n)]
             fig = heatmap(t2, metric, "kp", "kd", by=by)
-            fig.suptitle(f"{label_of(metric)}  (★ = lowest among cells that stayed up)\n{what}", fontsize=11)
+            key = _key_line("lowest", _status(table))
+            fig.suptitle(f"{label_of(metric)}\n{key}\n{_wrap_parts(what, fig.get_figwidth(), 10)}", fontsize=11)
             written.append(_save(fig, out / f"heatmap_{metric}.png"))
         elif product and len(varying) in (1, 2):
             axis = varying[0]
             group = varying[1] if len(varying) == 2 else None
             if group is not None and axis not in ("kp", "kd") and group in ("kp", "kd"):
                 axis, group = group, axis
-            fig = metric_vs_axis(table, metric, axis, group)
+            fig = metric_vs_axis(table, metric, axis, group, title="")
             finish(fig, f"{metric}_vs_{axis}.png", f"{label_of(metric)} vs {label_of(axis)}")
         else:
-            fig = bars(table, metric)
+            fig = bars(table, metric, title="")
             finish(fig, f"bars_{metric}.png", label_of(metric) + "  (red outline = lowest)")
     return written

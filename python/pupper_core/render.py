@@ -220,6 +220,14 @@ def _load_model(model: ModelLike) -> "mujoco.MjModel":
     p = Path(model)
     if p.exists():
         return mujoco.MjModel.from_xml_path(str(p))
+    try:  # the XML compiled into the native module: works in any install
+        from pupper_core import _native
+
+        return mujoco.MjModel.from_xml_string(_native.builtin_xml(str(model)))
+    except ImportError:
+        pass
+    except Exception:  # not a built-in name: fall through to the error below
+        pass
     b = builtin_model_path(str(model))
     if b is not None:
         return mujoco.MjModel.from_xml_path(str(b))
@@ -244,17 +252,25 @@ def _base_body(model: "mujoco.MjModel", name: str = "") -> int:
     return int(bid) if bid >= 0 else min(1, model.nbody - 1)
 
 
-def _reset(model: "mujoco.MjModel", data: "mujoco.MjData", keyframe: str | None) -> None:
+def _reset(model: "mujoco.MjModel", data: "mujoco.MjData", keyframe: str | int | None) -> None:
+    """Resets to a keyframe (name or index); None: the model's default state.
+
+    A missing "home" (the default name) falls back to keyframe 0, else the
+    default state; another missing name is an error.
+    """
     import mujoco
 
-    if keyframe:
+    kid = -1
+    if isinstance(keyframe, int):
+        kid = keyframe if 0 <= keyframe < model.nkey else -1
+    elif keyframe:
         kid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
-        if kid >= 0:
-            mujoco.mj_resetDataKeyframe(model, data, kid)
-            mujoco.mj_forward(model, data)
-            return
-    if model.nkey > 0 and keyframe:
-        mujoco.mj_resetDataKeyframe(model, data, 0)
+        if kid < 0:
+            if keyframe != "home":
+                raise ValueError(f"the model has no keyframe '{keyframe}'")
+            kid = 0 if model.nkey > 0 else -1
+    if kid >= 0:
+        mujoco.mj_resetDataKeyframe(model, data, kid)
     else:
         mujoco.mj_resetData(model, data)
     mujoco.mj_forward(model, data)
@@ -361,12 +377,14 @@ def _simulate(
     height: int,
     *,
     camera: str | int | None = "tracking_cam",
-    keyframe: str | None = "home",
+    keyframe: str | int | None = "home",
     max_torque: float = 3.0,
     push_body: str = "",
     defaults: Mapping[str, float] | None = None,
     shadows: bool = True,
+    pose: Sequence[float] | None = None,
 ) -> list[_CellRun]:
+    _require_gl()
     import mujoco
 
     if mode not in ("servo", "torque"):
@@ -414,12 +432,20 @@ def _simulate(
                 m.actuator_gainprm[:, 0] = 1.0
                 m.actuator_ctrllimited[:] = 0
             d = mujoco.MjData(m)
-            _reset(m, d, keyframe)
+            jnt = m.actuator_trnid[:, 0]
+            qadr = m.jnt_qposadr[jnt]
+            vadr = m.jnt_dofadr[jnt]
+            if pose is not None:  # start and target pose; the base as in the first keyframe
+                if len(pose) != m.nu:
+                    raise ValueError(f"pose has {len(pose)} angles, the model has {m.nu} actuators")
+                _reset(m, d, 0 if m.nkey > 0 else None)
+                d.qpos[qadr] = np.asarray(pose, dtype=float)
+                d.ctrl[:] = np.asarray(pose, dtype=float)
+                mujoco.mj_forward(m, d)
+            else:
+                _reset(m, d, keyframe)
             targets = d.ctrl.copy()
             if mode == "torque":
-                jnt = m.actuator_trnid[:, 0]
-                qadr = m.jnt_qposadr[jnt]
-                vadr = m.jnt_dofadr[jnt]
                 d.ctrl[:] = 0.0
             body = _base_body(m, push_body)
             cell_push = base_push
@@ -475,7 +501,7 @@ def simulate_frames(
     height: int = 240,
     *,
     camera: str | int | None = "tracking_cam",
-    keyframe: str | None = "home",
+    keyframe: str | int | None = "home",
     max_torque: float = 3.0,
     shadows: bool = True,
 ) -> list[list[np.ndarray]]:
@@ -670,7 +696,9 @@ def _run_settings(source: ModelLike | Path) -> dict[str, Any]:
         push: Push = None if not pu else (float(pu["start"]), float(pu["duration"]), tuple(pu["force"]))
         initial = sched.get("initial")
         keyframe = initial.get("keyframe", "home") if isinstance(initial, dict) else "home"
+        pose = initial.get("pose") if isinstance(initial, dict) else None
         return {
+            "pose": pose,
             "model": model,
             "mode": cfg.get("mode", "servo"),
             "push": push,
@@ -679,6 +707,7 @@ def _run_settings(source: ModelLike | Path) -> dict[str, Any]:
             "keyframe": keyframe,
         }
     return {
+        "pose": None,
         "model": source,
         "mode": "servo",
         "push": (2.0, 0.25, -25.0),
@@ -728,6 +757,7 @@ def write_effects(
         width,
         height,
         keyframe=st["keyframe"],
+        pose=st["pose"],
         push_body=st["push_body"],
         max_torque=defaults.get("max_torque", 3.0),
         defaults=defaults,
@@ -736,10 +766,11 @@ def write_effects(
     pt = _push_tuple(the_push)
     push_text = "PUSH"
     if pt is not None:
-        fz = pt[2][2]
-        push_text = f"PUSH {abs(fz):g} N {'↓' if fz < 0 else '↑'}" if np.count_nonzero(pt[2][:2]) == 0 else (
-            f"PUSH {np.linalg.norm(pt[2]):g} N"
-        )
+        f = pt[2]
+        if f[0] == 0 and f[1] == 0:  # vertical: magnitude and an arrow
+            push_text = f"PUSH {abs(f[2]):g} N {'↓' if f[2] < 0 else '↑'}"
+        else:
+            push_text = f"PUSH {float(np.linalg.norm(f)):g} N"
     scale = max(1.0, width / 320)
     fonts = (_font(int(round(17 * scale))), _font(int(round(13 * scale))))
     any_title = any(r.label for r in runs)
@@ -775,7 +806,7 @@ def render_png(
     model: ModelLike,
     path: str | os.PathLike,
     camera: str | int | None = "tracking_cam",
-    keyframe: str | None = "home",
+    keyframe: str | int | None = "home",
     seconds: float = 0.0,
     kp: float | None = None,
     kd: float | None = None,
@@ -786,6 +817,7 @@ def render_png(
 
     ``kp``/``kd`` override the servo gains (None keeps the model's). No push.
     """
+    _require_gl()  # before importing mujoco: a broken MUJOCO_GL breaks that import
     import mujoco
     from PIL import Image
 
@@ -799,8 +831,64 @@ def render_png(
     _reset(m, d, keyframe)
     if seconds > 0:
         mujoco.mj_step(m, d, nstep=max(1, int(round(seconds / m.opt.timestep))))
-    img = frame(m, d, camera=camera, width=width, height=height)
+    img = frame(m, d, camera=camera, width=int(width), height=int(height))
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     _atomic_save(Image.fromarray(img), out, "PNG")
     return out
+
+
+def write_run_effects(run_dir: str | os.PathLike, max_cells: int = 6, fps: float = 15) -> list[Path]:
+    """`pupper sweep --render`: the effects GIF and final-frame PNG of a run.
+
+    Renders up to ``max_cells`` cells of the run's summary.csv (all of them if
+    the grid is that small, else evenly spread ones, the steadiest included),
+    for the run's duration, into ``<run_dir>/plots/``. Shadows are off to keep
+    software rendering quick.
+    """
+    import csv
+    import json
+
+    run = Path(run_dir)
+    with open(run / "summary.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        raise ValueError(f"{run}/summary.csv has no cells to render")
+    picks = list(range(len(rows)))
+    if len(rows) > max_cells:
+        step = (len(rows) - 1) / (max_cells - 1)
+        picks = sorted({round(i * step) for i in range(max_cells)})
+        ok = [i for i, r in enumerate(rows) if r["status"] == "ok" and r["last_1s_std_mm"]]
+        if ok:
+            best = min(ok, key=lambda i: float(rows[i]["last_1s_std_mm"]))
+            if best not in picks:
+                picks[-1] = best
+                picks.sort()
+    skip = {"index", "id", "name", "status"}
+    cells: list[dict[str, Any]] = []
+    for i in picks:
+        cell: dict[str, Any] = {}
+        for key, value in rows[i].items():
+            if key in skip or value == "":
+                continue
+            try:
+                cell[key] = float(value)
+            except ValueError:
+                continue
+        if rows[i]["name"]:
+            cell["name"] = rows[i]["name"]
+        cells.append(cell)
+    seconds = float(json.loads((run / "manifest.json").read_text())["config"]["schedule"]["duration"])
+    png, gif = write_effects(run, cells, run / "plots", seconds=seconds, fps=fps, shadows=False)
+    return [png, gif]
+
+
+def view(model: ModelLike) -> None:
+    """`pupper view`: MuJoCo's interactive viewer on a model, from its home keyframe."""
+    import mujoco
+    import mujoco.viewer
+
+    m = _load_model(model)
+    d = mujoco.MjData(m)
+    _reset(m, d, "home" if m.nkey else None)
+    mujoco.viewer.launch(m, d)

@@ -143,13 +143,18 @@ struct StandArgs {
     #[command(flatten)]
     model: ModelArg,
     /// Simulated seconds.
-    #[arg(long, default_value_t = 10.0, value_name = "S")]
+    #[arg(
+        long,
+        default_value_t = 10.0,
+        value_name = "S",
+        allow_negative_numbers = true
+    )]
     seconds: f64,
     /// Proportional gain (N·m/rad).
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
     kp: f64,
     /// Derivative gain (N·m·s/rad).
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
     kd: f64,
     /// Who computes the PD torques.
     #[arg(long, value_enum, default_value = "servo")]
@@ -190,16 +195,26 @@ struct SweepArgs {
     #[arg(long, value_enum, default_value = "servo")]
     mode: ModeArg,
     /// Simulated seconds per cell.
-    #[arg(long, default_value_t = 10.0, value_name = "S")]
+    #[arg(
+        long,
+        default_value_t = 10.0,
+        value_name = "S",
+        allow_negative_numbers = true
+    )]
     seconds: f64,
     /// Kp for cells whose grid has no kp axis.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
     kp: f64,
     /// Kd for cells whose grid has no kd axis.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
     kd: f64,
     /// Torque limit (N·m) of every actuator, in both modes (Pupper v3's motors: 3).
-    #[arg(long, default_value_t = 3.0, value_name = "NM")]
+    #[arg(
+        long,
+        default_value_t = 3.0,
+        value_name = "NM",
+        allow_negative_numbers = true
+    )]
     max_torque: f64,
     /// Push force along world z (N; negative pushes down).
     #[arg(long, default_value_t = -25.0, value_name = "N", allow_hyphen_values = true)]
@@ -266,9 +281,9 @@ struct RenderArgs {
     /// Simulate this long (servo PD from the home keyframe) before the frame.
     #[arg(long, default_value_t = 0.0, value_name = "S")]
     seconds: f64,
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
     kp: f64,
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
     kd: f64,
     /// Image width and height in pixels.
     #[arg(long, default_value_t = 640)]

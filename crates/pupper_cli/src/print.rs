@@ -220,6 +220,9 @@ pub fn rows_json(o: &SweepOutcome) -> serde_json::Value {
             for (h, v) in o.header.iter().zip(r) {
                 let val = match (h.as_str(), v.parse::<f64>()) {
                     ("id" | "name" | "status", _) => serde_json::Value::String(v.clone()),
+                    ("index", _) => v
+                        .parse::<u64>()
+                        .map_or(serde_json::Value::Null, |i| serde_json::json!(i)),
                     (_, Ok(x)) => serde_json::json!(x),
                     _ => serde_json::Value::Null,
                 };

@@ -140,6 +140,20 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
     let started = std::time::Instant::now();
     bridge::with_model(&cfg.model, true, |model| {
         let info = model.info();
+        match &cfg.schedule.initial {
+            InitialState::Pose(p) if p.len() != info.nu => {
+                return Err(Error::Config(format!(
+                    "the pose has {} angles but model '{}' has {} actuated joints: give one angle per actuator, in actuator order",
+                    p.len(),
+                    info.name,
+                    info.nu
+                )));
+            }
+            InitialState::Keyframe(k) => {
+                info.keyframe(k)?;
+            }
+            _ => {}
+        }
         let manifest = Manifest {
             pupper_version: crate::VERSION.to_string(),
             mujoco_version: model.mujoco_version().to_string(),

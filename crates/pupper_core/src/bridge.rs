@@ -28,15 +28,18 @@ fn py_err(e: PyErr) -> Error {
     Python::attach(|py| Error::Internal(python_message(py, &e)))
 }
 
-/// The first line of a Python exception's message.
+/// A Python exception's message on one line (MuJoCo's XML errors span
+/// several: the parse error, then the element and line number).
 fn python_message(py: Python<'_>, e: &PyErr) -> String {
     let text = e.value(py).to_string();
-    let first = text
-        .lines()
-        .find(|l| !l.trim().is_empty())
-        .unwrap_or("")
-        .trim();
-    first.to_string()
+    let mut out = String::new();
+    for line in text.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        if !out.is_empty() {
+            out.push_str(if out.ends_with(':') { " " } else { "; " });
+        }
+        out.push_str(line);
+    }
+    out
 }
 
 trait PyResultExt<T> {
@@ -158,7 +161,9 @@ impl<'py> Mujoco<'py> {
         let res = match source.builtin_xml() {
             Some(xml) => spec_cls.call_method1("from_string", (xml,)),
             None => match source {
-                ModelSource::Path(p) => spec_cls.call_method1("from_file", (p.clone(),)),
+                ModelSource::Path(p) => {
+                    spec_cls.call_method1("from_file", (p.to_string_lossy().into_owned(),))
+                }
                 ModelSource::Builtin(n) => {
                     return Err(Error::Model(format!("unknown built-in model '{n}'")));
                 }
@@ -169,7 +174,7 @@ impl<'py> Mujoco<'py> {
 
     fn model_error(&self, source: &ModelSource, e: &PyErr) -> Error {
         Error::Model(format!(
-            "model '{}' is not valid MJCF: {}; fix the file or check it with `python -m mujoco.viewer`",
+            "model '{}' is not valid MJCF: {}; fix the file where MuJoCo points",
             source.display(),
             python_message(self.py, e)
         ))
@@ -1046,8 +1051,8 @@ pub fn call_helper(
         if out.is_none() {
             return Ok(vec![]);
         }
-        if let Ok(s) = out.extract::<String>() {
-            return Ok(vec![s]);
+        if !(out.is_instance_of::<PyList>() || out.is_instance_of::<pyo3::types::PyTuple>()) {
+            return Ok(vec![out.to_string()]);
         }
         let items: Vec<Bound<'_, PyAny>> = out
             .try_iter()

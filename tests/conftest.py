@@ -1,0 +1,93 @@
+"""Shared fixtures for the pupper CLI and Python-API tests.
+
+The tests run the real `pupper` binary (and real MuJoCo) on the real models.
+The binary is taken from $PUPPER_BIN, else target/release/pupper of this
+checkout; `make test` builds it first.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+DEFAULT_BIN = REPO / "target" / "release" / "pupper"
+#: The upstream Pupper v3 description (not part of the project; optional).
+REFERENCE_XML = (
+    REPO.parent / "shared" / "reference" / "pupper_v3_description" / "mujoco_xml"
+    / "pupper_v3_complete.xml"
+)
+#: Environment variables that would tell the binary which Python to use: the
+#: binary must find the project's venv by itself.
+SCRUBBED_ENV = ("VIRTUAL_ENV", "PYTHONHOME", "PUPPER_PYTHON")
+TIMEOUT_S = 240
+
+
+def clean_env(**extra: str) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k not in SCRUBBED_ENV}
+    env.update(extra)
+    return env
+
+
+@pytest.fixture(scope="session")
+def pupper_bin() -> Path:
+    path = Path(os.environ.get("PUPPER_BIN", str(DEFAULT_BIN)))
+    if not (path.is_file() and os.access(path, os.X_OK)):
+        pytest.fail(
+            f"the pupper binary {path} is missing or not executable: run make test "
+            "(or build it with cargo build --release, or set PUPPER_BIN)",
+            pytrace=False,
+        )
+    return path
+
+
+@pytest.fixture
+def run(pupper_bin: Path, tmp_path: Path):
+    """run(*args, cwd=tmp_path, env=None, timeout=..., check=None) -> CompletedProcess.
+
+    Runs the binary with a clean environment (no VIRTUAL_ENV, PYTHONHOME,
+    PUPPER_PYTHON), in tmp_path by default so a default runs/ lands there.
+    `env` adds variables; `check=N` asserts the exit status is N.
+    """
+
+    def _run(*args, cwd: Path | None = None, env: dict | None = None,
+             timeout: float = TIMEOUT_S, check: int | None = None, **kw):
+        proc = subprocess.run(
+            [str(pupper_bin), *map(str, args)],
+            cwd=str(cwd or tmp_path),
+            env=clean_env(**(env or {})),
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            **kw,
+        )
+        if check is not None:
+            assert proc.returncode == check, (
+                f"pupper {' '.join(map(str, args))}: exit {proc.returncode}, expected {check}\n"
+                f"stdout:\n{proc.stdout[-3000:]}\nstderr:\n{proc.stderr[-3000:]}"
+            )
+        return proc
+
+    return _run
+
+
+def read_csv(path: Path) -> tuple[list[str], list[dict[str, str]]]:
+    """summary.csv's header and rows (dicts of strings), checking every row is complete."""
+    text = Path(path).read_text()
+    assert text.endswith("\n"), f"{path} does not end with a newline (truncated line?)"
+    reader = csv.reader(io.StringIO(text))
+    header = next(reader)
+    rows = []
+    for line in reader:
+        assert len(line) == len(header), f"{path}: row {line} has {len(line)} fields, header {len(header)}"
+        rows.append(dict(zip(header, line)))
+    return header, rows
+
+
+def as_float(s: str) -> float:
+    return float(s) if s != "" else float("nan")
