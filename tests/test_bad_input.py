@@ -7,6 +7,7 @@ subclass with the same message.
 
 from __future__ import annotations
 
+import os
 import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -247,3 +248,21 @@ def test_api_exceptions_are_pupper_errors():
         assert issubclass(cls, pc.PupperError)
     assert issubclass(pc.PupperError, Exception)
     assert not issubclass(pc.GridError, pc.ModelError)
+
+
+def test_wrong_mujoco_version_is_one_clear_line(pupper_bin: Path, tmp_path: Path) -> None:
+    """A mujoco 3.x earlier on the path is refused with the fix, exit 2."""
+    fake = tmp_path / "site" / "mujoco"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text("__version__ = '3.1.6'\n")
+    env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONHOME", "PUPPER_PYTHON")}
+    env["PYTHONPATH"] = str(tmp_path / "site")
+    r = subprocess.run(
+        [str(pupper_bin), "sweep", "--seconds", "1", "-o", str(tmp_path / "out")],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60,
+    )
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1, r.stderr
+    assert "needs mujoco 4.x" in lines[0] and "3.1.6" in lines[0] and "make setup" in lines[0]
+    assert not (tmp_path / "out").exists()
