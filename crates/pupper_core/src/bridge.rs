@@ -455,15 +455,7 @@ fn scale_spec(spec: &Bound<'_, PyAny>, base: &str, leg: f64, torso: f64) -> PyRe
 
 /// The direct child bodies of a spec body.
 fn children<'py>(b: &Bound<'py, PyAny>) -> PyResult<Vec<Bound<'py, PyAny>>> {
-    let py = b.py();
-    let kw = PyDict::new(py);
-    kw.set_item("recurse", false)?;
-    let body_type = py
-        .import("mujoco")?
-        .getattr("mjtObj")?
-        .getattr("mjOBJ_BODY")?;
-    b.call_method("find_all", (body_type,), Some(&kw))?
-        .extract()
+    b.getattr("bodies")?.extract()
 }
 
 impl Physics for LoadedModel<'_> {

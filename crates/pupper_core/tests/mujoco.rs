@@ -143,3 +143,29 @@ fn a_broken_model_is_a_model_error() {
     assert_eq!(e.kind(), pupper_core::ErrorKind::Model, "{e}");
     assert!(!e.to_string().contains('\n'), "one line: {e}");
 }
+
+#[test]
+fn body_variants_change_the_stance() {
+    init();
+    // leg_scale and torso_mass_scale give per-cell models (set_models)
+    let cfg = SweepConfig {
+        model: builtin("pupper_v3"),
+        grid: Grid::parse(&["leg_scale=1,1.5", "torso_mass_scale=1,2"]).unwrap(),
+        schedule: Schedule {
+            duration: 3.0,
+            push: None,
+            ..Schedule::default()
+        },
+        mode: Mode::Servo,
+        defaults: Defaults::default(),
+    };
+    let r = api::sweep(&cfg, None, RunOptions::default(), &mut NoHooks).unwrap();
+    let z: Vec<f64> = r.iter().map(|c| c.metrics.final_z).collect();
+    assert!(r.iter().all(|c| c.metrics.status == Status::Ok));
+    // the unscaled cell is the plain model
+    assert!((z[0] - 0.1198).abs() < 1e-3, "{z:?}");
+    // longer legs stand taller, a heavier torso sags
+    assert!(z[2] > z[0] + 0.02, "{z:?}");
+    assert!(z[1] < z[0], "{z:?}");
+    assert!(z[3] < z[2], "{z:?}");
+}
