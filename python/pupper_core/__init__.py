@@ -51,19 +51,8 @@ __all__ = [
     "METRICS",
 ]
 
-#: Metric columns of summary.csv, in order.
-METRICS: tuple[str, ...] = (
-    "final_z",
-    "last_1s_std_mm",
-    "push_dip_mm",
-    "settle_time_s",
-    "max_tilt_deg",
-    "peak_torque",
-    "saturation_frac",
-    "tracking_rms",
-    "status",
-    "event_time",
-)
+#: Metric columns of summary.csv, in order (defined once, in the Rust core).
+METRICS: tuple[str, ...] = tuple(_native.METRICS)
 _TEXT_COLUMNS = ("id", "name", "status")
 
 

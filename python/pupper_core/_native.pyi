@@ -4,6 +4,7 @@
 from collections.abc import Callable, Sequence
 
 __version__: str
+METRICS: list[str]
 
 class PupperError(Exception): ...
 class GridError(PupperError): ...

@@ -733,6 +733,16 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
     }
 }
 
+/// The simulations a `mujoco.batch.SimulationError` names; any other
+/// exception is an internal error.
+fn failed_ids(py: Python<'_>, e: PyErr) -> Result<Vec<i64>> {
+    e.value(py)
+        .getattr("ids")
+        .and_then(|i| i.call_method0("tolist"))
+        .and_then(|i| i.extract())
+        .map_err(|_| py_err(e))
+}
+
 fn actuator_params(mode: Mode, c: &CellSetup) -> ([f64; 3], [f64; 3]) {
     match mode {
         Mode::Servo => ([c.kp, 0.0, 0.0], [0.0, -c.kp, -c.kd]),
@@ -864,12 +874,7 @@ impl SimBatch for MujocoBatch<'_, '_> {
             Ok(out) => out,
             Err(e) => {
                 // MuJoCo raised in some simulations: they diverged at this call
-                let failed: Vec<i64> = e
-                    .value(py)
-                    .getattr("ids")
-                    .and_then(|i| i.call_method0("tolist"))
-                    .and_then(|i| i.extract())
-                    .map_err(|_| py_err(e))?;
+                let failed = failed_ids(py, e)?;
                 return Ok(ids
                     .iter()
                     .enumerate()
@@ -949,13 +954,7 @@ impl SimBatch for MujocoBatch<'_, '_> {
         }
         let ids_arg = self.ids_arg(ids)?;
         if let Err(e) = self.batch.call_method1("step", (ids_arg,)) {
-            let py = self.owner.mj.py;
-            let failed: Vec<i64> = e
-                .value(py)
-                .getattr("ids")
-                .and_then(|i| i.call_method0("tolist"))
-                .and_then(|i| i.extract())
-                .map_err(|_| py_err(e))?;
+            let failed = failed_ids(self.owner.mj.py, e)?;
             let _ = self.newly_warned(ids);
             return Ok(ids
                 .iter()

@@ -357,6 +357,7 @@ fn builtin_xml(name: &str) -> PyResult<String> {
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add("__version__", crate::VERSION)?;
+    m.add("METRICS", crate::metrics::METRIC_NAMES.to_vec())?;
     m.add("PupperError", py.get_type::<PupperError>())?;
     m.add("GridError", py.get_type::<GridError>())?;
     m.add("ConfigError", py.get_type::<ConfigError>())?;
