@@ -140,3 +140,42 @@ def test_resume_of_a_missing_directory(run, tmp_path):
     assert r.returncode == 2, r.stderr
     assert len(r.stderr.splitlines()) == 1 and r.stderr.startswith("error: "), r.stderr
     assert not (tmp_path / "nope").exists()
+
+
+def test_python_sweep_stops_cleanly_on_keyboard_interrupt(tmp_path: Path) -> None:
+    """In a notebook, Ctrl-C raises KeyboardInterrupt within a second and keeps
+    the finished chunks in the run directory."""
+    out = tmp_path / "run"
+    script = (
+        "import pupper_core as pc\n"
+        "try:\n"
+        f"    pc.sweep({{'kp': [10 + i for i in range(48)]}}, seconds=10, chunk_cells=4, threads=1,\n"
+        f"             out={str(out)!r}, progress=False)\n"
+        "except KeyboardInterrupt:\n"
+        "    print('KeyboardInterrupt', flush=True)\n"
+        "    raise SystemExit(42)\n"
+    )
+    import sys
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    summary = out / "summary.csv"
+    while time.monotonic() < deadline:
+        if summary.exists() and len(summary.read_text().splitlines()) >= 2:
+            break
+        if proc.poll() is not None:
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None, proc.communicate()
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=30)
+    assert time.monotonic() - sent < 5
+    assert proc.returncode == 42, stderr
+    assert "KeyboardInterrupt" in stdout
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["complete"] is False
+    rows = summary.read_text().splitlines()[1:]
+    assert 1 <= len(rows) < 48
+    assert all(r.count(",") == rows[0].count(",") for r in rows)

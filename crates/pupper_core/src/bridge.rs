@@ -25,7 +25,13 @@ pub const MUJOCO_MAJOR: &str = "4.";
 const MUJOCO_FIX: &str = "run `make setup` in the pupper checkout (or `pip install 'mujoco==4.0.*'` in the Python that pupper uses; `pupper doctor` shows which)";
 
 fn py_err(e: PyErr) -> Error {
-    Python::attach(|py| Error::Internal(python_message(py, &e)))
+    Python::attach(|py| {
+        // Ctrl-C landing inside a MuJoCo call from a notebook
+        if e.is_instance_of::<pyo3::exceptions::PyKeyboardInterrupt>(py) {
+            return Error::Interrupted("KeyboardInterrupt".into());
+        }
+        Error::Internal(python_message(py, &e))
+    })
 }
 
 /// A Python exception's message on one line (MuJoCo's XML errors span

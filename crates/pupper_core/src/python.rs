@@ -309,6 +309,12 @@ fn sweep(
     if let Some(e) = ui.interrupt {
         return Err(e);
     }
+    if !outcome.complete {
+        // interrupted inside a MuJoCo call: finished chunks are kept
+        return Err(PyKeyboardInterrupt::new_err(
+            "sweep interrupted; finished cells are kept (resume=True continues a run directory)",
+        ));
+    }
     json(&serde_json::json!({
         "header": outcome.header,
         "rows": outcome.rows,
