@@ -249,14 +249,3 @@ pub fn sweep(
         experiment::run_cells(model, cfg, cells, opts, hooks)
     })
 }
-
-/// Total cell-steps, for progress bars.
-pub fn total_steps(cfg: &SweepConfig, cells: &[Cell]) -> Result<u64> {
-    bridge::with_model(&cfg.model, false, |model| {
-        let dt = model.info().timestep;
-        Ok(cells
-            .iter()
-            .map(|c| cfg.schedule.steps(cfg.setup(c).timestep.unwrap_or(dt)) as u64)
-            .sum())
-    })
-}

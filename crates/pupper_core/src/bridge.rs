@@ -1001,12 +1001,6 @@ pub fn with_model<T>(
     })
 }
 
-/// Checks Python's pending signals (Ctrl-C in a notebook); true if one was
-/// raised, leaving the KeyboardInterrupt for the caller.
-pub fn interrupted() -> bool {
-    Python::attach(|py| py.check_signals().is_err())
-}
-
 /// Calls a function of our Python package (plots, rendering, the viewer)
 /// with string arguments and keyword arguments; returns its result as
 /// strings (a path or a list of paths). `RenderUnavailable` and

@@ -146,17 +146,6 @@ pub trait Hooks {
 pub struct NoHooks;
 impl Hooks for NoHooks {}
 
-/// Total cell-steps of `cells`, for a progress bar.
-pub fn total_steps(cfg: &SweepConfig, physics: &dyn Physics, cells: &[Cell]) -> u64 {
-    cells
-        .iter()
-        .map(|c| {
-            let dt = cfg.setup(c).timestep.unwrap_or(physics.info().timestep);
-            cfg.schedule.steps(dt) as u64
-        })
-        .sum()
-}
-
 /// Runs `cells` (any subset of the grid, e.g. the ones a resume still
 /// needs). Results come back in the order of `cells`. On interrupt returns
 /// `Error::Interrupted` after the finished chunks were passed to `hooks`.
@@ -236,7 +225,7 @@ fn run_chunk(
             .sum();
         rec.observe(z, tilt, track, nu, peak, nsat, nu);
     };
-    // Step-time of the step k's start, the clock the schedule is written in.
+    // Time before each step of a call: the clock the schedule is written in.
     let mut step_time = Vec::new();
     let sine = schedule.sine.is_some();
     let mut k = 0usize;
@@ -289,10 +278,9 @@ fn run_chunk(
                     forces = alive.iter().map(|&s| force_of(s, 0)).collect();
                     Force::Constant(&forces)
                 };
-                let limits: Vec<f64> = setups.iter().map(|s| s.max_torque).collect();
                 batch.advance(&alive, nstep, force, &mut |pos, _step, qpos, act| {
                     let sim = alive[pos];
-                    let lim = limits[sim];
+                    let lim = setups[sim].max_torque;
                     let (mut peak, mut nsat) = (0.0f64, 0usize);
                     for &f in act {
                         peak = peak.max(f.abs());
