@@ -794,7 +794,12 @@ def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
         fig = base_z(traces, push=push, labels=labels)
         finish(fig, "base_z.png", "Base height during the sweep")
 
-    metrics = [m for m in ("last_1s_std_mm", "push_dip_mm") if m in table]
+    # a metric that is NaN in every cell (push_dip_mm without a push) has nothing to show
+    metrics = [
+        m
+        for m in ("last_1s_std_mm", "push_dip_mm")
+        if m in table and np.isfinite(np.asarray(table[m], dtype=float)).any()
+    ]
     product = _is_product(table, varying, manifest) if varying else False
     for metric in metrics:
         if product and "kp" in varying and "kd" in varying:
