@@ -126,6 +126,7 @@ pub struct Settle {
     band: f64,
     last_out: Option<f64>,
     out_now: bool,
+    seen: bool,
 }
 
 impl Settle {
@@ -135,6 +136,7 @@ impl Settle {
             band,
             last_out: None,
             out_now: false,
+            seen: false,
         }
     }
 
@@ -143,6 +145,7 @@ impl Settle {
         if t < self.from {
             return;
         }
+        self.seen = true;
         // NaN counts as outside
         use std::cmp::Ordering::{Equal, Less};
         self.out_now = !matches!(
@@ -154,9 +157,10 @@ impl Settle {
         }
     }
 
-    /// Seconds from `from` until the series stayed inside the band.
+    /// Seconds from `from` until the series stayed inside the band; `None`
+    /// if it ends outside, or never reached `from`.
     pub fn value(&self) -> Option<f64> {
-        if self.out_now {
+        if self.out_now || !self.seen {
             return None;
         }
         Some(self.last_out.map_or(0.0, |t| t - self.from))
@@ -230,5 +234,9 @@ mod tests {
         let mut never_left = Settle::new(0.0, 0.001);
         never_left.push(0.5, 0.12, 0.12);
         assert_eq!(never_left.value(), Some(0.0));
+        // a run that ends before `from` has no settle time
+        let mut short = Settle::new(2.0, 0.001);
+        short.push(1.0, 0.12, 0.12);
+        assert_eq!(short.value(), None);
     }
 }
