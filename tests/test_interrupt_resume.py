@@ -171,7 +171,10 @@ def test_python_sweep_stops_cleanly_on_keyboard_interrupt(tmp_path: Path) -> Non
     sent = time.monotonic()
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=30)
-    assert time.monotonic() - sent < 5
+    latency = time.monotonic() - sent
+    print(f"stopped {latency:.2f} s after SIGINT")
+    # generous: a loaded CI machine is slower than the second it takes here
+    assert latency < 15
     assert proc.returncode == 42, stderr
     assert "KeyboardInterrupt" in stdout
     manifest = json.loads((out / "manifest.json").read_text())
