@@ -147,6 +147,10 @@ def test_python_sweep_stops_cleanly_on_keyboard_interrupt(tmp_path: Path) -> Non
     the finished chunks in the run directory."""
     out = tmp_path / "run"
     script = (
+        # Python's own Ctrl-C handling, as in a notebook; a shell that starts a
+        # job in the background leaves SIGINT ignored, and Python keeps that.
+        "import signal\n"
+        "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
         "import pupper_core as pc\n"
         "try:\n"
         f"    pc.sweep({{'kp': [10 + i for i in range(48)]}}, seconds=10, chunk_cells=4, threads=1,\n"
@@ -173,8 +177,8 @@ def test_python_sweep_stops_cleanly_on_keyboard_interrupt(tmp_path: Path) -> Non
     stdout, stderr = proc.communicate(timeout=30)
     latency = time.monotonic() - sent
     print(f"stopped {latency:.2f} s after SIGINT")
-    # generous: a loaded CI machine is slower than the second it takes here
-    assert latency < 15
+    # about 0.1 s here; the margin is for a loaded machine
+    assert latency < 5
     assert proc.returncode == 42, stderr
     assert "KeyboardInterrupt" in stdout
     manifest = json.loads((out / "manifest.json").read_text())
