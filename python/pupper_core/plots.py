@@ -34,19 +34,8 @@ Traces = Mapping[str, tuple[np.ndarray, np.ndarray]]
 
 #: Columns of summary.csv that are text, not numbers.
 TEXT_COLUMNS = ("id", "name", "status")
-#: Metric columns of summary.csv, in file order (everything between the axes and these is an axis).
-METRICS = (
-    "final_z",
-    "last_1s_std_mm",
-    "push_dip_mm",
-    "settle_time_s",
-    "max_tilt_deg",
-    "peak_torque",
-    "saturation_frac",
-    "tracking_rms",
-    "status",
-    "event_time",
-)
+#: The first metric column of summary.csv: the grid axes come before it.
+FIRST_METRIC = "final_z"
 #: Human labels with units.
 LABELS: dict[str, str] = {
     "kp": "Kp (N·m/rad)",
@@ -700,7 +689,7 @@ def grid_axes(table: Table) -> list[str]:
     start = cols.index("name") + 1 if "name" in cols else 0
     out = []
     for c in cols[start:]:
-        if c in METRICS:
+        if c == FIRST_METRIC:
             break
         out.append(c)
     return out
