@@ -511,7 +511,6 @@ pub struct MujocoBatch<'a, 'py> {
     /// Row of the base body in xfrc_applied.
     force_body: usize,
     nbody: usize,
-    all_ids: Option<Bound<'py, PyAny>>,
 }
 
 impl<'a, 'py> MujocoBatch<'a, 'py> {
@@ -689,7 +688,6 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
             nsim: n,
             force_body: layout.base.body,
             nbody: info.nbody,
-            all_ids: None,
         };
         me.warned = me.warning_counts();
         Ok(me)
@@ -722,13 +720,12 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
         out
     }
 
-    fn ids_arg(&mut self, ids: &[usize]) -> Result<Bound<'py, PyAny>> {
+    fn ids_arg(&self, ids: &[usize]) -> Result<Bound<'py, PyAny>> {
         let py = self.owner.mj.py;
         if ids.len() == self.nsim {
             return Ok(py.None().into_bound(py));
         }
         let v: Vec<i32> = ids.iter().map(|&i| i as i32).collect();
-        let _ = &self.all_ids;
         Ok(PyArray1::from_vec(py, v).into_any())
     }
 
