@@ -3,7 +3,7 @@
 Run from the repository root, after `maturin develop` into the project venv:
 
     .venv/bin/python benches/bench_sweep.py               # 3 repeats, medians
-    .venv/bin/python benches/bench_sweep.py --repeat 5 --json /tmp/bench.json
+    .venv/bin/python benches/bench_sweep.py --repeat 5 --json bench.json
     .venv/bin/python benches/bench_sweep.py --breakdown   # also time bare Batch calls
 
 The workload is the chapter grid, kp 10,30,60,120 x kd 0.5,1,2,5 (16 cells),

@@ -1,13 +1,21 @@
 #!/usr/bin/env bash
-# Sets up everything pupper needs on a fresh machine, idempotently:
+# Sets up everything pupper needs on a fresh machine, idempotently, from the
+# checkout this script sits in (found at run time, never a fixed path):
 #   1. system libraries for offscreen rendering (EGL), via apt-get if missing
-#   2. the project venv .venv with every Python package pinned
-#   3. the pupper_core Python module (maturin, into .venv)
-#   4. the pupper binary (target/release/pupper), linked to .venv's Python
-# Re-running it only redoes what changed.
+#   2. the project venv .venv with every third-party Python package pinned
+#   3. the pupper_core Python module (maturin, into .venv), built from this clone
+#   4. the pupper binary (target/$PUPPER_PROFILE/pupper), linked to .venv's Python
+# PUPPER_PROFILE=debug builds without optimisation (quicker to build, slower to
+# run: the fresh-clone check uses it). Re-running it only redoes what changed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
+profile=${PUPPER_PROFILE:-release}
+case $profile in
+  release) release=(--release) ;;
+  debug) release=() ;;
+  *) echo "setup: PUPPER_PROFILE must be release or debug, not '$profile'" >&2; exit 2 ;;
+esac
 say() { printf '\033[1msetup:\033[0m %s\n' "$*" >&2; }
 
 # 1. EGL for mujoco.Renderer. Only rendering needs it; everything else works without.
@@ -23,6 +31,10 @@ fi
 # 2. The venv. Its base interpreter must have a shared libpython (pyo3 embeds it).
 base=${PUPPER_BASE_PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then
+  if ! "$base" -c 'import sys, sysconfig; sys.exit(sys.version_info < (3, 10) or not sysconfig.get_config_var("Py_ENABLE_SHARED"))' 2>/dev/null; then
+    say "error: $base is not Python >= 3.10 with a shared libpython; set PUPPER_BASE_PYTHON to one that is"
+    exit 2
+  fi
   say "creating .venv with $($base --version 2>&1) ($(command -v "$base"))"
   "$base" -m venv .venv
 fi
@@ -36,13 +48,13 @@ fi
 
 # 3 and 4. Build against the venv's interpreter.
 export PYO3_PYTHON="$root/.venv/bin/python"
-say "building the pupper_core Python module"
+say "building the pupper_core Python module ($profile)"
 log=.venv/maturin.log
-if ! (cd python && VIRTUAL_ENV="$root/.venv" "$root/.venv/bin/maturin" develop --release) >"$log" 2>&1; then
+if ! (cd python && VIRTUAL_ENV="$root/.venv" "$root/.venv/bin/maturin" develop ${release[@]+"${release[@]}"}) >"$log" 2>&1; then
   cat "$log" >&2
   say "error: building the Python module failed (full log above, also in $log)"
   exit 1
 fi
-say "building the pupper binary"
-cargo build --release -q -p pupper_cli
-say "ready: target/release/pupper ($(target/release/pupper --version))"
+say "building the pupper binary ($profile)"
+cargo build ${release[@]+"${release[@]}"} -q -p pupper_cli
+say "ready: target/$profile/pupper ($(target/"$profile"/pupper --version))"

@@ -204,9 +204,9 @@ def _require_gl() -> None:
 
 
 def builtin_model_path(name: str) -> Path | None:
-    """Path of a built-in model's XML (``<repo>/models/<name>.xml``), or None."""
-    p = Path(__file__).resolve().parents[2] / "models" / f"{name}.xml"
-    return p if p.exists() else None
+    """Path of a built-in model's XML, shipped as package data, or None."""
+    p = Path(__file__).parent / "models" / f"{name}.xml"
+    return p if p.is_file() else None
 
 
 def _load_model(model: ModelLike) -> "mujoco.MjModel":
@@ -220,21 +220,15 @@ def _load_model(model: ModelLike) -> "mujoco.MjModel":
     p = Path(model)
     if p.exists():
         return mujoco.MjModel.from_xml_path(str(p))
-    try:  # the XML compiled into the native module: works in any install
-        from pupper_core import _native
+    from pupper_core import _native
 
-        return mujoco.MjModel.from_xml_string(_native.builtin_xml(str(model)))
-    except ImportError:
-        pass
-    except Exception:  # not a built-in name: fall through to the error below
-        pass
-    b = builtin_model_path(str(model))
-    if b is not None:
-        return mujoco.MjModel.from_xml_path(str(b))
-    raise FileNotFoundError(
-        f"model '{model}' is neither an existing XML file nor a built-in model "
-        f"(looked for {Path(__file__).resolve().parents[2] / 'models'})"
-    )
+    try:  # the XML compiled into the native module, as the CLI uses it
+        xml = _native.builtin_xml(str(model))
+    except _native.ModelError:
+        raise FileNotFoundError(
+            f"model '{model}' is neither an existing XML file nor a built-in model"
+        ) from None
+    return mujoco.MjModel.from_xml_string(xml)
 
 
 def _base_body(model: "mujoco.MjModel", name: str = "") -> int:
@@ -686,11 +680,7 @@ def _run_settings(source: ModelLike | Path) -> dict[str, Any]:
         if "path" in src:
             model: ModelLike = src["path"]
         else:
-            name = src.get("builtin", "pupper_v3")
-            b = builtin_model_path(name)
-            if b is None:
-                raise FileNotFoundError(f"built-in model '{name}' of {p} is not found")
-            model = b
+            model = src.get("builtin", "pupper_v3")
         sched = cfg.get("schedule") or {}
         pu = sched.get("push")
         push: Push = None if not pu else (float(pu["start"]), float(pu["duration"]), tuple(pu["force"]))

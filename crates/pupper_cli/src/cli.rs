@@ -1,8 +1,6 @@
 //! Command-line arguments and what each command does with them.
 
 use std::path::PathBuf;
-use std::process::ExitCode;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
@@ -292,7 +290,7 @@ struct RenderArgs {
     height: u32,
 }
 
-pub fn run(cli: Cli, stop: Arc<AtomicBool>) -> Result<ExitCode> {
+pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
     match cli.command {
         Command::Info { model, json } => {
             let info = api::info(&model.source()?)?;
@@ -367,7 +365,7 @@ pub fn run(cli: Cli, stop: Arc<AtomicBool>) -> Result<ExitCode> {
             bridge::call_helper("pupper_core.render", "view", &[name], &[])?;
         }
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(0)
 }
 
 fn check_gain(flag: &str, v: f64) -> Result<()> {
@@ -400,7 +398,7 @@ fn sine(text: &str) -> Result<SineForce> {
     }
 }
 
-fn sweep(a: SweepArgs, stop: Arc<AtomicBool>) -> Result<ExitCode> {
+fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
     let command: Vec<String> = std::env::args().collect();
     let resume_alone = a.resume.is_some() && a.grid.is_empty() && a.preset.is_none();
     let config = if resume_alone {
@@ -479,7 +477,7 @@ fn sweep(a: SweepArgs, stop: Arc<AtomicBool>) -> Result<ExitCode> {
             dir.display(),
             dir.display()
         );
-        return Ok(ExitCode::from(130));
+        return Ok(130);
     }
     if a.json {
         println!("{}", print::json(&print::rows_json(&outcome))?);
@@ -502,7 +500,7 @@ fn sweep(a: SweepArgs, stop: Arc<AtomicBool>) -> Result<ExitCode> {
             eprintln!("wrote {p}");
         }
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(0)
 }
 
 fn default_out(preset: &Option<String>, cfg: &SweepConfig) -> PathBuf {
@@ -537,7 +535,7 @@ fn default_out(preset: &Option<String>, cfg: &SweepConfig) -> PathBuf {
 struct Progress {
     bar: Option<ProgressBar>,
     quiet: bool,
-    stop: Arc<AtomicBool>,
+    stop: &'static AtomicBool,
 }
 
 impl SweepUi for Progress {

@@ -2,7 +2,7 @@
 //!
 //! A plain Rust core (grids, schedules, PD, index bookkeeping, quaternions,
 //! statistics, the runner and its outputs) over one bridge to MuJoCo's
-//! Python package. The `python` feature adds the `#[pymodule]`.
+//! Python package. The `#[pymodule]` lives in the `pupper_py` crate.
 
 pub mod api;
 pub mod bridge;
@@ -19,9 +19,6 @@ pub mod physics;
 pub mod quat;
 pub mod schedule;
 pub mod stats;
-
-#[cfg(feature = "python")]
-mod python;
 
 pub use error::{Error, ErrorKind, Result};
 

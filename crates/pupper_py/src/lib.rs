@@ -10,14 +10,14 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyKeyboardInterrupt};
 use pyo3::prelude::*;
 
-use crate::api::{self, SweepRequest, SweepUi};
-use crate::error::{Error, ErrorKind};
-use crate::experiment::{Defaults, Hooks, RunOptions, SweepConfig};
-use crate::grid::{Axis, AxisValues, Grid};
-use crate::model::ModelSource;
-use crate::output::{self, Existing};
-use crate::physics::Mode;
-use crate::schedule::{InitialState, Push, Schedule, SineForce};
+use pupper_core::api::{self, SweepRequest, SweepUi};
+use pupper_core::error::{Error, ErrorKind};
+use pupper_core::experiment::{Defaults, Hooks, RunOptions, SweepConfig};
+use pupper_core::grid::{Axis, AxisValues, Grid};
+use pupper_core::model::ModelSource;
+use pupper_core::output::{self, Existing};
+use pupper_core::physics::Mode;
+use pupper_core::schedule::{InitialState, Push, Schedule, SineForce};
 
 create_exception!(
     pupper_core,
@@ -208,7 +208,7 @@ impl Hooks for PyUi<'_> {
     axes=None, specs=None, preset=None, model="pupper_v3", mode="servo", seconds=10.0,
     kp=5.0, kd=0.1, max_torque=3.0, push=true, push_force=-25.0, push_at=2.0,
     push_duration=0.25, sine=None, keyframe="home", pose=None, trace_every=0,
-    threads=0, chunk_cells=256, max_cells=crate::grid::DEFAULT_MAX_CELLS,
+    threads=0, chunk_cells=256, max_cells=pupper_core::grid::DEFAULT_MAX_CELLS,
     out=None, force=false, resume=false, progress=None,
 ))]
 #[allow(clippy::too_many_arguments)]
@@ -244,7 +244,7 @@ fn sweep(
         (None, Some(a), None) => a
             .into_iter()
             .map(|(name, values)| AxisValues::new(Axis::parse(&name)?, values))
-            .collect::<crate::Result<Vec<_>>>()
+            .collect::<pupper_core::Result<Vec<_>>>()
             .and_then(Grid::from_axes),
         (None, None, Some(s)) => Grid::parse(&s),
         (None, None, None) => Ok(Grid::default()),
@@ -354,16 +354,26 @@ fn builtin_xml(name: &str) -> PyResult<String> {
         .ok_or_else(|| {
             ModelError::new_err(format!(
                 "no built-in model '{name}': use one of {}",
-                crate::model::BUILTIN_NAMES.join(", ")
+                pupper_core::model::BUILTIN_NAMES.join(", ")
             ))
         })
+}
+
+/// The `pupper` command inside this interpreter (the wheel's console
+/// script): `argv` as `sys.argv`; returns the exit status.
+#[pyfunction]
+fn cli_main(py: Python<'_>, argv: Vec<std::ffi::OsString>) -> u8 {
+    // The CLI attaches to the interpreter itself; let it run its long calls
+    // without holding this frame's attachment.
+    let _ = py;
+    pupper_cli::main(argv, pupper_cli::Host::Interpreter)
 }
 
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
-    m.add("__version__", crate::VERSION)?;
-    m.add("METRICS", crate::metrics::METRIC_NAMES.to_vec())?;
+    m.add("__version__", pupper_core::VERSION)?;
+    m.add("METRICS", pupper_core::metrics::METRIC_NAMES.to_vec())?;
     m.add("PupperError", py.get_type::<PupperError>())?;
     m.add("GridError", py.get_type::<GridError>())?;
     m.add("ConfigError", py.get_type::<ConfigError>())?;
@@ -378,5 +388,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read_manifest, m)?)?;
     m.add_function(wrap_pyfunction!(parse_grid, m)?)?;
     m.add_function(wrap_pyfunction!(builtin_xml, m)?)?;
+    m.add_function(wrap_pyfunction!(cli_main, m)?)?;
     Ok(())
 }

@@ -1,0 +1,64 @@
+//! `pupper`: physics experiments on the Pupper v3 quadruped in MuJoCo.
+//! This crate only parses arguments, calls `pupper_core`, and prints. It is
+//! a library so that the same CLI runs from the `pupper` binary (embedding
+//! CPython) and from the wheel's `pupper` console script (inside the host
+//! interpreter, through `pupper_core._native.cli_main`).
+
+mod cli;
+mod print;
+
+use std::ffi::OsString;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use clap::Parser;
+use pupper_core::Error;
+
+/// Where the CLI runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Host {
+    /// The `pupper` binary: find the project's Python (or the one it was
+    /// built with) and start it.
+    Embedded { built_with: Option<&'static str> },
+    /// A Python process that is already running (the console script).
+    Interpreter,
+}
+
+/// Set by SIGINT/SIGTERM: finish the current step, keep what is done.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+/// Parses `args` (the program name first) and runs the command. Returns the
+/// exit status: 0 success, 2 bad input, 130 interrupted, 1 internal error.
+pub fn main(args: impl IntoIterator<Item = OsString>, host: Host) -> u8 {
+    let cli = match cli::Cli::try_parse_from(args) {
+        Ok(c) => c,
+        Err(e) => {
+            // --help and --version print and succeed; usage errors exit 2
+            let _ = e.print();
+            return if e.use_stderr() { 2 } else { 0 };
+        }
+    };
+    if let Host::Embedded { built_with } = host {
+        // Before any Python use: find the project's venv, start the interpreter.
+        let python = pupper_core::embed::find_python(built_with);
+        pupper_core::embed::start(python.as_deref());
+    }
+    // A second handler in one process is refused; the first one sets STOP too.
+    let _ = ctrlc::set_handler(|| {
+        if STOP.swap(true, Ordering::SeqCst) {
+            // a second Ctrl-C: the user really wants out
+            std::process::exit(130);
+        }
+    });
+    STOP.store(false, Ordering::SeqCst);
+    match cli::run(cli, &STOP) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e}");
+            match e {
+                Error::Interrupted(_) => 130,
+                e if e.is_user_error() => 2,
+                _ => 1,
+            }
+        }
+    }
+}
