@@ -5,14 +5,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use pupper_core::api::{self, SweepRequest, SweepUi};
 use pupper_core::experiment::{Defaults, Hooks, RunOptions, SweepConfig};
 use pupper_core::grid::{DEFAULT_MAX_CELLS, Grid};
 use pupper_core::model::ModelSource;
 use pupper_core::output::{self, Existing};
 use pupper_core::physics::Mode;
 use pupper_core::schedule::{InitialState, Push, Schedule, SineForce};
-use pupper_core::{Error, Result, bridge};
+use pupper_core::{Error, Result};
+use pupper_mujoco::api::{self, SweepRequest, SweepUi};
+use pupper_mujoco::bridge;
 
 use crate::print;
 

@@ -39,8 +39,8 @@ pub fn main(args: impl IntoIterator<Item = OsString>, host: Host) -> u8 {
     };
     if let Host::Embedded { built_with } = host {
         // Before any Python use: find the project's venv, start the interpreter.
-        let python = pupper_core::embed::find_python(built_with);
-        pupper_core::embed::start(python.as_deref());
+        let python = pupper_mujoco::embed::find_python(built_with);
+        pupper_mujoco::embed::start(python.as_deref());
     }
     // A second handler in one process is refused; the first one sets STOP too.
     let _ = ctrlc::set_handler(|| {

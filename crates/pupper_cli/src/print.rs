@@ -2,10 +2,10 @@
 
 use std::fmt::Write;
 
-use pupper_core::api::{StandReport, SweepOutcome};
-use pupper_core::bridge::PythonReport;
 use pupper_core::model::ModelInfo;
 use pupper_core::{Error, Result};
+use pupper_mujoco::api::{StandReport, SweepOutcome};
+use pupper_mujoco::bridge::PythonReport;
 use serde::Serialize;
 
 pub fn json<T: Serialize>(v: &T) -> Result<String> {

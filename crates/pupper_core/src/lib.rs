@@ -1,12 +1,11 @@
 //! pupper_core: physics experiments on the Pupper v3 quadruped in MuJoCo.
 //!
-//! A plain Rust core (grids, schedules, PD, index bookkeeping, quaternions,
-//! statistics, the runner and its outputs) over one bridge to MuJoCo's
-//! Python package. The `#[pymodule]` lives in the `pupper_py` crate.
+//! The plain Rust core: grids, schedules, PD, index bookkeeping, quaternions,
+//! statistics, metrics, the experiment runner and its run directory. No
+//! Python here: physics comes through the [`physics::Physics`] trait, which
+//! `pupper_mujoco` implements on MuJoCo's batch; the `#[pymodule]` lives in
+//! `pupper_py`.
 
-pub mod api;
-pub mod bridge;
-pub mod embed;
 pub mod error;
 pub mod experiment;
 pub mod grid;

@@ -10,7 +10,6 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyKeyboardInterrupt};
 use pyo3::prelude::*;
 
-use pupper_core::api::{self, SweepRequest, SweepUi};
 use pupper_core::error::{Error, ErrorKind};
 use pupper_core::experiment::{Defaults, Hooks, RunOptions, SweepConfig};
 use pupper_core::grid::{Axis, AxisValues, Grid};
@@ -18,6 +17,7 @@ use pupper_core::model::ModelSource;
 use pupper_core::output::{self, Existing};
 use pupper_core::physics::Mode;
 use pupper_core::schedule::{InitialState, Push, Schedule, SineForce};
+use pupper_mujoco::api::{self, SweepRequest, SweepUi};
 
 create_exception!(
     pupper_core,

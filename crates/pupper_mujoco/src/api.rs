@@ -6,14 +6,14 @@ use std::path::PathBuf;
 use serde::Serialize;
 
 use crate::bridge;
-use crate::error::{Error, Result};
-use crate::experiment::{self, CellResult, Defaults, Hooks, RunOptions, SweepConfig};
-use crate::grid::{Cell, Grid};
-use crate::metrics::Status;
-use crate::model::{ModelInfo, ModelSource};
-use crate::output::{Existing, Manifest, ModelRecord, RunWriter};
-use crate::physics::Mode;
-use crate::schedule::{InitialState, Schedule};
+use pupper_core::error::{Error, Result};
+use pupper_core::experiment::{self, CellResult, Defaults, Hooks, RunOptions, SweepConfig};
+use pupper_core::grid::{Cell, Grid};
+use pupper_core::metrics::Status;
+use pupper_core::model::{ModelInfo, ModelSource};
+use pupper_core::output::{Existing, Manifest, ModelRecord, RunWriter};
+use pupper_core::physics::Mode;
+use pupper_core::schedule::{InitialState, Schedule};
 
 /// What `pupper info` prints.
 pub fn info(source: &ModelSource) -> Result<ModelInfo> {
@@ -130,7 +130,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
     let cfg = &req.config;
     cfg.validate()?;
     cfg.grid.check_size(req.max_cells)?;
-    if cfg.schedule.push.is_none() && cfg.grid.has_axis(crate::grid::Axis::PushForce) {
+    if cfg.schedule.push.is_none() && cfg.grid.has_axis(pupper_core::grid::Axis::PushForce) {
         return Err(Error::Config(
             "the grid varies push_force but the push is off: drop --no-push or the push_force axis"
                 .into(),
@@ -155,7 +155,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             _ => {}
         }
         let manifest = Manifest {
-            pupper_version: crate::VERSION.to_string(),
+            pupper_version: pupper_core::VERSION.to_string(),
             mujoco_version: model.mujoco_version().to_string(),
             python: model.python_executable(),
             config: cfg.clone(),

@@ -4,19 +4,19 @@
 
 use std::sync::Once;
 
-use pupper_core::api;
 use pupper_core::experiment::{Defaults, NoHooks, RunOptions, SweepConfig};
 use pupper_core::grid::Grid;
 use pupper_core::metrics::Status;
 use pupper_core::model::ModelSource;
 use pupper_core::physics::Mode;
 use pupper_core::schedule::{InitialState, Schedule};
+use pupper_mujoco::api;
 
 fn init() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
-        let python = pupper_core::embed::find_python(option_env!("PYO3_PYTHON"));
-        pupper_core::embed::start(python.as_deref());
+        let python = pupper_mujoco::embed::find_python(option_env!("PYO3_PYTHON"));
+        pupper_mujoco::embed::start(python.as_deref());
     });
 }
 

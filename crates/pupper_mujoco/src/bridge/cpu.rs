@@ -1,0 +1,536 @@
+//! The CPU backend: every cell of a chunk in one `mujoco.batch.Batch`,
+//! stepped on MuJoCo's C thread pool. State is read and written through the
+//! batch's state rows, one contiguous `(nsim, nstate)` float64 array, so the
+//! hot loop makes one borrow per step and copies nothing.
+
+use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use super::model::LoadedModel;
+use super::python::{PyResultExt, py_err};
+use pupper_core::error::{Error, Result};
+use pupper_core::layout::Layout;
+use pupper_core::model::ModelInfo;
+use pupper_core::physics::{CellSetup, Controller, Force, Mode, Observer, Physics, SimBatch};
+use pupper_core::schedule::InitialState;
+
+impl Physics for LoadedModel<'_> {
+    fn info(&self) -> &ModelInfo {
+        &self.info
+    }
+
+    fn layout(&self) -> &Layout {
+        // start() is only reachable through floating()
+        self.layout
+            .as_ref()
+            .unwrap_or_else(|| unreachable!("layout of a non-floating model"))
+    }
+
+    fn start(
+        &self,
+        cells: &[CellSetup],
+        mode: Mode,
+        initial: &InitialState,
+        threads: usize,
+    ) -> Result<Box<dyn SimBatch + '_>> {
+        let batch = MujocoBatch::new(self, cells, mode, initial, threads)?;
+        Ok(Box::new(batch))
+    }
+}
+
+/// Offsets of state components within a state row.
+#[derive(Debug, Clone, Copy)]
+struct Offsets {
+    qpos: usize,
+    qvel: usize,
+    ctrl: usize,
+    xfrc: usize,
+    nstate: usize,
+}
+
+pub struct MujocoBatch<'a, 'py> {
+    owner: &'a LoadedModel<'py>,
+    batch: Bound<'py, PyAny>,
+    state: Bound<'py, PyArray2<f64>>,
+    warning: Bound<'py, PyArray3<i32>>,
+    /// Warning counts after the last call, per simulation.
+    warned: Vec<i64>,
+    off: Offsets,
+    targets: Vec<f64>,
+    nsim: usize,
+    /// Row of the base body in xfrc_applied.
+    force_body: usize,
+    nbody: usize,
+}
+
+impl<'a, 'py> MujocoBatch<'a, 'py> {
+    fn new(
+        owner: &'a LoadedModel<'py>,
+        cells: &[CellSetup],
+        mode: Mode,
+        initial: &InitialState,
+        threads: usize,
+    ) -> Result<Self> {
+        let mj = &owner.mj;
+        let py = mj.py;
+        let info = &owner.info;
+        let layout = Physics::layout(owner);
+        let n = cells.len();
+        let dt = cells[0].timestep.unwrap_or(info.timestep);
+        let same_body = cells.iter().all(|c| {
+            c.leg_scale == cells[0].leg_scale && c.torso_mass_scale == cells[0].torso_mass_scale
+        });
+        let prepare = |m: &Bound<'py, PyAny>| -> PyResult<Bound<'py, PyAny>> {
+            let m = mj.copy.call1((m,))?;
+            m.getattr("opt")?.setattr("timestep", dt)?;
+            if mode == Mode::Torque {
+                // direct torque inputs must not be clamped to a position range
+                m.getattr("actuator_ctrllimited")?
+                    .call_method1("fill", (0,))?;
+            }
+            Ok(m)
+        };
+        let template =
+            prepare(&owner.variant(cells[0].leg_scale, cells[0].torso_mass_scale)?).internal()?;
+        let batch = mj
+            .batch
+            .getattr("Batch")
+            .and_then(|b| b.call1((&template, n, threads)))
+            .internal()?;
+        let colliding = colliding_geoms(&template).internal()?;
+        if same_body {
+            // one model: per-cell fields through expand()
+            let gain = expand3(&batch, "actuator_gainprm")?;
+            let bias = expand3(&batch, "actuator_biasprm")?;
+            let range = expand3(&batch, "actuator_forcerange")?;
+            let friction = if cells.iter().any(|c| c.friction.is_some()) {
+                Some(expand3(&batch, "geom_friction")?)
+            } else {
+                None
+            };
+            let mut g = gain.readwrite();
+            let mut b = bias.readwrite();
+            let mut r = range.readwrite();
+            let (mut g, mut b, mut r) = (g.as_array_mut(), b.as_array_mut(), r.as_array_mut());
+            for (i, c) in cells.iter().enumerate() {
+                for a in 0..info.nu {
+                    let (gp, bp) = actuator_params(mode, c);
+                    for j in 0..gp.len().min(g.shape()[2]) {
+                        g[[i, a, j]] = gp[j];
+                        b[[i, a, j]] = bp[j];
+                    }
+                    r[[i, a, 0]] = -c.max_torque;
+                    r[[i, a, 1]] = c.max_torque;
+                }
+            }
+            if let Some(f) = friction {
+                let mut f = f.readwrite();
+                let mut f = f.as_array_mut();
+                for (i, c) in cells.iter().enumerate() {
+                    if let Some(mu) = c.friction {
+                        for &gid in &colliding {
+                            f[[i, gid, 0]] = mu;
+                        }
+                    }
+                }
+            }
+        } else {
+            // bodies differ: a model per cell, from the compiled variants
+            let models = PyList::empty(py);
+            for c in cells {
+                let m = prepare(&owner.variant(c.leg_scale, c.torso_mass_scale)?).internal()?;
+                set_model_params(&m, mode, c, &colliding).internal()?;
+                models.append(m).internal()?;
+            }
+            batch.call_method1("set_models", (models,)).internal()?;
+        }
+        let state: Bound<'py, PyArray2<f64>> = batch
+            .getattr("state")
+            .and_then(|s| s.cast_into::<PyArray2<f64>>().map_err(PyErr::from))
+            .internal()?;
+        if !state.is_c_contiguous() {
+            return Err(Error::Internal(
+                "batch state rows are not contiguous".into(),
+            ));
+        }
+        let warning: Bound<'py, PyArray3<i32>> = batch
+            .getattr("warning")
+            .and_then(|s| s.cast_into::<PyArray3<i32>>().map_err(PyErr::from))
+            .internal()?;
+        let base_ptr = state.data() as usize;
+        let offset_of = |field: &str| -> Result<usize> {
+            let view = batch.call_method1("bind", (field,)).internal()?;
+            let ptr: usize = view
+                .getattr("__array_interface__")
+                .and_then(|d| d.get_item("data"))
+                .and_then(|d| d.get_item(0))
+                .and_then(|p| p.extract())
+                .internal()?;
+            Ok((ptr - base_ptr) / std::mem::size_of::<f64>())
+        };
+        let off = Offsets {
+            qpos: offset_of("qpos")?,
+            qvel: offset_of("qvel")?,
+            ctrl: offset_of("ctrl")?,
+            xfrc: offset_of("xfrc_applied")?,
+            nstate: state.shape()[1],
+        };
+        // initial state and targets
+        let (key, pose) = match initial {
+            InitialState::Keyframe(name) => (Some(info.keyframe(name)?.0), None),
+            InitialState::Pose(p) => {
+                if p.len() != info.nu {
+                    return Err(Error::Config(format!(
+                        "the pose has {} angles but model '{}' has {} actuated joints: give one angle per actuator, in actuator order",
+                        p.len(),
+                        info.name,
+                        info.nu
+                    )));
+                }
+                (info.keyframes.first().map(|_| 0), Some(p.clone()))
+            }
+        };
+        let kw = PyDict::new(py);
+        kw.set_item("keyframe", key.map_or(-1, |k| k as i64))
+            .internal()?;
+        kw.set_item("stage", 0).internal()?;
+        batch.call_method("reset", (), Some(&kw)).internal()?;
+        let targets = match (&pose, key) {
+            (Some(p), _) => p.clone(),
+            (None, Some(k)) => {
+                let kf = &info.keyframes[k];
+                if kf.ctrl.len() == info.nu {
+                    kf.ctrl.clone()
+                } else {
+                    layout.joint_targets(&kf.qpos)
+                }
+            }
+            (None, None) => vec![0.0; info.nu],
+        };
+        {
+            let mut s = state.readwrite();
+            let rows = s
+                .as_slice_mut()
+                .map_err(|e| Error::Internal(e.to_string()))?;
+            for i in 0..n {
+                let row = &mut rows[i * off.nstate..(i + 1) * off.nstate];
+                if let Some(p) = &pose {
+                    for (a, &q) in p.iter().enumerate() {
+                        row[off.qpos + layout.act_qpos[a]] = q;
+                    }
+                }
+                let ctrl = &mut row[off.ctrl..off.ctrl + info.nu];
+                match mode {
+                    Mode::Servo => ctrl.copy_from_slice(&targets),
+                    Mode::Torque => ctrl.fill(0.0),
+                }
+            }
+        }
+        let warned = vec![0; n];
+        let mut me = MujocoBatch {
+            owner,
+            batch,
+            state,
+            warning,
+            warned,
+            off,
+            targets,
+            nsim: n,
+            force_body: layout.base.body,
+            nbody: info.nbody,
+        };
+        me.warned = me.warning_counts();
+        Ok(me)
+    }
+
+    /// Total warnings so far, per simulation.
+    fn warning_counts(&self) -> Vec<i64> {
+        let w = self.warning.readonly();
+        let w = w.as_array();
+        (0..self.nsim)
+            .map(|i| {
+                w.slice(numpy::ndarray::s![i, .., 1])
+                    .iter()
+                    .map(|&c| c as i64)
+                    .sum()
+            })
+            .collect()
+    }
+
+    /// Simulations among `ids` whose warning counts rose since the last call.
+    fn newly_warned(&mut self, ids: &[usize]) -> Vec<usize> {
+        let now = self.warning_counts();
+        let mut out = Vec::new();
+        for (pos, &sim) in ids.iter().enumerate() {
+            if now[sim] > self.warned[sim] {
+                out.push(pos);
+            }
+        }
+        self.warned = now;
+        out
+    }
+
+    fn ids_arg(&self, ids: &[usize]) -> Result<Bound<'py, PyAny>> {
+        let py = self.owner.mj.py;
+        if ids.len() == self.nsim {
+            return Ok(py.None().into_bound(py));
+        }
+        let v: Vec<i32> = ids.iter().map(|&i| i as i32).collect();
+        Ok(PyArray1::from_vec(py, v).into_any())
+    }
+
+    fn write_force(&self, rows: &mut [f64], sim: usize, f: [f64; 3]) {
+        let at = sim * self.off.nstate + self.off.xfrc + 6 * self.force_body;
+        rows[at..at + 3].copy_from_slice(&f);
+        rows[at + 3..at + 6].fill(0.0);
+    }
+}
+
+/// The simulations a `mujoco.batch.SimulationError` names; any other
+/// exception is an internal error.
+fn failed_ids(py: Python<'_>, e: PyErr) -> Result<Vec<i64>> {
+    e.value(py)
+        .getattr("ids")
+        .and_then(|i| i.call_method0("tolist"))
+        .and_then(|i| i.extract())
+        .map_err(|_| py_err(e))
+}
+
+fn actuator_params(mode: Mode, c: &CellSetup) -> ([f64; 3], [f64; 3]) {
+    match mode {
+        Mode::Servo => ([c.kp, 0.0, 0.0], [0.0, -c.kp, -c.kd]),
+        Mode::Torque => ([1.0, 0.0, 0.0], [0.0, 0.0, 0.0]),
+    }
+}
+
+fn expand3<'py>(batch: &Bound<'py, PyAny>, field: &str) -> Result<Bound<'py, PyArray3<f64>>> {
+    batch
+        .call_method1("expand", (field,))
+        .and_then(|a| a.cast_into::<PyArray3<f64>>().map_err(PyErr::from))
+        .internal()
+}
+
+/// Geoms that take part in contacts (the feet and the floor, in Pupper).
+fn colliding_geoms(model: &Bound<'_, PyAny>) -> PyResult<Vec<usize>> {
+    let ct: Vec<i64> = model
+        .getattr("geom_contype")?
+        .call_method0("tolist")?
+        .extract()?;
+    let ca: Vec<i64> = model
+        .getattr("geom_conaffinity")?
+        .call_method0("tolist")?
+        .extract()?;
+    Ok((0..ct.len())
+        .filter(|&g| ct[g] != 0 || ca[g] != 0)
+        .collect())
+}
+
+fn set_model_params(
+    m: &Bound<'_, PyAny>,
+    mode: Mode,
+    c: &CellSetup,
+    colliding: &[usize],
+) -> PyResult<()> {
+    let (gp, bp) = actuator_params(mode, c);
+    let g = m
+        .getattr("actuator_gainprm")?
+        .cast_into::<PyArray2<f64>>()?;
+    let b = m
+        .getattr("actuator_biasprm")?
+        .cast_into::<PyArray2<f64>>()?;
+    let r = m
+        .getattr("actuator_forcerange")?
+        .cast_into::<PyArray2<f64>>()?;
+    let (mut g, mut b, mut r) = (g.readwrite(), b.readwrite(), r.readwrite());
+    let (mut g, mut b, mut r) = (g.as_array_mut(), b.as_array_mut(), r.as_array_mut());
+    for a in 0..g.shape()[0] {
+        for j in 0..3 {
+            g[[a, j]] = gp[j];
+            b[[a, j]] = bp[j];
+        }
+        for j in 3..g.shape()[1] {
+            g[[a, j]] = 0.0;
+            b[[a, j]] = 0.0;
+        }
+        r[[a, 0]] = -c.max_torque;
+        r[[a, 1]] = c.max_torque;
+    }
+    if let Some(mu) = c.friction {
+        let f = m.getattr("geom_friction")?.cast_into::<PyArray2<f64>>()?;
+        let mut f = f.readwrite();
+        let mut f = f.as_array_mut();
+        for &gid in colliding {
+            f[[gid, 0]] = mu;
+        }
+    }
+    Ok(())
+}
+
+impl SimBatch for MujocoBatch<'_, '_> {
+    fn len(&self) -> usize {
+        self.nsim
+    }
+
+    fn targets(&self) -> &[f64] {
+        &self.targets
+    }
+
+    fn advance(
+        &mut self,
+        ids: &[usize],
+        nstep: usize,
+        force: Force<'_>,
+        observe: &mut Observer<'_>,
+    ) -> Result<Vec<(usize, usize)>> {
+        let py = self.owner.mj.py;
+        let nq = self.owner.info.nq;
+        let nu = self.owner.info.nu;
+        let kw = PyDict::new(py);
+        match force {
+            Force::Constant(f) => {
+                let mut s = self.state.readwrite();
+                let rows = s
+                    .as_slice_mut()
+                    .map_err(|e| Error::Internal(e.to_string()))?;
+                for (pos, &sim) in ids.iter().enumerate() {
+                    self.write_force(rows, sim, f[pos]);
+                }
+            }
+            Force::PerStep(f) => {
+                let width = 6 * self.nbody;
+                let mut control = vec![0.0f64; ids.len() * nstep * width];
+                for pos in 0..ids.len() {
+                    for j in 0..nstep {
+                        let at = (pos * nstep + j) * width + 6 * self.force_body;
+                        control[at..at + 3].copy_from_slice(&f[pos * nstep + j]);
+                    }
+                }
+                let arr = PyArray1::from_vec(py, control)
+                    .reshape([ids.len(), nstep, width])
+                    .internal()?;
+                let spec = self
+                    .owner
+                    .mj
+                    .module
+                    .getattr("mjtState")
+                    .and_then(|s| s.getattr("mjSTATE_XFRC_APPLIED"))
+                    .and_then(|s| s.getattr("value"))
+                    .internal()?;
+                kw.set_item("control", arr).internal()?;
+                kw.set_item("control_spec", spec).internal()?;
+            }
+        }
+        kw.set_item("record", ("qpos", "actuator_force"))
+            .internal()?;
+        kw.set_item("ids", self.ids_arg(ids)?).internal()?;
+        let out = match self.batch.call_method("rollout", (nstep,), Some(&kw)) {
+            Ok(out) => out,
+            Err(e) => {
+                // MuJoCo raised in some simulations: they diverged at this call
+                let failed = failed_ids(py, e)?;
+                return Ok(ids
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, s)| failed.contains(&(**s as i64)))
+                    .map(|(p, _)| (p, 0))
+                    .collect());
+            }
+        };
+        let qpos = out
+            .get_item("qpos")
+            .and_then(|a| a.cast_into::<PyArray3<f64>>().map_err(PyErr::from))
+            .internal()?;
+        let act = out
+            .get_item("actuator_force")
+            .and_then(|a| a.cast_into::<PyArray3<f64>>().map_err(PyErr::from))
+            .internal()?;
+        let warned = self.newly_warned(ids);
+        let qpos = qpos.readonly();
+        let act = act.readonly();
+        let qs = qpos
+            .as_slice()
+            .map_err(|e| Error::Internal(e.to_string()))?;
+        let acts = act.as_slice().map_err(|e| Error::Internal(e.to_string()))?;
+        let mut diverged = Vec::new();
+        for pos in 0..ids.len() {
+            let rec = |j: usize| &qs[(pos * nstep + j) * nq..(pos * nstep + j + 1) * nq];
+            // A warned simulation stopped stepping and repeats its last
+            // record; the step that warned is the one before the repeats.
+            let mut valid = nstep;
+            if warned.contains(&pos) {
+                let stop = (1..nstep).find(|&j| rec(j) == rec(j - 1)).unwrap_or(nstep);
+                valid = stop.saturating_sub(1);
+            }
+            for j in 0..valid {
+                let q = rec(j);
+                if q.iter().any(|x| !x.is_finite()) {
+                    valid = j;
+                    break;
+                }
+                let a = &acts[(pos * nstep + j) * nu..(pos * nstep + j + 1) * nu];
+                observe(pos, j, q, a);
+            }
+            if valid < nstep {
+                diverged.push((pos, valid));
+            }
+        }
+        Ok(diverged)
+    }
+
+    fn step_controlled(
+        &mut self,
+        ids: &[usize],
+        force: &[[f64; 3]],
+        control: &mut Controller<'_>,
+        observe: &mut Observer<'_>,
+    ) -> Result<Vec<usize>> {
+        let (nq, nv, nu) = (self.owner.info.nq, self.owner.info.nv, self.owner.info.nu);
+        let off = self.off;
+        let mut ctrl = vec![0.0f64; nu];
+        {
+            let mut s = self.state.readwrite();
+            let rows = s
+                .as_slice_mut()
+                .map_err(|e| Error::Internal(e.to_string()))?;
+            for (pos, &sim) in ids.iter().enumerate() {
+                let row = &rows[sim * off.nstate..(sim + 1) * off.nstate];
+                control(
+                    pos,
+                    &row[off.qpos..off.qpos + nq],
+                    &row[off.qvel..off.qvel + nv],
+                    &mut ctrl,
+                );
+                let at = sim * off.nstate + off.ctrl;
+                rows[at..at + nu].copy_from_slice(&ctrl);
+                self.write_force(rows, sim, force[pos]);
+            }
+        }
+        let ids_arg = self.ids_arg(ids)?;
+        if let Err(e) = self.batch.call_method1("step", (ids_arg,)) {
+            let failed = failed_ids(self.owner.mj.py, e)?;
+            let _ = self.newly_warned(ids);
+            return Ok(ids
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| failed.contains(&(**s as i64)))
+                .map(|(p, _)| p)
+                .collect());
+        }
+        let mut diverged = self.newly_warned(ids);
+        let s = self.state.readonly();
+        let rows = s.as_slice().map_err(|e| Error::Internal(e.to_string()))?;
+        for (pos, &sim) in ids.iter().enumerate() {
+            if diverged.contains(&pos) {
+                continue;
+            }
+            let q = &rows[sim * off.nstate + off.qpos..sim * off.nstate + off.qpos + nq];
+            if q.iter().any(|x| !x.is_finite()) {
+                diverged.push(pos);
+                continue;
+            }
+            observe(pos, 0, q, &[]);
+        }
+        Ok(diverged)
+    }
+}

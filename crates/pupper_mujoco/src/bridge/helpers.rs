@@ -1,0 +1,77 @@
+//! Entry points that hold the interpreter: run a closure on a loaded model,
+//! and call the Python package's helpers (plots, rendering, the viewer).
+
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use super::model::LoadedModel;
+use super::python::{Mujoco, PyResultExt, python_message};
+use pupper_core::error::{Error, Result};
+use pupper_core::model::ModelSource;
+
+/// Runs `f` with the imported `mujoco` and the model, floating-checked.
+pub fn with_model<T>(
+    source: &ModelSource,
+    floating: bool,
+    f: impl for<'py> FnOnce(&LoadedModel<'py>) -> Result<T>,
+) -> Result<T> {
+    Python::attach(|py| {
+        let mj = Mujoco::import(py)?;
+        let model = mj.load(source)?;
+        let model = if floating { model.floating()? } else { model };
+        f(&model)
+    })
+}
+
+/// Calls a function of our Python package (plots, rendering, the viewer)
+/// with string arguments and keyword arguments; returns its result as
+/// strings (a path or a list of paths). `RenderUnavailable` and
+/// `DisplayUnavailable` become one-line [`Error::Display`]s.
+pub fn call_helper(
+    module: &str,
+    func: &str,
+    args: &[String],
+    kwargs: &[(&str, f64)],
+) -> Result<Vec<String>> {
+    Python::attach(|py| {
+        Mujoco::import(py)?;
+        let m = PyModule::import(py, module).map_err(|e| {
+            Error::Mujoco(format!(
+                "cannot import {module} ({}): run `make setup` to install pupper's Python package into the project venv",
+                python_message(py, &e)
+            ))
+        })?;
+        let kw = PyDict::new(py);
+        for (k, v) in kwargs {
+            kw.set_item(k, v).internal()?;
+        }
+        let out = m
+            .getattr(func)
+            .and_then(|f| f.call(pyo3::types::PyTuple::new(py, args)?, Some(&kw)))
+            .map_err(|e| {
+                let kind = e
+                    .get_type(py)
+                    .name()
+                    .map(|n| n.to_string())
+                    .unwrap_or_default();
+                let msg = python_message(py, &e);
+                if kind.ends_with("Unavailable") {
+                    Error::Display(msg)
+                } else {
+                    Error::Internal(format!("{module}.{func}: {kind}: {msg}"))
+                }
+            })?;
+        if out.is_none() {
+            return Ok(vec![]);
+        }
+        if !(out.is_instance_of::<PyList>() || out.is_instance_of::<pyo3::types::PyTuple>()) {
+            return Ok(vec![out.to_string()]);
+        }
+        let items: Vec<Bound<'_, PyAny>> = out
+            .try_iter()
+            .internal()?
+            .collect::<PyResult<_>>()
+            .internal()?;
+        Ok(items.iter().map(|i| i.to_string()).collect())
+    })
+}

@@ -1,0 +1,12 @@
+//! The MuJoCo bridge: the only code that touches Python objects for
+//! physics. One job per module.
+
+pub mod cpu;
+mod helpers;
+mod inspect;
+pub mod model;
+pub mod python;
+
+pub use helpers::{call_helper, with_model};
+pub use model::LoadedModel;
+pub use python::{MUJOCO_MAJOR, Mujoco, PythonReport, doctor};

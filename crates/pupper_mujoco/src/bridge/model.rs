@@ -1,0 +1,191 @@
+//! Loading models: MJCF into `MjSpec`, compiled `MjModel`s, and body
+//! variants edited in memory (scaled legs, heavier torso).
+
+use std::cell::RefCell;
+
+use pyo3::prelude::*;
+use pyo3::types::PyList;
+
+use super::python::{Mujoco, PyResultExt, python_message};
+use pupper_core::error::{Error, Result};
+use pupper_core::layout::Layout;
+use pupper_core::model::{ModelInfo, ModelSource};
+
+impl<'py> Mujoco<'py> {
+    /// Parses the model's MJCF into an `MjSpec`.
+    pub(crate) fn spec(&self, source: &ModelSource) -> Result<Bound<'py, PyAny>> {
+        let spec_cls = self.module.getattr("MjSpec").internal()?;
+        let res = match source.builtin_xml() {
+            Some(xml) => spec_cls.call_method1("from_string", (xml,)),
+            None => match source {
+                ModelSource::Path(p) => {
+                    spec_cls.call_method1("from_file", (p.to_string_lossy().into_owned(),))
+                }
+                ModelSource::Builtin(n) => {
+                    return Err(Error::Model(format!("unknown built-in model '{n}'")));
+                }
+            },
+        };
+        res.map_err(|e| self.model_error(source, &e))
+    }
+
+    pub(crate) fn model_error(&self, source: &ModelSource, e: &PyErr) -> Error {
+        Error::Model(format!(
+            "model '{}' is not valid MJCF: {}; fix the file where MuJoCo points",
+            source.display(),
+            python_message(self.py, e)
+        ))
+    }
+
+    pub(crate) fn compile(
+        &self,
+        source: &ModelSource,
+        spec: &Bound<'py, PyAny>,
+    ) -> Result<Bound<'py, PyAny>> {
+        spec.call_method0("compile")
+            .map_err(|e| self.model_error(source, &e))
+    }
+
+    /// Loads and compiles a model.
+    pub fn load(&self, source: &ModelSource) -> Result<LoadedModel<'py>> {
+        let spec = self.spec(source)?;
+        let model = self.compile(source, &spec)?;
+        let info = self.info(source, &model)?;
+        Ok(LoadedModel {
+            mj: self.clone(),
+            source: source.clone(),
+            model,
+            info,
+            layout: None,
+            variants: RefCell::new(Vec::new()),
+        })
+    }
+}
+
+/// A compiled body variant, keyed by the bits of (leg_scale, torso_mass_scale).
+type Variant<'py> = ((u64, u64), Bound<'py, PyAny>);
+
+/// A compiled model and what was read from it.
+pub struct LoadedModel<'py> {
+    pub(crate) mj: Mujoco<'py>,
+    source: ModelSource,
+    model: Bound<'py, PyAny>,
+    pub(crate) info: ModelInfo,
+    pub(crate) layout: Option<Layout>,
+    /// Compiled body variants by (leg_scale, torso_mass_scale) bits.
+    variants: RefCell<Vec<Variant<'py>>>,
+}
+
+impl<'py> LoadedModel<'py> {
+    pub fn info(&self) -> &ModelInfo {
+        &self.info
+    }
+
+    /// Requires a floating base with joint actuators (for stand and sweep).
+    pub fn floating(mut self) -> Result<LoadedModel<'py>> {
+        self.layout = Some(Layout::floating(&self.info)?);
+        Ok(self)
+    }
+
+    pub fn mujoco_version(&self) -> &str {
+        &self.mj.version
+    }
+
+    pub fn python_executable(&self) -> String {
+        PyModule::import(self.mj.py, "sys")
+            .and_then(|s| s.getattr("executable"))
+            .map(|e| e.to_string())
+            .unwrap_or_default()
+    }
+
+    /// The `MjModel` object, for Python callers (rendering, viewers).
+    pub fn model(&self) -> &Bound<'py, PyAny> {
+        &self.model
+    }
+
+    /// A model with scaled legs and torso, compiled from an edited spec.
+    pub(crate) fn variant(
+        &self,
+        leg_scale: f64,
+        torso_mass_scale: f64,
+    ) -> Result<Bound<'py, PyAny>> {
+        if leg_scale == 1.0 && torso_mass_scale == 1.0 {
+            return Ok(self.model.clone());
+        }
+        let key = (leg_scale.to_bits(), torso_mass_scale.to_bits());
+        if let Some((_, m)) = self.variants.borrow().iter().find(|(k, _)| *k == key) {
+            return Ok(m.clone());
+        }
+        let spec = self.mj.spec(&self.source)?;
+        let layout = self
+            .layout
+            .as_ref()
+            .ok_or_else(|| Error::Internal("variants need a floating model".into()))?;
+        let base_name = &self.info.bodies[layout.base.body];
+        scale_spec(&spec, base_name, leg_scale, torso_mass_scale).internal()?;
+        let model = self.mj.compile(&self.source, &spec)?;
+        self.variants.borrow_mut().push((key, model.clone()));
+        Ok(model)
+    }
+}
+
+/// Scales the spec in memory: bodies two or more levels below the base (the
+/// thigh and calf segments of each leg) get their offsets, geoms, sites and
+/// inertial positions scaled by `leg`, their masses by `leg` and inertias by
+/// `leg^3` (a uniform rod); the base body's mass and inertia by `torso`.
+fn scale_spec(spec: &Bound<'_, PyAny>, base: &str, leg: f64, torso: f64) -> PyResult<()> {
+    let py = spec.py();
+    let scale3 = |obj: &Bound<'_, PyAny>, attr: &str, s: f64| -> PyResult<()> {
+        let v: Vec<f64> = obj.getattr(attr)?.call_method0("tolist")?.extract()?;
+        let scaled: Vec<f64> = v.iter().map(|x| x * s).collect();
+        obj.setattr(attr, PyList::new(py, scaled)?)
+    };
+    let base_body = spec.call_method1("body", (base,))?;
+    if torso != 1.0 {
+        let m: f64 = base_body.getattr("mass")?.extract()?;
+        base_body.setattr("mass", m * torso)?;
+        scale3(&base_body, "inertia", torso)?;
+    }
+    if leg == 1.0 {
+        return Ok(());
+    }
+    // depth-first over the base's descendants, tracking depth
+    let mut stack: Vec<(Bound<'_, PyAny>, usize)> = Vec::new();
+    for c in children(&base_body)? {
+        stack.push((c, 1));
+    }
+    while let Some((body, depth)) = stack.pop() {
+        for c in children(&body)? {
+            stack.push((c, depth + 1));
+        }
+        if depth < 2 {
+            continue;
+        }
+        if depth >= 3 {
+            // its offset from the parent is the parent segment's length
+            scale3(&body, "pos", leg)?;
+        }
+        scale3(&body, "ipos", leg)?;
+        let m: f64 = body.getattr("mass")?.extract()?;
+        body.setattr("mass", m * leg)?;
+        scale3(&body, "inertia", leg * leg * leg)?;
+        for g in body.getattr("geoms")?.try_iter()? {
+            let g = g?;
+            let fromto: Vec<f64> = g.getattr("fromto")?.call_method0("tolist")?.extract()?;
+            if fromto.iter().all(|x| x.is_finite()) {
+                scale3(&g, "fromto", leg)?;
+            } else {
+                scale3(&g, "pos", leg)?;
+            }
+        }
+        for s in body.getattr("sites")?.try_iter()? {
+            scale3(&s?, "pos", leg)?;
+        }
+    }
+    Ok(())
+}
+
+/// The direct child bodies of a spec body.
+fn children<'py>(b: &Bound<'py, PyAny>) -> PyResult<Vec<Bound<'py, PyAny>>> {
+    b.getattr("bodies")?.extract()
+}

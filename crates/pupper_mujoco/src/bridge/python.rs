@@ -1,0 +1,150 @@
+//! Python and the `mujoco` package: importing it (and checking its
+//! version), turning Python exceptions into typed errors, and `pupper doctor`.
+
+use pyo3::prelude::*;
+
+use pupper_core::error::{Error, Result};
+
+/// The supported `mujoco` major version.
+pub const MUJOCO_MAJOR: &str = "4.";
+
+/// How to fix a missing or wrong `mujoco`, for every message that needs it.
+pub(crate) const MUJOCO_FIX: &str = "run `make setup` in the pupper checkout (or `pip install 'mujoco==4.0.*'` in the Python that pupper uses; `pupper doctor` shows which)";
+
+pub(crate) fn py_err(e: PyErr) -> Error {
+    Python::attach(|py| {
+        // Ctrl-C landing inside a MuJoCo call from a notebook
+        if e.is_instance_of::<pyo3::exceptions::PyKeyboardInterrupt>(py) {
+            return Error::Interrupted("KeyboardInterrupt".into());
+        }
+        Error::Internal(python_message(py, &e))
+    })
+}
+
+/// A Python exception's message on one line (MuJoCo's XML errors span
+/// several: the parse error, then the element and line number).
+pub(crate) fn python_message(py: Python<'_>, e: &PyErr) -> String {
+    let text = e.value(py).to_string();
+    let mut out = String::new();
+    for line in text.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        if !out.is_empty() {
+            out.push_str(if out.ends_with(':') { " " } else { "; " });
+        }
+        out.push_str(line);
+    }
+    out
+}
+
+pub(crate) trait PyResultExt<T> {
+    fn internal(self) -> Result<T>;
+}
+
+impl<T> PyResultExt<T> for PyResult<T> {
+    fn internal(self) -> Result<T> {
+        self.map_err(py_err)
+    }
+}
+
+/// Where the interpreter is and what it has: `pupper doctor`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PythonReport {
+    pub executable: String,
+    pub version: String,
+    pub prefix: String,
+    pub base_prefix: String,
+    pub mujoco: Option<String>,
+    pub mujoco_path: Option<String>,
+    pub numpy: Option<String>,
+    pub problem: Option<String>,
+}
+
+pub fn doctor() -> Result<PythonReport> {
+    Python::attach(|py| {
+        let sys = PyModule::import(py, "sys").internal()?;
+        let get = |n: &str| -> Result<String> {
+            sys.getattr(n)
+                .internal()?
+                .str()
+                .internal()
+                .map(|s| s.to_string())
+        };
+        let mut report = PythonReport {
+            executable: get("executable")?,
+            version: get("version")?.lines().next().unwrap_or("").to_string(),
+            prefix: get("prefix")?,
+            base_prefix: get("base_prefix")?,
+            mujoco: None,
+            mujoco_path: None,
+            numpy: None,
+            problem: None,
+        };
+        if let Ok(np) = PyModule::import(py, "numpy") {
+            report.numpy = np
+                .getattr("__version__")
+                .and_then(|v| v.extract::<String>())
+                .ok();
+        }
+        match Mujoco::import(py) {
+            Ok(mj) => {
+                report.mujoco = Some(mj.version.clone());
+                report.mujoco_path = mj
+                    .module
+                    .getattr("__file__")
+                    .and_then(|v| v.extract::<String>())
+                    .ok();
+            }
+            Err(e) => report.problem = Some(e.to_string()),
+        }
+        Ok(report)
+    })
+}
+
+/// The imported `mujoco` package.
+#[derive(Clone)]
+pub struct Mujoco<'py> {
+    pub(crate) py: Python<'py>,
+    pub(crate) module: Bound<'py, PyModule>,
+    pub(crate) batch: Bound<'py, PyModule>,
+    pub(crate) copy: Bound<'py, PyAny>,
+    pub version: String,
+}
+
+impl<'py> Mujoco<'py> {
+    pub fn import(py: Python<'py>) -> Result<Mujoco<'py>> {
+        let executable = PyModule::import(py, "sys")
+            .and_then(|s| s.getattr("executable"))
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        let module = PyModule::import(py, "mujoco").map_err(|e| {
+            Error::Mujoco(format!(
+                "cannot import the Python package 'mujoco' in {executable} ({}): {MUJOCO_FIX}",
+                python_message(py, &e)
+            ))
+        })?;
+        let version: String = module
+            .getattr("__version__")
+            .and_then(|v| v.extract())
+            .unwrap_or_else(|_| "unknown".into());
+        if !version.starts_with(MUJOCO_MAJOR) {
+            return Err(Error::Mujoco(format!(
+                "pupper needs mujoco 4.x but {executable} has mujoco {version}: {MUJOCO_FIX}"
+            )));
+        }
+        let batch = PyModule::import(py, "mujoco.batch").map_err(|e| {
+            Error::Mujoco(format!(
+                "mujoco {version} has no usable mujoco.batch ({}): {MUJOCO_FIX}",
+                python_message(py, &e)
+            ))
+        })?;
+        let copy = PyModule::import(py, "copy")
+            .and_then(|c| c.getattr("copy"))
+            .internal()?;
+        Ok(Mujoco {
+            py,
+            module,
+            batch,
+            copy,
+            version,
+        })
+    }
+}
