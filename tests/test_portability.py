@@ -1,0 +1,175 @@
+"""No tracked file may name a directory of the machine it was written on.
+
+A clone elsewhere has none of them: an absolute path into a home directory, a
+temporary directory or this checkout works only where it was written (once,
+python/requirements.lock held an editable install of the checkout by its
+absolute path, and both README commands failed on every other machine).
+
+The guard scans every tracked text file (`git ls-files`), this one included,
+so the patterns below are composed from pieces and no literal forbidden path
+appears in this file. `test_guard_can_fail` proves it reports what it should.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+from collections.abc import Iterable
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+MAX_TEXT = 120
+BINARY_SNIFF = 8192
+
+S = "/"
+#: Before a path: not part of a longer word or a relative path (`../x`, `a/x`, `~/x`).
+START = r"(?<![\w.~$-])"
+#: After a directory name: the end of that path component.
+END = r"(?![\w.@+-])"
+#: One path component (a user name, a temp directory's name).
+NAME = r"[\w.@+-]+"
+
+
+def _machine_patterns(roots: Iterable[str | Path]) -> list[tuple[str, re.Pattern[str]]]:
+    pats = [
+        ("home directory", S + "home" + S + NAME + END),
+        ("home directory", S + "Users" + S + NAME + END),
+        ("home directory", S + "root" + END),
+        ("home directory", r"\b[A-Za-z]:\\\\?" + "Users" + r"\\"),
+        ("temporary directory", S + "tmp" + S + NAME),
+        ("temporary directory", S + "var" + S + "tmp" + S),
+        ("temporary directory", S + "private" + S + "var" + S + "folders" + S),
+    ]
+    seen: set[str] = set()
+    for root in roots:
+        root = str(root).rstrip("/")
+        for path, what, end in (
+            (root, "this checkout", END),
+            # the checkout's parent only as a directory prefix (then "/"), never a longer name
+            (root.rsplit("/", 1)[0], "the checkout's parent directory", S),
+        ):
+            # never "/" itself, nor a path too short to mean a machine (a checkout at /x)
+            if path.count("/") < 1 or len(path) < 3 or path in seen:
+                continue
+            seen.add(path)
+            pats.append((f"{what} ({path})", re.escape(path) + end))
+    return [(what, re.compile(START + p)) for what, p in pats]
+
+
+def _excerpt(line: str, start: int) -> str:
+    text = line.strip()
+    start -= len(line) - len(line.lstrip())
+    if len(text) <= MAX_TEXT:
+        return text
+    lo = max(0, min(start - 40, len(text) - MAX_TEXT))
+    cut = text[lo:lo + MAX_TEXT]
+    return ("…" if lo else "") + cut + ("…" if lo + MAX_TEXT < len(text) else "")
+
+
+def find_machine_paths(files: dict[str, str], roots: Iterable[str | Path]) -> list[str]:
+    """`file:line: text` for every line of `files` (name -> text) naming a machine's directory.
+
+    Flagged: home directories, temporary directories, and each checkout root in
+    `roots` or anything under its parent directory. One entry per offending
+    line, in file then line order; text trimmed to about 120 characters
+    around the first offending path.
+    """
+    patterns = _machine_patterns(roots)
+    found = []
+    for name in sorted(files):
+        for lineno, line in enumerate(files[name].splitlines(), 1):
+            hits = [m.start() for _, p in patterns for m in [p.search(line)] if m]
+            if hits:
+                found.append(f"{name}:{lineno}: {_excerpt(line, min(hits))}")
+    return found
+
+
+def tracked_text_files(repo: Path) -> dict[str, str]:
+    """The tracked files of `repo` that are text (no NUL in the first 8 KB, valid UTF-8)."""
+    try:
+        out = subprocess.run(
+            ["git", "-C", str(repo), "ls-files", "-z"],
+            capture_output=True, check=True, timeout=60,
+        ).stdout
+    except (OSError, subprocess.CalledProcessError) as e:
+        pytest.skip(f"not a git checkout, or no git ({e}): nothing tracked to scan")
+    files = {}
+    for raw in out.split(b"\0"):
+        if not raw:
+            continue
+        name = raw.decode("utf-8", "surrogateescape")
+        path = repo / name
+        if not path.is_file() or path.is_symlink():
+            continue  # deleted in the working tree, a submodule, or a link
+        data = path.read_bytes()
+        if b"\0" in data[:BINARY_SNIFF]:
+            continue
+        try:
+            files[name] = data.decode("utf-8")
+        except UnicodeDecodeError:
+            continue
+    return files
+
+
+def _roots() -> list[Path]:
+    return [REPO, Path(__file__).absolute().parent.parent]
+
+
+def test_no_tracked_file_names_a_machine_path():
+    files = tracked_text_files(REPO)
+    assert files, f"git ls-files found no text files in {REPO}"
+    found = find_machine_paths(files, _roots())
+    assert not found, (
+        f"{len(found)} line(s) of tracked files name a directory of this machine "
+        "(a home or temporary directory, or this checkout by its absolute path), "
+        "which a clone elsewhere does not have; use a path relative to the checkout "
+        "(found at run time) instead:\n  " + "\n  ".join(found)
+    )
+
+
+def test_guard_can_fail():
+    home = S + "home" + S + "alice" + S + ".cache"
+    tmp = S + "tmp" + S + "pytest-of-root" + S + "x"
+    parent = str(REPO.parent).rstrip("/")
+    files = {
+        "python/requirements.lock": f"numpy==2.0\n-e {REPO}/python\nscipy==1.0\n",
+        "notes.md": f"# notes\n\ncache in {home}\nscratch: {tmp}\n",
+        "a.toml": f'x = "ok"\n\ny = "{parent}/shared/reference"\n',
+        "b.sh": "cd " + S + "root" + S + "src && make\n" + "HOME=" + S + "Users" + S + "bob make\n",
+        "c.txt": "build in " + S + "var" + S + "tmp" + S + "b and "
+        + S + "private" + S + "var" + S + "folders" + S + "xy/T/z\n",
+        "long.txt": "x" * 300 + f" {home} " + "y" * 300 + "\n",
+    }
+    found = find_machine_paths(files, [REPO])
+    lines = [f.split(": ", 1)[0] for f in found]
+    assert lines == [
+        "a.toml:3", "b.sh:1", "b.sh:2", "c.txt:1", "long.txt:1",
+        "notes.md:3", "notes.md:4", "python/requirements.lock:2",
+    ], found
+    assert f"python/requirements.lock:2: -e {REPO}/python" in found
+    assert f"notes.md:3: cache in {home}" in found
+    assert f"notes.md:4: scratch: {tmp}" in found
+    long = next(f for f in found if f.startswith("long.txt:1: "))
+    assert home in long and len(long) < len("long.txt:1: ") + MAX_TEXT + 5, long
+
+
+def test_guard_passes_harmless_text():
+    parent_name = REPO.parent.name
+    harmless = "\n".join([
+        "see ../shared/reference",
+        "https://github.com/x/y",
+        "/usr/lib/x86_64-linux-gnu",
+        "/dev/null", "/proc/self", '"/"',
+        "~/.cache/pip and ~/.cargo/registry", "$HOME/.cache",
+        "target/release/pupper", "./tmp/x", "../tmp/y", "runs/tmp/z", "tmp/x",
+        "a /tmp dir, the TMPDIR", "chroot/", "repo root/x", "/rootfs", "/root.d",
+        "the homework is at /homework", "https://example.com/home/alice/x",
+        f"/{parent_name}shop/x", f"/{parent_name}", f"the {parent_name}/x folder",
+        f"{parent_name}s/{REPO.name}", "/users/guide", "C:/Program Files",
+        "PATH=/usr/local/bin:/usr/bin:/bin",
+        "file:///usr/share/doc",
+    ])
+    found = find_machine_paths({"h.txt": harmless}, [REPO])
+    assert found == [], found
