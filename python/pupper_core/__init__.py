@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Literal, Mapping, Sequence
 
 import numpy as np
 
@@ -61,22 +62,41 @@ def info(model: str | Path = "pupper_v3") -> dict[str, Any]:
     return json.loads(_native.info(str(model)))
 
 
+#: Defaults of every sweep keyword, as the Rust core's SweepSpec holds them
+#: (the CLI's --help shows the same ones; tests/test_spec.py checks).
+_D: dict[str, Any] = _native.sweep_defaults()
+
+Mode = Literal["servo", "torque"]
+
+
 def stand(
-    model: str | Path = "pupper_v3",
+    model: str | os.PathLike[str] = _D["model"],
     *,
-    seconds: float = 10.0,
-    kp: float = 5.0,
-    kd: float = 0.1,
-    keyframe: str = "home",
-    pose: Sequence[float] | None = None,
-    mode: str = "servo",
+    seconds: float = _D["seconds"],
+    kp: float = _D["kp"],
+    kd: float = _D["kd"],
+    max_torque: float = _D["max_torque"],
+    keyframe: str = _D["keyframe"],
+    pose: Sequence[float] | None = _D["pose"],
+    mode: Mode = _D["mode"],
 ) -> dict[str, Any]:
     """Reset to a keyframe (or pose), stand with no push; final z, last-second std, tilt."""
-    return json.loads(
-        _native.stand(
-            str(model), seconds, kp, kd, keyframe, None if pose is None else list(pose), mode
-        )
-    )
+    return json.loads(_native.stand(**_options(locals())))
+
+
+def _options(arguments: Mapping[str, Any]) -> dict[str, Any]:
+    """The spec's keyword arguments among a call's `locals()`, as plain
+    values: paths as text, sequences as lists of floats."""
+    out: dict[str, Any] = {}
+    for name, value in arguments.items():
+        if name not in _D or name == "out":
+            continue
+        if name == "model":
+            value = os.fspath(value)
+        elif name in ("pose", "sine") and value is not None:
+            value = [float(x) for x in value]
+        out[name] = value
+    return out
 
 
 class SweepResult:
@@ -193,84 +213,48 @@ def _progress_printer() -> Callable[[int, int], None] | None:
 
 
 def sweep(
-    grid: Mapping[str, Sequence[float] | float] | Sequence[str] | str | None = None,
+    grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | str | None = None,
     *,
     preset: str | None = None,
-    model: str | Path = "pupper_v3",
-    mode: str = "servo",
-    seconds: float = 10.0,
-    kp: float = 5.0,
-    kd: float = 0.1,
-    max_torque: float = 3.0,
-    push: bool = True,
-    push_force: float = -25.0,
-    push_at: float = 2.0,
-    push_duration: float = 0.25,
-    sine: tuple[float, float] | None = None,
-    keyframe: str = "home",
-    pose: Sequence[float] | None = None,
-    trace: bool = False,
-    trace_every: int = 10,
-    threads: int = 0,
-    chunk_cells: int = 256,
-    max_cells: int = 100_000,
-    out: str | Path | None = None,
-    force: bool = False,
-    resume: bool = False,
+    model: str | os.PathLike[str] = _D["model"],
+    mode: Mode = _D["mode"],
+    seconds: float = _D["seconds"],
+    kp: float = _D["kp"],
+    kd: float = _D["kd"],
+    max_torque: float = _D["max_torque"],
+    push: bool = _D["push"],
+    push_force: float = _D["push_force"],
+    push_at: float = _D["push_at"],
+    push_duration: float = _D["push_duration"],
+    sine: tuple[float, float] | None = _D["sine"],
+    keyframe: str = _D["keyframe"],
+    pose: Sequence[float] | None = _D["pose"],
+    trace: bool = _D["trace"],
+    trace_every: int = _D["trace_every"],
+    threads: int = _D["threads"],
+    chunk_cells: int = _D["chunk_cells"],
+    max_cells: int = _D["max_cells"],
+    out: str | os.PathLike[str] | None = _D["out"],
+    force: bool = _D["force"],
+    resume: bool = _D["resume"],
     progress: bool | Callable[[int, int], None] = True,
 ) -> SweepResult:
     """Run a grid of settings as one batched MuJoCo simulation.
 
-    grid: {"kp": [10, 30], "kd": [1]} or the CLI's strings ["kp=10,30", "kd=1"]
-    (or one such string). preset: "chapter-4.6" or "lab" instead of a grid.
+    grid: {"kp": [10, 30], "kd": 1} (a value may also be text parsed as the
+    CLI parses it: "10,30" or "1:120:16:log"), or the CLI's strings
+    ["kp=10,30", "kd=1"] (or one such string). preset: "chapter-4.6" or
+    "lab" instead of a grid. Every other keyword is the CLI flag of the same
+    name, with the same default and checks (`pupper sweep --help`).
     out: also write the run directory (summary.csv, manifest.json, traces.csv)
     as `pupper sweep --out` does; resume=True continues an interrupted one.
     progress: True shows a tqdm bar when tqdm is installed; or a callable
     (done_steps, total_steps). Ctrl-C stops within a second, keeps what is
     finished, and raises KeyboardInterrupt.
     """
-    axes = specs = None
-    if isinstance(grid, str):
-        specs = [grid]
-    elif isinstance(grid, Mapping):
-        axes = []
-        for name, values in grid.items():
-            vals = [values] if isinstance(values, (int, float)) else list(values)
-            try:
-                axes.append((str(name), [float(v) for v in vals]))
-            except (TypeError, ValueError):
-                raise GridError(
-                    f"grid axis {name!r} has a non-numeric value: use numbers like 10 or 0.5"
-                ) from None
-    elif grid is not None:
-        specs = [str(s) for s in grid]
+    options = _options(locals())
     callback = _progress_printer() if progress is True else (progress or None)
-    payload = _native.sweep(
-        axes=axes,
-        specs=specs,
-        preset=preset,
-        model=str(model),
-        mode=mode,
-        seconds=seconds,
-        kp=kp,
-        kd=kd,
-        max_torque=max_torque,
-        push=push,
-        push_force=push_force,
-        push_at=push_at,
-        push_duration=push_duration,
-        sine=sine,
-        keyframe=keyframe,
-        pose=None if pose is None else [float(q) for q in pose],
-        trace_every=trace_every if trace else 0,
-        threads=threads,
-        chunk_cells=chunk_cells,
-        max_cells=max_cells,
-        out=None if out is None else str(out),
-        force=force,
-        resume=resume,
-        progress=callback,
-    )
+    payload = _native.sweep(grid, preset=preset, out=out, progress=callback, **options)
     return SweepResult(json.loads(payload))
 
 

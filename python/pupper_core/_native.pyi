@@ -1,7 +1,12 @@
 """Type stubs of the native module (Rust, pyo3). Use the wrappers in
-`pupper_core` rather than these directly."""
+`pupper_core` rather than these directly.
 
-from collections.abc import Callable, Sequence
+Sweep keywords are the fields of the Rust `SweepSpec`; their defaults live
+there alone (`sweep_defaults()` returns them), so the stubs write `...`."""
+
+from collections.abc import Callable, Mapping, Sequence
+from os import PathLike
+from typing import Any, Literal
 
 __version__: str
 METRICS: list[str]
@@ -15,42 +20,59 @@ class OutputError(PupperError): ...
 class DisplayError(PupperError): ...
 class InternalError(PupperError): ...
 
-def info(model: str = "pupper_v3") -> str: ...
+def info(model: str = ...) -> str:
+    """Model info as JSON (what `pupper info --json` prints)."""
+
+def sweep_defaults() -> dict[str, Any]:
+    """The default of every sweep keyword, from the Rust SweepSpec."""
+
 def stand(
-    model: str = "pupper_v3",
-    seconds: float = 10.0,
-    kp: float = 5.0,
-    kd: float = 0.1,
-    keyframe: str = "home",
-    pose: Sequence[float] | None = None,
-    mode: str = "servo",
-) -> str: ...
+    *,
+    model: str = ...,
+    mode: Literal["servo", "torque"] = ...,
+    seconds: float = ...,
+    kp: float = ...,
+    kd: float = ...,
+    max_torque: float = ...,
+    keyframe: str = ...,
+    pose: Sequence[float] | None = ...,
+) -> str:
+    """Stand report as JSON (what `pupper stand --json` prints)."""
+
 def sweep(
-    axes: Sequence[tuple[str, Sequence[float]]] | None = None,
-    specs: Sequence[str] | None = None,
-    preset: str | None = None,
-    model: str = "pupper_v3",
-    mode: str = "servo",
-    seconds: float = 10.0,
-    kp: float = 5.0,
-    kd: float = 0.1,
-    max_torque: float = 3.0,
-    push: bool = True,
-    push_force: float = -25.0,
-    push_at: float = 2.0,
-    push_duration: float = 0.25,
-    sine: tuple[float, float] | None = None,
-    keyframe: str = "home",
-    pose: Sequence[float] | None = None,
-    trace_every: int = 0,
-    threads: int = 0,
-    chunk_cells: int = 256,
-    max_cells: int = 100000,
-    out: str | None = None,
-    force: bool = False,
-    resume: bool = False,
-    progress: Callable[[int, int], object] | None = None,
-) -> str: ...
-def read_manifest(dir: str) -> str: ...
-def parse_grid(specs: Sequence[str]) -> list[tuple[str, list[float]]]: ...
-def builtin_xml(name: str) -> str: ...
+    grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | str | None = ...,
+    *,
+    preset: str | None = ...,
+    out: str | PathLike[str] | None = ...,
+    progress: Callable[[int, int], object] | None = ...,
+    model: str = ...,
+    mode: Literal["servo", "torque"] = ...,
+    seconds: float = ...,
+    kp: float = ...,
+    kd: float = ...,
+    max_torque: float = ...,
+    push: bool = ...,
+    push_force: float = ...,
+    push_at: float = ...,
+    push_duration: float = ...,
+    sine: Sequence[float] | None = ...,
+    keyframe: str = ...,
+    pose: Sequence[float] | None = ...,
+    trace: bool = ...,
+    trace_every: int = ...,
+    threads: int = ...,
+    chunk_cells: int = ...,
+    max_cells: int = ...,
+    force: bool = ...,
+    resume: bool = ...,
+) -> str:
+    """Runs a sweep; the summary table (and traces) as JSON."""
+
+def read_manifest(dir: str) -> str:
+    """The manifest of a run directory, as JSON."""
+
+def builtin_xml(name: str) -> str:
+    """The MJCF text of a built-in model."""
+
+def cli_main(argv: Sequence[str]) -> int:
+    """The `pupper` command inside this interpreter; returns the exit status."""

@@ -5,12 +5,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use pupper_core::experiment::{Defaults, Hooks, RunOptions, SweepConfig};
-use pupper_core::grid::{DEFAULT_MAX_CELLS, Grid};
+use pupper_core::experiment::{Hooks, SweepConfig};
 use pupper_core::model::ModelSource;
-use pupper_core::output::{self, Existing};
+use pupper_core::output;
 use pupper_core::physics::Mode;
-use pupper_core::schedule::{InitialState, Push, Schedule, SineForce};
+use pupper_core::spec::{self, GridInput, SweepSpec};
 use pupper_core::{Error, Result};
 use pupper_mujoco::api::{self, SweepRequest, SweepUi};
 use pupper_mujoco::bridge;
@@ -68,55 +67,13 @@ enum Command {
 #[derive(Args, Debug)]
 struct ModelArg {
     /// Built-in model name (pupper_v3, pupper_v3_fixed) or path to an MJCF file.
-    #[arg(
-        long,
-        short = 'm',
-        default_value = "pupper_v3",
-        value_name = "NAME|PATH"
-    )]
+    #[arg(long, short = 'm', default_value_t = SweepSpec::default().model, value_name = "NAME|PATH")]
     model: String,
 }
 
 impl ModelArg {
     fn source(&self) -> Result<ModelSource> {
         ModelSource::parse(&self.model)
-    }
-}
-
-#[derive(Args, Debug)]
-struct StartArgs {
-    /// Keyframe to reset to; its ctrl (or joint qpos) gives the joint targets.
-    #[arg(
-        long,
-        default_value = "home",
-        value_name = "NAME",
-        conflicts_with = "pose"
-    )]
-    keyframe: String,
-    /// Start and target joint angles (rad), one per actuator in ctrl order, comma-separated.
-    #[arg(long, value_name = "Q1,Q2,...", allow_hyphen_values = true)]
-    pose: Option<String>,
-}
-
-impl StartArgs {
-    fn initial(&self) -> Result<InitialState> {
-        match &self.pose {
-            None => Ok(InitialState::Keyframe(self.keyframe.clone())),
-            Some(p) => {
-                let v = p
-                    .split(',')
-                    .map(|t| {
-                        t.trim().parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
-                            Error::Config(format!(
-                                "--pose value '{}' is not a finite number: give radians like 0,0.7,-1.4",
-                                t.trim()
-                            ))
-                        })
-                    })
-                    .collect::<Result<Vec<_>>>()?;
-                Ok(InitialState::Pose(v))
-            }
-        }
     }
 }
 
@@ -137,29 +94,65 @@ impl From<ModeArg> for Mode {
     }
 }
 
+impl From<Mode> for ModeArg {
+    fn from(m: Mode) -> ModeArg {
+        match m {
+            Mode::Servo => ModeArg::Servo,
+            Mode::Torque => ModeArg::Torque,
+        }
+    }
+}
+
+/// What every simulating command shares: the model, the controller, how
+/// long, and where cells start. Defaults come from `SweepSpec::default()`.
+#[derive(Args, Debug)]
+struct SimArgs {
+    #[command(flatten)]
+    model: ModelArg,
+    /// Who computes the PD torques.
+    #[arg(long, value_enum, default_value_t = ModeArg::from(SweepSpec::default().mode))]
+    mode: ModeArg,
+    /// Simulated seconds (per cell).
+    #[arg(long, default_value_t = SweepSpec::default().seconds, value_name = "S", allow_negative_numbers = true)]
+    seconds: f64,
+    /// Proportional gain (N·m/rad), for cells whose grid has no kp axis.
+    #[arg(long, default_value_t = SweepSpec::default().kp, allow_negative_numbers = true)]
+    kp: f64,
+    /// Derivative gain (N·m·s/rad), for cells whose grid has no kd axis.
+    #[arg(long, default_value_t = SweepSpec::default().kd, allow_negative_numbers = true)]
+    kd: f64,
+    /// Torque limit (N·m) of every actuator, in both modes (Pupper v3's motors: 3).
+    #[arg(long, default_value_t = SweepSpec::default().max_torque, value_name = "NM", allow_negative_numbers = true)]
+    max_torque: f64,
+    /// Keyframe to reset to; its ctrl (or joint qpos) gives the joint targets.
+    #[arg(long, default_value_t = SweepSpec::default().keyframe, value_name = "NAME", conflicts_with = "pose")]
+    keyframe: String,
+    /// Start and target joint angles (rad), one per actuator in ctrl order, comma-separated.
+    #[arg(long, value_name = "Q1,Q2,...", allow_hyphen_values = true)]
+    pose: Option<String>,
+}
+
+impl SimArgs {
+    /// These arguments over the spec's defaults.
+    fn spec(&self) -> Result<SweepSpec> {
+        Ok(SweepSpec {
+            model: self.model.model.clone(),
+            mode: self.mode.into(),
+            seconds: self.seconds,
+            kp: self.kp,
+            kd: self.kd,
+            max_torque: self.max_torque,
+            keyframe: self.keyframe.clone(),
+            pose: self.pose.as_deref().map(spec::parse_pose).transpose()?,
+            ..SweepSpec::default()
+        })
+    }
+}
+
 #[derive(Args, Debug)]
 struct StandArgs {
     #[command(flatten)]
-    model: ModelArg,
-    /// Simulated seconds.
-    #[arg(
-        long,
-        default_value_t = 10.0,
-        value_name = "S",
-        allow_negative_numbers = true
-    )]
-    seconds: f64,
-    /// Proportional gain (N·m/rad).
-    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
-    kp: f64,
-    /// Derivative gain (N·m·s/rad).
-    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
-    kd: f64,
-    /// Who computes the PD torques.
-    #[arg(long, value_enum, default_value = "servo")]
-    mode: ModeArg,
-    #[command(flatten)]
-    start: StartArgs,
+    sim: SimArgs,
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
@@ -189,40 +182,15 @@ struct SweepArgs {
     #[arg(long, value_name = "NAME", conflicts_with = "grid")]
     preset: Option<String>,
     #[command(flatten)]
-    model: ModelArg,
-    /// Who computes the PD torques.
-    #[arg(long, value_enum, default_value = "servo")]
-    mode: ModeArg,
-    /// Simulated seconds per cell.
-    #[arg(
-        long,
-        default_value_t = 10.0,
-        value_name = "S",
-        allow_negative_numbers = true
-    )]
-    seconds: f64,
-    /// Kp for cells whose grid has no kp axis.
-    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
-    kp: f64,
-    /// Kd for cells whose grid has no kd axis.
-    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
-    kd: f64,
-    /// Torque limit (N·m) of every actuator, in both modes (Pupper v3's motors: 3).
-    #[arg(
-        long,
-        default_value_t = 3.0,
-        value_name = "NM",
-        allow_negative_numbers = true
-    )]
-    max_torque: f64,
+    sim: SimArgs,
     /// Push force along world z (N; negative pushes down).
-    #[arg(long, default_value_t = -25.0, value_name = "N", allow_hyphen_values = true)]
+    #[arg(long, default_value_t = SweepSpec::default().push_force, value_name = "N", allow_hyphen_values = true)]
     push_force: f64,
     /// Push start time (s).
-    #[arg(long, default_value_t = 2.0, value_name = "S")]
+    #[arg(long, default_value_t = SweepSpec::default().push_at, value_name = "S", allow_negative_numbers = true)]
     push_at: f64,
     /// Push duration (s).
-    #[arg(long, default_value_t = 0.25, value_name = "S")]
+    #[arg(long, default_value_t = SweepSpec::default().push_duration, value_name = "S", allow_negative_numbers = true)]
     push_duration: f64,
     /// No push.
     #[arg(long)]
@@ -230,8 +198,6 @@ struct SweepArgs {
     /// A continuous vertical force AMPLITUDE*sin(2π·FREQUENCY·t) on the base (N, Hz), e.g. 2,1.2.
     #[arg(long, value_name = "AMP,HZ", allow_hyphen_values = true)]
     sine: Option<String>,
-    #[command(flatten)]
-    start: StartArgs,
     /// Run directory (default runs/<time>-<grid>).
     #[arg(long, short = 'o', value_name = "DIR", conflicts_with = "resume")]
     out: Option<PathBuf>,
@@ -245,16 +211,16 @@ struct SweepArgs {
     #[arg(long)]
     trace: bool,
     /// Decimation of the traces.
-    #[arg(long, default_value_t = 10, value_name = "N")]
+    #[arg(long, default_value_t = SweepSpec::default().trace_every, value_name = "N")]
     trace_every: usize,
     /// Batch threads; 0 uses all cores. Never changes the numbers.
-    #[arg(long, short = 'j', default_value_t = 0, value_name = "N")]
+    #[arg(long, short = 'j', default_value_t = SweepSpec::default().threads, value_name = "N")]
     threads: usize,
     /// Cells per batch, to bound memory on large grids. Never changes the numbers.
-    #[arg(long, default_value_t = 256, value_name = "N")]
+    #[arg(long, default_value_t = SweepSpec::default().chunk_cells, value_name = "N")]
     chunk_cells: usize,
     /// Refuse grids with more cells than this.
-    #[arg(long, default_value_t = DEFAULT_MAX_CELLS, value_name = "N")]
+    #[arg(long, default_value_t = SweepSpec::default().max_cells, value_name = "N")]
     max_cells: usize,
     /// Write plots (base-z curves, heatmaps or bars) into DIR/plots.
     #[arg(long)]
@@ -270,23 +236,42 @@ struct SweepArgs {
     quiet: bool,
 }
 
+impl SweepArgs {
+    /// These arguments over the spec's defaults.
+    fn spec(&self) -> Result<SweepSpec> {
+        Ok(SweepSpec {
+            grid: match &self.preset {
+                Some(p) => GridInput::Preset(p.clone()),
+                None => GridInput::Specs(self.grid.clone()),
+            },
+            push: !self.no_push,
+            push_force: self.push_force,
+            push_at: self.push_at,
+            push_duration: self.push_duration,
+            sine: self.sine.as_deref().map(spec::parse_sine).transpose()?,
+            // plots draw the base-z curves from the traces
+            trace: self.trace || self.plot,
+            trace_every: self.trace_every,
+            threads: self.threads,
+            chunk_cells: self.chunk_cells,
+            max_cells: self.max_cells,
+            force: self.force,
+            ..self.sim.spec()?
+        })
+    }
+}
+
 #[derive(Args, Debug)]
 struct RenderArgs {
     #[command(flatten)]
-    model: ModelArg,
+    sim: SimArgs,
     /// Output PNG.
     #[arg(long, short = 'o', default_value = "pupper.png", value_name = "FILE")]
     out: PathBuf,
-    /// Simulate this long (servo PD from the home keyframe) before the frame.
-    #[arg(long, default_value_t = 0.0, value_name = "S")]
-    seconds: f64,
-    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
-    kp: f64,
-    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
-    kd: f64,
-    /// Image width and height in pixels.
+    /// Image width in pixels.
     #[arg(long, default_value_t = 640)]
     width: u32,
+    /// Image height in pixels.
     #[arg(long, default_value_t = 480)]
     height: u32,
 }
@@ -302,16 +287,7 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
             }
         }
         Command::Stand(a) => {
-            check_gain("--kp", a.kp)?;
-            check_gain("--kd", a.kd)?;
-            let r = api::stand(
-                &a.model.source()?,
-                a.seconds,
-                a.kp,
-                a.kd,
-                a.start.initial()?,
-                a.mode.into(),
-            )?;
+            let r = api::stand(&a.sim.spec()?)?;
             if a.json {
                 println!("{}", print::json(&r)?);
             } else {
@@ -331,19 +307,17 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
             }
         }
         Command::Render(a) => {
-            let source = a.model.source()?;
-            let model = match &source {
-                ModelSource::Path(p) => p.display().to_string(),
-                ModelSource::Builtin(n) => n.clone(),
-            };
+            // the spec checks the values; the picture is drawn in Python
+            let spec = a.sim.spec()?;
+            spec.build()?;
             let out = bridge::call_helper(
                 "pupper_core.render",
                 "render_png",
-                &[model, a.out.display().to_string()],
+                &[spec.model.clone(), a.out.display().to_string()],
                 &[
-                    ("seconds", a.seconds),
-                    ("kp", a.kp),
-                    ("kd", a.kd),
+                    ("seconds", spec.seconds),
+                    ("kp", spec.kp),
+                    ("kd", spec.kd),
                     ("width", a.width as f64),
                     ("height", a.height as f64),
                 ],
@@ -369,100 +343,37 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
     Ok(0)
 }
 
-fn check_gain(flag: &str, v: f64) -> Result<()> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(Error::Config(format!(
-            "{flag} {v} is negative or not finite: gains must be >= 0"
-        )))
-    }
-}
-
-fn sine(text: &str) -> Result<SineForce> {
-    let bad = || {
-        Error::Config(format!(
-            "--sine '{text}' is not AMPLITUDE,FREQUENCY: give two numbers, e.g. --sine 2,1.2"
-        ))
-    };
-    let v: Vec<f64> = text
-        .split(',')
-        .map(|t| t.trim().parse::<f64>().map_err(|_| bad()))
-        .collect::<Result<_>>()?;
-    match v[..] {
-        [amplitude, frequency] => Ok(SineForce {
-            amplitude,
-            frequency,
-            axis: [0.0, 0.0, 1.0],
-        }),
-        _ => Err(bad()),
-    }
-}
-
 fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
     let command: Vec<String> = std::env::args().collect();
-    let resume_alone = a.resume.is_some() && a.grid.is_empty() && a.preset.is_none();
-    let config = if resume_alone {
+    let sweep = match &a.resume {
         // `--resume DIR` alone: the manifest's inputs
-        output::read_manifest(a.resume.as_deref().unwrap_or(std::path::Path::new(".")))?.config
-    } else {
-        let grid = match &a.preset {
-            Some(p) => Grid::preset(p)?,
-            None => Grid::parse(&a.grid)?,
-        };
-        let schedule = Schedule {
-            duration: a.seconds,
-            initial: a.start.initial()?,
-            push: (!a.no_push).then(|| Push {
-                start: a.push_at,
-                duration: a.push_duration,
-                force: [0.0, 0.0, a.push_force],
-                body: String::new(),
-            }),
-            sine: a.sine.as_deref().map(sine).transpose()?,
-            trace_every: if a.trace || a.plot {
-                a.trace_every.max(1)
-            } else {
-                0
-            },
-            ..Schedule::default()
-        };
-        SweepConfig {
-            model: a.model.source()?,
-            grid,
-            schedule,
-            mode: a.mode.into(),
-            defaults: Defaults {
-                kp: a.kp,
-                kd: a.kd,
-                max_torque: a.max_torque,
-            },
+        Some(dir) if a.grid.is_empty() && a.preset.is_none() => {
+            let spec = a.spec()?;
+            let mut s = SweepSpec {
+                out: Some(dir.clone()),
+                resume: true,
+                ..spec
+            }
+            .build()?;
+            s.config = output::read_manifest(dir)?.config;
+            s
+        }
+        Some(dir) => SweepSpec {
+            out: Some(dir.clone()),
+            resume: true,
+            ..a.spec()?
+        }
+        .build()?,
+        None => {
+            let mut s = a.spec()?.build()?;
+            s.out = Some(match &a.out {
+                Some(dir) => dir.clone(),
+                None => default_out(&a.preset, &s.config),
+            });
+            s
         }
     };
-    let (out, existing) = match (&a.resume, &a.out) {
-        (Some(dir), _) => (dir.clone(), Existing::Resume),
-        (None, Some(dir)) => (
-            dir.clone(),
-            if a.force {
-                Existing::Overwrite
-            } else {
-                Existing::Refuse
-            },
-        ),
-        (None, None) => (default_out(&a.preset, &config), Existing::Refuse),
-    };
-    let req = SweepRequest {
-        config,
-        options: RunOptions {
-            threads: a.threads,
-            chunk_cells: a.chunk_cells.max(1),
-            ..RunOptions::default()
-        },
-        out: Some(out),
-        existing,
-        max_cells: a.max_cells,
-        command,
-    };
+    let req = SweepRequest { sweep, command };
     let mut ui = Progress {
         bar: None,
         quiet: a.quiet || a.json,

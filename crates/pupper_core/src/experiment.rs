@@ -80,11 +80,18 @@ impl SweepConfig {
     pub fn validate(&self) -> Result<()> {
         self.schedule.validate()?;
         let d = &self.defaults;
-        if !(d.kp.is_finite() && d.kp >= 0.0 && d.kd.is_finite() && d.kd >= 0.0) {
-            return Err(Error::Config(format!(
-                "gains kp {} kd {} are negative or not finite: give --kp and --kd values >= 0",
-                d.kp, d.kd
-            )));
+        for (flag, v) in [("kp", d.kp), ("kd", d.kd)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::Config(format!(
+                    "--{flag} {v} is negative or not finite: gains must be >= 0"
+                )));
+            }
+        }
+        if self.schedule.push.is_none() && self.grid.has_axis(Axis::PushForce) {
+            return Err(Error::Config(
+                "the grid varies push_force but the push is off: drop --no-push or the push_force axis"
+                    .into(),
+            ));
         }
         if !(d.max_torque.is_finite() && d.max_torque > 0.0) {
             return Err(Error::Config(format!(

@@ -17,6 +17,7 @@ pub mod pd;
 pub mod physics;
 pub mod quat;
 pub mod schedule;
+pub mod spec;
 pub mod stats;
 
 pub use error::{Error, ErrorKind, Result};

@@ -7,13 +7,14 @@ use serde::Serialize;
 
 use crate::bridge;
 use pupper_core::error::{Error, Result};
-use pupper_core::experiment::{self, CellResult, Defaults, Hooks, RunOptions, SweepConfig};
-use pupper_core::grid::{Cell, Grid};
+use pupper_core::experiment::{self, CellResult, Hooks};
+use pupper_core::grid::Cell;
 use pupper_core::metrics::Status;
 use pupper_core::model::{ModelInfo, ModelSource};
-use pupper_core::output::{Existing, Manifest, ModelRecord, RunWriter};
+use pupper_core::output::{Manifest, ModelRecord, RunWriter};
 use pupper_core::physics::Mode;
-use pupper_core::schedule::{InitialState, Schedule};
+use pupper_core::schedule::InitialState;
+use pupper_core::spec::{GridInput, Sweep, SweepSpec};
 
 /// What `pupper info` prints.
 pub fn info(source: &ModelSource) -> Result<ModelInfo> {
@@ -34,39 +35,29 @@ pub struct StandReport {
     pub status: Status,
 }
 
-/// Resets to `initial`, stands for `seconds` with no push, reports.
-pub fn stand(
-    source: &ModelSource,
-    seconds: f64,
-    kp: f64,
-    kd: f64,
-    initial: InitialState,
-    mode: Mode,
-) -> Result<StandReport> {
-    let cfg = SweepConfig {
-        model: source.clone(),
-        grid: Grid::default(),
-        schedule: Schedule {
-            duration: seconds,
-            initial,
-            push: None,
-            ..Schedule::default()
-        },
-        mode,
-        defaults: Defaults {
-            kp,
-            kd,
-            ..Defaults::default()
-        },
+/// Stands one cell of `spec` (its grid is ignored, no push) and reports.
+pub fn stand(spec: &SweepSpec) -> Result<StandReport> {
+    let spec = SweepSpec {
+        grid: GridInput::None,
+        push: false,
+        out: None,
+        resume: false,
+        ..spec.clone()
     };
-    let results = sweep(&cfg, None, RunOptions::default(), &mut experiment::NoHooks)?;
+    let sweep = spec.build()?;
+    let cfg = &sweep.config;
+    let results = bridge::with_model(&cfg.model, true, |model| {
+        check_start(model.info(), &cfg.schedule.initial)?;
+        let cells = cfg.grid.cells();
+        experiment::run_cells(model, cfg, &cells, sweep.options, &mut experiment::NoHooks)
+    })?;
     let m = &results[0].metrics;
     Ok(StandReport {
-        model: source.display(),
-        mode,
-        kp,
-        kd,
-        seconds,
+        model: cfg.model.display(),
+        mode: cfg.mode,
+        kp: cfg.defaults.kp,
+        kd: cfg.defaults.kd,
+        seconds: cfg.schedule.duration,
         final_z: m.final_z,
         last_1s_std_mm: m.last_1s_std_mm,
         max_tilt_deg: m.max_tilt_deg,
@@ -74,16 +65,24 @@ pub fn stand(
     })
 }
 
-/// A sweep as the CLI and the Python module ask for it.
+/// The checks of where cells start that need the model.
+fn check_start(info: &ModelInfo, initial: &InitialState) -> Result<()> {
+    match initial {
+        InitialState::Pose(p) if p.len() != info.nu => Err(Error::Config(format!(
+            "the pose has {} angles but model '{}' has {} actuated joints: give one angle per actuator, in actuator order",
+            p.len(),
+            info.name,
+            info.nu
+        ))),
+        InitialState::Keyframe(k) => info.keyframe(k).map(|_| ()),
+        _ => Ok(()),
+    }
+}
+
+/// A validated sweep and the command line that asked for it (for the manifest).
 #[derive(Debug, Clone)]
 pub struct SweepRequest {
-    pub config: SweepConfig,
-    pub options: RunOptions,
-    /// Run directory, or None to keep results in memory only.
-    pub out: Option<PathBuf>,
-    pub existing: Existing,
-    pub max_cells: usize,
-    /// The command line, for the manifest.
+    pub sweep: Sweep,
     pub command: Vec<String>,
 }
 
@@ -127,33 +126,18 @@ impl Hooks for WriterHooks<'_> {
 /// writing the run directory as chunks finish. Bad input fails before any
 /// file is created. An interrupt returns `Ok` with `complete == false`.
 pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcome> {
-    let cfg = &req.config;
+    let Sweep {
+        config: cfg,
+        options,
+        out,
+        existing,
+    } = &req.sweep;
     cfg.validate()?;
-    cfg.grid.check_size(req.max_cells)?;
-    if cfg.schedule.push.is_none() && cfg.grid.has_axis(pupper_core::grid::Axis::PushForce) {
-        return Err(Error::Config(
-            "the grid varies push_force but the push is off: drop --no-push or the push_force axis"
-                .into(),
-        ));
-    }
     let cells = cfg.grid.cells();
     let started = std::time::Instant::now();
     bridge::with_model(&cfg.model, true, |model| {
         let info = model.info();
-        match &cfg.schedule.initial {
-            InitialState::Pose(p) if p.len() != info.nu => {
-                return Err(Error::Config(format!(
-                    "the pose has {} angles but model '{}' has {} actuated joints: give one angle per actuator, in actuator order",
-                    p.len(),
-                    info.name,
-                    info.nu
-                )));
-            }
-            InitialState::Keyframe(k) => {
-                info.keyframe(k)?;
-            }
-            _ => {}
-        }
+        check_start(info, &cfg.schedule.initial)?;
         let manifest = Manifest {
             pupper_version: pupper_core::VERSION.to_string(),
             mujoco_version: model.mujoco_version().to_string(),
@@ -167,7 +151,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             cells_total: cells.len(),
             cells_done: 0,
             complete: false,
-            threads: req.options.threads,
+            threads: options.threads,
             started_unix: std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
                 .map(|d| d.as_secs())
@@ -175,7 +159,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             wall_seconds: 0.0,
             command: req.command.clone(),
         };
-        let mut writer = RunWriter::new(req.out.as_deref(), req.existing, manifest)?;
+        let mut writer = RunWriter::new(out.as_deref(), *existing, manifest)?;
         let done: Vec<usize> = writer.done().collect();
         let todo: Vec<Cell> = cells
             .into_iter()
@@ -193,7 +177,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                 ui: ui.hooks(),
                 writer: &mut writer,
             };
-            experiment::run_cells(model, cfg, &todo, req.options, &mut hooks)
+            experiment::run_cells(model, cfg, &todo, *options, &mut hooks)
         };
         let complete = match result {
             Ok(_) => true,
@@ -226,26 +210,4 @@ pub trait SweepUi {
     fn finish(&mut self) {}
     /// Progress and interrupt hooks.
     fn hooks(&mut self) -> &mut dyn Hooks;
-}
-
-/// Runs a sweep's cells (all of them, or `only` these), streaming finished
-/// chunks to `hooks`.
-pub fn sweep(
-    cfg: &SweepConfig,
-    only: Option<&[Cell]>,
-    opts: RunOptions,
-    hooks: &mut dyn Hooks,
-) -> Result<Vec<CellResult>> {
-    cfg.validate()?;
-    let all;
-    let cells = match only {
-        Some(c) => c,
-        None => {
-            all = cfg.grid.cells();
-            &all
-        }
-    };
-    bridge::with_model(&cfg.model, true, |model| {
-        experiment::run_cells(model, cfg, cells, opts, hooks)
-    })
 }

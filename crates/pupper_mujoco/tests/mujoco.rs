@@ -4,13 +4,14 @@
 
 use std::sync::Once;
 
-use pupper_core::experiment::{Defaults, NoHooks, RunOptions, SweepConfig};
+use pupper_core::experiment::{self, CellResult, Defaults, NoHooks, RunOptions, SweepConfig};
 use pupper_core::grid::Grid;
 use pupper_core::metrics::Status;
 use pupper_core::model::ModelSource;
 use pupper_core::physics::Mode;
-use pupper_core::schedule::{InitialState, Schedule};
-use pupper_mujoco::api;
+use pupper_core::schedule::Schedule;
+use pupper_core::spec::SweepSpec;
+use pupper_mujoco::{api, bridge};
 
 fn init() {
     static ONCE: Once = Once::new();
@@ -45,15 +46,7 @@ fn builtin_models_have_the_expected_sizes() {
 #[test]
 fn stand_settles_at_the_reference_height() {
     init();
-    let r = api::stand(
-        &builtin("pupper_v3"),
-        10.0,
-        5.0,
-        0.1,
-        InitialState::Keyframe("home".into()),
-        Mode::Servo,
-    )
-    .unwrap();
+    let r = api::stand(&SweepSpec::stand()).unwrap();
     assert!((r.final_z - 0.120).abs() < 0.0005, "{}", r.final_z);
     assert_eq!(r.status, Status::Ok);
     assert!(r.last_1s_std_mm < 0.01);
@@ -62,24 +55,17 @@ fn stand_settles_at_the_reference_height() {
 #[test]
 fn stand_needs_a_floating_base() {
     init();
-    let e = api::stand(
-        &builtin("pupper_v3_fixed"),
-        1.0,
-        5.0,
-        0.1,
-        InitialState::Keyframe("home".into()),
-        Mode::Servo,
-    )
+    let e = api::stand(&SweepSpec {
+        model: "pupper_v3_fixed".into(),
+        seconds: 1.0,
+        ..SweepSpec::stand()
+    })
     .unwrap_err();
     assert!(e.to_string().contains("no free-joint base"), "{e}");
     assert!(e.is_user_error());
 }
 
-fn small_sweep(
-    mode: Mode,
-    threads: usize,
-    chunk_cells: usize,
-) -> Vec<pupper_core::experiment::CellResult> {
+fn small_sweep(mode: Mode, threads: usize, chunk_cells: usize) -> Vec<CellResult> {
     let cfg = SweepConfig {
         model: builtin("pupper_v3"),
         grid: Grid::parse(&["kp=10,60", "kd=0.5,2"]).unwrap(),
@@ -95,7 +81,15 @@ fn small_sweep(
         chunk_cells,
         ..RunOptions::default()
     };
-    api::sweep(&cfg, None, opts, &mut NoHooks).unwrap()
+    run(&cfg, opts)
+}
+
+/// Every cell of `cfg` on the CPU backend.
+fn run(cfg: &SweepConfig, opts: RunOptions) -> Vec<CellResult> {
+    bridge::with_model(&cfg.model, true, |m| {
+        experiment::run_cells(m, cfg, &cfg.grid.cells(), opts, &mut NoHooks)
+    })
+    .unwrap()
 }
 
 #[test]
@@ -159,7 +153,7 @@ fn body_variants_change_the_stance() {
         mode: Mode::Servo,
         defaults: Defaults::default(),
     };
-    let r = api::sweep(&cfg, None, RunOptions::default(), &mut NoHooks).unwrap();
+    let r = run(&cfg, RunOptions::default());
     let z: Vec<f64> = r.iter().map(|c| c.metrics.final_z).collect();
     assert!(r.iter().all(|c| c.metrics.status == Status::Ok));
     // the unscaled cell is the plain model

@@ -7,16 +7,15 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use pyo3::create_exception;
-use pyo3::exceptions::{PyException, PyKeyboardInterrupt};
+use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyTypeError};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 use pupper_core::error::{Error, ErrorKind};
-use pupper_core::experiment::{Defaults, Hooks, RunOptions, SweepConfig};
-use pupper_core::grid::{Axis, AxisValues, Grid};
+use pupper_core::experiment::Hooks;
 use pupper_core::model::ModelSource;
-use pupper_core::output::{self, Existing};
-use pupper_core::physics::Mode;
-use pupper_core::schedule::{InitialState, Push, Schedule, SineForce};
+use pupper_core::output;
+use pupper_core::spec::{AxisInput, GridInput, SweepSpec};
 use pupper_mujoco::api::{self, SweepRequest, SweepUi};
 
 create_exception!(
@@ -86,20 +85,121 @@ fn json<T: serde::Serialize>(v: &T) -> PyResult<String> {
     serde_json::to_string(v).map_err(|e| InternalError::new_err(e.to_string()))
 }
 
-fn mode(text: &str) -> PyResult<Mode> {
-    match text {
-        "servo" => Ok(Mode::Servo),
-        "torque" => Ok(Mode::Torque),
-        _ => Err(ConfigError::new_err(format!(
-            "mode '{text}' is unknown: use 'servo' or 'torque'"
-        ))),
-    }
+/// The spec from Python keyword arguments: their names are the fields of
+/// [`SweepSpec`] and what is not given keeps the spec's default. They cross
+/// as JSON (floats round-trip exactly), so a wrong type names its keyword.
+fn spec_from(py: Python<'_>, options: Option<&Bound<'_, PyDict>>) -> PyResult<SweepSpec> {
+    let Some(options) = options else {
+        return Ok(SweepSpec::default());
+    };
+    let kw = PyDict::new(py);
+    kw.set_item("allow_nan", false)?;
+    let text: String = PyModule::import(py, "json")?
+        .getattr("dumps")?
+        .call((options,), Some(&kw))
+        .map_err(|e| {
+            ConfigError::new_err(format!(
+                "an option is not a finite number or not a plain value ({}): use finite numbers, strings, lists",
+                e.value(py)
+            ))
+        })?
+        .extract()?;
+    let mut de = serde_json::Deserializer::from_str(&text);
+    serde_path_to_error::deserialize(&mut de).map_err(|e| {
+        PyTypeError::new_err(format!(
+            "{}: {}",
+            e.path(),
+            e.inner()
+                .to_string()
+                .split(" at line")
+                .next()
+                .unwrap_or_default()
+        ))
+    })
 }
 
-fn initial(keyframe: &str, pose: Option<Vec<f64>>) -> InitialState {
-    match pose {
-        Some(p) => InitialState::Pose(p),
-        None => InitialState::Keyframe(keyframe.to_string()),
+/// A grid as Python gives it: a dict of axis -> values (numbers, or text
+/// parsed as the CLI parses it), a list of `AXIS=VALUES` strings, or one.
+fn grid_from(grid: Option<&Bound<'_, PyAny>>, preset: Option<String>) -> PyResult<GridInput> {
+    let grid = match (grid, preset) {
+        (Some(g), _) if g.is_none() => None,
+        (g, None) => g,
+        (None, Some(p)) => return Ok(GridInput::Preset(p)),
+        (Some(_), Some(_)) => {
+            return Err(GridError::new_err(
+                "give a grid or a preset, not both: drop one of them",
+            ));
+        }
+    };
+    let Some(grid) = grid else {
+        return Ok(GridInput::None);
+    };
+    if let Ok(text) = grid.extract::<String>() {
+        return Ok(GridInput::Specs(vec![text]));
+    }
+    if let Ok(dict) = grid.cast::<PyDict>() {
+        let mut axes = Vec::with_capacity(dict.len());
+        for (name, values) in dict.iter() {
+            let name: String = name.str()?.to_string();
+            let input = if let Ok(text) = values.extract::<String>() {
+                AxisInput::Text(text)
+            } else if let Ok(v) = values.extract::<f64>() {
+                AxisInput::Values(vec![v])
+            } else {
+                let items: Vec<Bound<'_, PyAny>> = values
+                    .try_iter()
+                    .and_then(|it| it.collect::<PyResult<_>>())
+                    .map_err(|_| {
+                        GridError::new_err(format!(
+                            "grid axis '{name}' has values of type {}: give numbers, a list of numbers, or text like '10,30' or '1:120:16:log'",
+                            values.get_type().name().map(|n| n.to_string()).unwrap_or_default()
+                        ))
+                    })?;
+                let v = items
+                    .iter()
+                    .map(|x| {
+                        x.extract::<f64>().map_err(|_| {
+                            GridError::new_err(format!(
+                                "grid axis '{name}' has a non-numeric value {}: use numbers like 10 or 0.5",
+                                x.repr().map(|r| r.to_string()).unwrap_or_default()
+                            ))
+                        })
+                    })
+                    .collect::<PyResult<Vec<f64>>>()?;
+                AxisInput::Values(v)
+            };
+            axes.push((name, input));
+        }
+        return Ok(GridInput::Axes(axes));
+    }
+    let specs: Vec<String> = grid.extract().map_err(|_| {
+        GridError::new_err(
+            "grid must be a dict {axis: values}, a list of 'AXIS=VALUES' strings, or one such string",
+        )
+    })?;
+    Ok(GridInput::Specs(specs))
+}
+
+/// A run directory argument: `str` or `os.PathLike`, not empty.
+fn out_from(out: Option<&Bound<'_, PyAny>>) -> PyResult<Option<PathBuf>> {
+    let Some(out) = out.filter(|o| !o.is_none()) else {
+        return Ok(None);
+    };
+    let is_path =
+        out.is_instance_of::<pyo3::types::PyString>() || out.hasattr("__fspath__").unwrap_or(false);
+    let path: Option<PathBuf> = if is_path { out.extract().ok() } else { None };
+    match path {
+        Some(p) if p.as_os_str().is_empty() => Err(OutputError::new_err(
+            "out is an empty path: give a directory name, e.g. out='runs/my-sweep'",
+        )),
+        Some(p) => Ok(Some(p)),
+        None => Err(PyTypeError::new_err(format!(
+            "out must be a str or os.PathLike, not {}",
+            out.get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_default()
+        ))),
     }
 }
 
@@ -111,36 +211,13 @@ fn info(model: &str) -> PyResult<String> {
     json(&api::info(&source).map_err(to_py)?)
 }
 
-/// Stand report as JSON (what `pupper stand --json` prints).
+/// Stand report as JSON (what `pupper stand --json` prints). Keyword
+/// arguments are those of `sweep`; the grid and the push are ignored.
 #[pyfunction]
-#[pyo3(signature = (model="pupper_v3", seconds=10.0, kp=5.0, kd=0.1, keyframe="home", pose=None, mode="servo"))]
-fn stand(
-    model: &str,
-    seconds: f64,
-    kp: f64,
-    kd: f64,
-    keyframe: &str,
-    pose: Option<Vec<f64>>,
-    mode: &str,
-) -> PyResult<String> {
-    let source = ModelSource::parse(model).map_err(to_py)?;
-    for (name, v) in [("kp", kp), ("kd", kd)] {
-        if !(v.is_finite() && v >= 0.0) {
-            return Err(ConfigError::new_err(format!(
-                "{name} {v} is negative or not finite: gains must be >= 0"
-            )));
-        }
-    }
-    let r = api::stand(
-        &source,
-        seconds,
-        kp,
-        kd,
-        initial(keyframe, pose),
-        self::mode(mode)?,
-    )
-    .map_err(to_py)?;
-    json(&r)
+#[pyo3(signature = (**options))]
+fn stand(py: Python<'_>, options: Option<&Bound<'_, PyDict>>) -> PyResult<String> {
+    let spec = spec_from(py, options)?;
+    json(&api::stand(&spec).map_err(to_py)?)
 }
 
 /// Progress to a Python callable, throttled; Ctrl-C through check_signals.
@@ -200,97 +277,27 @@ impl Hooks for PyUi<'_> {
 
 /// Runs a sweep; returns the summary table (and traces) as JSON.
 ///
-/// `axes` is a list of (axis, values); `specs` the CLI's `AXIS=VALUES`
-/// strings. On Ctrl-C the finished chunks are kept (and written when `out`
-/// is given) and KeyboardInterrupt is raised.
+/// `grid`: a dict, `AXIS=VALUES` strings or one string; other keyword
+/// arguments are the fields of the Rust `SweepSpec`. On Ctrl-C the finished
+/// chunks are kept (and written when `out` is given) and KeyboardInterrupt
+/// is raised.
 #[pyfunction]
-#[pyo3(signature = (
-    axes=None, specs=None, preset=None, model="pupper_v3", mode="servo", seconds=10.0,
-    kp=5.0, kd=0.1, max_torque=3.0, push=true, push_force=-25.0, push_at=2.0,
-    push_duration=0.25, sine=None, keyframe="home", pose=None, trace_every=0,
-    threads=0, chunk_cells=256, max_cells=pupper_core::grid::DEFAULT_MAX_CELLS,
-    out=None, force=false, resume=false, progress=None,
-))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (grid=None, *, preset=None, out=None, progress=None, **options))]
 fn sweep(
     py: Python<'_>,
-    axes: Option<Vec<(String, Vec<f64>)>>,
-    specs: Option<Vec<String>>,
+    grid: Option<&Bound<'_, PyAny>>,
     preset: Option<String>,
-    model: &str,
-    mode: &str,
-    seconds: f64,
-    kp: f64,
-    kd: f64,
-    max_torque: f64,
-    push: bool,
-    push_force: f64,
-    push_at: f64,
-    push_duration: f64,
-    sine: Option<(f64, f64)>,
-    keyframe: &str,
-    pose: Option<Vec<f64>>,
-    trace_every: usize,
-    threads: usize,
-    chunk_cells: usize,
-    max_cells: usize,
-    out: Option<PathBuf>,
-    force: bool,
-    resume: bool,
+    out: Option<&Bound<'_, PyAny>>,
     progress: Option<Bound<'_, PyAny>>,
+    options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<String> {
-    let grid = match (preset, axes, specs) {
-        (Some(p), None, None) => Grid::preset(&p),
-        (None, Some(a), None) => a
-            .into_iter()
-            .map(|(name, values)| AxisValues::new(Axis::parse(&name)?, values))
-            .collect::<pupper_core::Result<Vec<_>>>()
-            .and_then(Grid::from_axes),
-        (None, None, Some(s)) => Grid::parse(&s),
-        (None, None, None) => Ok(Grid::default()),
-        _ => Err(Error::Grid(
-            "give one of a grid dict, grid strings or a preset, not several".into(),
-        )),
-    }
-    .map_err(to_py)?;
-    let config = SweepConfig {
-        model: ModelSource::parse(model).map_err(to_py)?,
-        grid,
-        schedule: Schedule {
-            duration: seconds,
-            initial: initial(keyframe, pose),
-            push: push.then(|| Push {
-                start: push_at,
-                duration: push_duration,
-                force: [0.0, 0.0, push_force],
-                body: String::new(),
-            }),
-            sine: sine.map(|(amplitude, frequency)| SineForce {
-                amplitude,
-                frequency,
-                axis: [0.0, 0.0, 1.0],
-            }),
-            trace_every,
-            ..Schedule::default()
-        },
-        mode: self::mode(mode)?,
-        defaults: Defaults { kp, kd, max_torque },
-    };
-    let existing = match (resume, force) {
-        (true, _) => Existing::Resume,
-        (false, true) => Existing::Overwrite,
-        (false, false) => Existing::Refuse,
+    let spec = SweepSpec {
+        grid: grid_from(grid, preset)?,
+        out: out_from(out)?,
+        ..spec_from(py, options)?
     };
     let req = SweepRequest {
-        config,
-        options: RunOptions {
-            threads,
-            chunk_cells: chunk_cells.max(1),
-            ..RunOptions::default()
-        },
-        out,
-        existing,
-        max_cells,
+        sweep: spec.build().map_err(to_py)?,
         command: vec!["python: pupper_core.sweep".into()],
     };
     let mut ui = PyUi {
@@ -325,7 +332,7 @@ fn sweep(
         "cells_run": outcome.cells_run,
         "wall_seconds": outcome.wall_seconds,
         "mujoco_version": outcome.mujoco_version,
-        "config": req.config,
+        "config": req.sweep.config,
     }))
 }
 
@@ -335,14 +342,15 @@ fn read_manifest(dir: PathBuf) -> PyResult<String> {
     json(&output::read_manifest(&dir).map_err(to_py)?)
 }
 
-/// Parses grid specs the CLI way; returns (axis, values) pairs.
+/// The defaults of every sweep keyword argument, as `SweepSpec::default()`
+/// holds them (the Python signature takes its defaults from here).
 #[pyfunction]
-fn parse_grid(specs: Vec<String>) -> PyResult<Vec<(String, Vec<f64>)>> {
-    let g = Grid::parse(&specs).map_err(to_py)?;
-    Ok(g.axes
-        .into_iter()
-        .map(|a| (a.axis.name().to_string(), a.values))
-        .collect())
+fn sweep_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+    let text = serde_json::to_string(&SweepSpec::defaults_json())
+        .map_err(|e| InternalError::new_err(e.to_string()))?;
+    PyModule::import(py, "json")?
+        .getattr("loads")?
+        .call1((text,))
 }
 
 /// The MJCF text of a built-in model (for rendering and viewers).
@@ -386,7 +394,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(stand, m)?)?;
     m.add_function(wrap_pyfunction!(sweep, m)?)?;
     m.add_function(wrap_pyfunction!(read_manifest, m)?)?;
-    m.add_function(wrap_pyfunction!(parse_grid, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(builtin_xml, m)?)?;
     m.add_function(wrap_pyfunction!(cli_main, m)?)?;
     Ok(())

@@ -1,0 +1,375 @@
+//! The one specification of a sweep: every parameter, its default and its
+//! checks are written here and nowhere else. The CLI (clap) and the Python
+//! module only convert what the user gave into a [`SweepSpec`];
+//! [`SweepSpec::build`] validates it into the [`Sweep`] the runner takes,
+//! the way ripgrep turns low-level arguments into high-level ones once.
+//! `stand` is a one-cell sweep without a push, built from the same spec.
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::experiment::{Defaults, RunOptions, SweepConfig};
+use crate::grid::{Axis, AxisValues, DEFAULT_MAX_CELLS, Grid, parse_values};
+use crate::model::ModelSource;
+use crate::output::Existing;
+use crate::physics::Mode;
+use crate::schedule::{InitialState, Push, Schedule, SineForce};
+
+/// Where the grid comes from.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub enum GridInput {
+    /// No grid: one cell at the default gains.
+    #[default]
+    None,
+    /// The CLI's `AXIS=VALUES` strings.
+    Specs(Vec<String>),
+    /// Axis names and their values (a Python dict).
+    Axes(Vec<(String, AxisInput)>),
+    /// A named preset.
+    Preset(String),
+}
+
+/// One axis's values as a Python dict gives them.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AxisInput {
+    Values(Vec<f64>),
+    /// Text parsed as the CLI parses the right of `AXIS=VALUES`.
+    Text(String),
+}
+
+/// Everything a user can set for a sweep. `SweepSpec::default()` holds the
+/// defaults that `--help` and the Python signature show; the field names are
+/// the Python keyword arguments (unknown ones are refused).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SweepSpec {
+    /// Built-in model name or MJCF path.
+    pub model: String,
+    #[serde(skip)]
+    pub grid: GridInput,
+    pub mode: Mode,
+    /// Simulated seconds per cell.
+    pub seconds: f64,
+    /// Gains and torque limit for cells whose grid has no such axis.
+    pub kp: f64,
+    pub kd: f64,
+    pub max_torque: f64,
+    /// The timed push on the base.
+    pub push: bool,
+    pub push_force: f64,
+    pub push_at: f64,
+    pub push_duration: f64,
+    /// A continuous vertical force (amplitude N, frequency Hz).
+    pub sine: Option<[f64; 2]>,
+    /// Start from this keyframe, or from `pose` when given.
+    pub keyframe: String,
+    pub pose: Option<Vec<f64>>,
+    /// Keep base-z traces, every `trace_every`-th step.
+    pub trace: bool,
+    pub trace_every: usize,
+    /// Batch threads (0: all cores) and cells per batch: speed, never numbers.
+    pub threads: usize,
+    pub chunk_cells: usize,
+    /// Refuse grids with more cells than this.
+    pub max_cells: usize,
+    /// Run directory; None keeps the results in memory (Python only).
+    pub out: Option<PathBuf>,
+    /// Overwrite pupper's files in an existing `out`.
+    pub force: bool,
+    /// Continue the run in `out`.
+    pub resume: bool,
+}
+
+impl Default for SweepSpec {
+    fn default() -> Self {
+        SweepSpec {
+            model: "pupper_v3".into(),
+            grid: GridInput::None,
+            mode: Mode::Servo,
+            seconds: 10.0,
+            kp: 5.0,
+            kd: 0.1,
+            max_torque: 3.0,
+            push: true,
+            push_force: -25.0,
+            push_at: 2.0,
+            push_duration: 0.25,
+            sine: None,
+            keyframe: "home".into(),
+            pose: None,
+            trace: false,
+            trace_every: 10,
+            threads: 0,
+            chunk_cells: 256,
+            max_cells: DEFAULT_MAX_CELLS,
+            out: None,
+            force: false,
+            resume: false,
+        }
+    }
+}
+
+/// A validated sweep: what decides the numbers, what decides only speed,
+/// and where it is written.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sweep {
+    pub config: SweepConfig,
+    pub options: RunOptions,
+    pub out: Option<PathBuf>,
+    pub existing: Existing,
+}
+
+fn config_error(text: String) -> Error {
+    Error::Config(text)
+}
+
+impl SweepSpec {
+    /// The spec of `stand`: one cell, no push.
+    pub fn stand() -> SweepSpec {
+        SweepSpec {
+            push: false,
+            ..SweepSpec::default()
+        }
+    }
+
+    /// The defaults as (name, JSON value) pairs, for the Python signature.
+    pub fn defaults_json() -> serde_json::Value {
+        serde_json::to_value(SweepSpec::default()).unwrap_or(serde_json::Value::Null)
+    }
+
+    /// Checks every value and builds the sweep ([`SweepConfig::validate`]
+    /// holds the checks a config read back from a manifest needs too).
+    /// Model-dependent checks (the pose length, the keyframe) happen when the
+    /// model is loaded.
+    pub fn build(&self) -> Result<Sweep> {
+        if self.trace && self.trace_every == 0 {
+            return Err(config_error(
+                "trace_every is 0 with tracing on: give --trace-every a whole number >= 1".into(),
+            ));
+        }
+        if self.chunk_cells == 0 {
+            return Err(config_error(
+                "chunk_cells is 0: give --chunk-cells a whole number >= 1".into(),
+            ));
+        }
+        if self.resume && self.out.is_none() {
+            return Err(Error::Output(
+                "resume needs the run directory to continue: give out (or --resume DIR)".into(),
+            ));
+        }
+        let grid = self.grid()?;
+        grid.check_size(self.max_cells)?;
+        let schedule = Schedule {
+            duration: self.seconds,
+            initial: match &self.pose {
+                Some(p) => InitialState::Pose(p.clone()),
+                None => InitialState::Keyframe(self.keyframe.clone()),
+            },
+            push: self.push.then(|| Push {
+                start: self.push_at,
+                duration: self.push_duration,
+                force: [0.0, 0.0, self.push_force],
+                body: String::new(),
+            }),
+            sine: self.sine.map(|[amplitude, frequency]| SineForce {
+                amplitude,
+                frequency,
+                axis: [0.0, 0.0, 1.0],
+            }),
+            trace_every: if self.trace { self.trace_every } else { 0 },
+            ..Schedule::default()
+        };
+        let config = SweepConfig {
+            model: ModelSource::parse(&self.model)?,
+            grid,
+            schedule,
+            mode: self.mode,
+            defaults: Defaults {
+                kp: self.kp,
+                kd: self.kd,
+                max_torque: self.max_torque,
+            },
+        };
+        config.validate()?;
+        let existing = match (self.resume, self.force) {
+            (true, _) => Existing::Resume,
+            (false, true) => Existing::Overwrite,
+            (false, false) => Existing::Refuse,
+        };
+        Ok(Sweep {
+            config,
+            options: RunOptions {
+                threads: self.threads,
+                chunk_cells: self.chunk_cells,
+                ..RunOptions::default()
+            },
+            out: self.out.clone(),
+            existing,
+        })
+    }
+
+    fn grid(&self) -> Result<Grid> {
+        match &self.grid {
+            GridInput::None => Ok(Grid::default()),
+            GridInput::Specs(s) => Grid::parse(s),
+            GridInput::Axes(a) => a
+                .iter()
+                .map(|(name, values)| {
+                    let axis = Axis::parse(name)?;
+                    let values = match values {
+                        AxisInput::Values(v) => v.clone(),
+                        AxisInput::Text(t) => parse_values(axis, t)?,
+                    };
+                    AxisValues::new(axis, values)
+                })
+                .collect::<Result<Vec<_>>>()
+                .and_then(Grid::from_axes),
+            GridInput::Preset(p) => Grid::preset(p),
+        }
+    }
+}
+
+/// Parses a mode name.
+pub fn parse_mode(text: &str) -> Result<Mode> {
+    match text {
+        "servo" => Ok(Mode::Servo),
+        "torque" => Ok(Mode::Torque),
+        _ => Err(config_error(format!(
+            "mode '{text}' is unknown: use 'servo' or 'torque'"
+        ))),
+    }
+}
+
+/// Parses `--pose Q1,Q2,...` (radians).
+pub fn parse_pose(text: &str) -> Result<Vec<f64>> {
+    text.split(',')
+        .map(|t| {
+            t.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    config_error(format!(
+                        "--pose value '{}' is not a finite number: give radians like 0,0.7,-1.4",
+                        t.trim()
+                    ))
+                })
+        })
+        .collect()
+}
+
+/// Parses `--sine AMPLITUDE,FREQUENCY`.
+pub fn parse_sine(text: &str) -> Result<[f64; 2]> {
+    let bad = || {
+        config_error(format!(
+            "--sine '{text}' is not AMPLITUDE,FREQUENCY: give two numbers, e.g. --sine 2,1.2"
+        ))
+    };
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|t| t.trim().parse::<f64>().map_err(|_| bad()))
+        .collect::<Result<_>>()?;
+    match v[..] {
+        [a, f] => Ok([a, f]),
+        _ => Err(bad()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_build_the_chapter_schedule() {
+        let s = SweepSpec::default().build().unwrap();
+        assert_eq!(s.config, SweepConfig::default());
+        assert_eq!(s.options, RunOptions::default());
+        assert_eq!(s.existing, Existing::Refuse);
+        let stand = SweepSpec::stand().build().unwrap();
+        assert!(stand.config.schedule.push.is_none());
+    }
+
+    #[test]
+    fn every_check_names_the_flag() {
+        let e = |spec: SweepSpec| spec.build().unwrap_err().to_string();
+        let d = SweepSpec::default;
+        assert!(e(SweepSpec { kp: -1.0, ..d() }).contains("--kp"));
+        assert!(
+            e(SweepSpec {
+                kd: f64::NAN,
+                ..d()
+            })
+            .contains("--kd")
+        );
+        assert!(
+            e(SweepSpec {
+                max_torque: 0.0,
+                ..d()
+            })
+            .contains("--max-torque")
+        );
+        assert!(
+            e(SweepSpec {
+                seconds: -1.0,
+                ..d()
+            })
+            .contains("--seconds")
+        );
+        assert!(
+            e(SweepSpec {
+                trace: true,
+                trace_every: 0,
+                ..d()
+            })
+            .contains("--trace-every")
+        );
+        assert!(
+            e(SweepSpec {
+                resume: true,
+                ..d()
+            })
+            .contains("resume")
+        );
+        assert!(
+            e(SweepSpec {
+                push: false,
+                grid: GridInput::Specs(vec!["push_force=-10".into()]),
+                ..d()
+            })
+            .contains("--no-push")
+        );
+    }
+
+    #[test]
+    fn dict_axes_parse_text_as_the_cli_does() {
+        let spec = |v: AxisInput| SweepSpec {
+            grid: GridInput::Axes(vec![("kp".into(), v)]),
+            ..SweepSpec::default()
+        };
+        let values = |v| spec(v).build().unwrap().config.grid.axes[0].values.clone();
+        assert_eq!(values(AxisInput::Text("10".into())), vec![10.0]);
+        assert_eq!(values(AxisInput::Text("10,30".into())), vec![10.0, 30.0]);
+        assert_eq!(values(AxisInput::Text("1:120:16:log".into())).len(), 16);
+        assert_eq!(values(AxisInput::Values(vec![1.0, 0.0])), vec![1.0, 0.0]);
+        assert!(spec(AxisInput::Text("ten".into())).build().is_err());
+    }
+
+    #[test]
+    fn keyword_names_are_the_fields() {
+        let s: SweepSpec = serde_json::from_str(r#"{"kp": 30, "mode": "torque"}"#).unwrap();
+        assert_eq!((s.kp, s.mode, s.kd), (30.0, Mode::Torque, 0.1));
+        assert!(serde_json::from_str::<SweepSpec>(r#"{"kq": 1}"#).is_err());
+    }
+
+    #[test]
+    fn text_parsers() {
+        assert_eq!(parse_sine("2, 1.2").unwrap(), [2.0, 1.2]);
+        assert!(parse_sine("2").is_err());
+        assert_eq!(parse_pose("0,0.5,-1").unwrap(), vec![0.0, 0.5, -1.0]);
+        assert!(parse_pose("0,x").unwrap_err().to_string().contains("'x'"));
+        assert_eq!(parse_mode("torque").unwrap(), Mode::Torque);
+        assert!(parse_mode("pd").is_err());
+    }
+}
