@@ -34,18 +34,27 @@ def test_python_signatures_take_the_spec_defaults():
         assert p.default == d[name], (name, p.default, d[name])
 
 
+def _typed_dict_fields(tree: ast.Module, name: str) -> dict[str, str]:
+    cls = next(c for c in tree.body if isinstance(c, ast.ClassDef) and c.name == name)
+    return {
+        f.target.id: ast.unparse(f.annotation)
+        for f in cls.body
+        if isinstance(f, ast.AnnAssign) and isinstance(f.target, ast.Name)
+    }
+
+
 def test_stub_lists_every_keyword_without_restating_defaults():
     tree = ast.parse(STUB.read_text())
+    sim = _typed_dict_fields(tree, "SimOptions")
+    sweep = {**sim, **_typed_dict_fields(tree, "SweepOptions")}
+    # `out` is a named keyword of its own (str or PathLike, checked apart)
+    assert set(sweep) | {"out"} == set(defaults()), set(sweep) ^ set(defaults())
+    assert set(sim) == set(inspect.signature(pc.stand).parameters)
+    assert "Literal" in sim["mode"]
     fns = {f.name: f for f in tree.body if isinstance(f, ast.FunctionDef)}
-    kw = fns["sweep"].args.kwonlyargs
-    names = [a.arg for a in kw]
-    assert set(defaults()) <= set(names), set(defaults()) - set(names)
-    for default in fns["sweep"].args.kw_defaults:
-        assert isinstance(default, ast.Constant) and default.value is Ellipsis, ast.dump(default)
-    stand = {a.arg for a in fns["stand"].args.kwonlyargs}
-    assert stand == set(inspect.signature(pc.stand).parameters)
-    mode = next(a for a in kw if a.arg == "mode")
-    assert "Literal" in ast.unparse(mode.annotation)
+    for fn, options in (("stand", "SimOptions"), ("sweep", "SweepOptions")):
+        kwarg = fns[fn].args.kwarg
+        assert kwarg is not None and ast.unparse(kwarg.annotation) == f"Unpack[{options}]"
 
 
 def test_cli_help_shows_the_spec_defaults(run):

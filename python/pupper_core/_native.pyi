@@ -2,11 +2,11 @@
 `pupper_core` rather than these directly.
 
 Sweep keywords are the fields of the Rust `SweepSpec`; their defaults live
-there alone (`sweep_defaults()` returns them), so the stubs write `...`."""
+there alone (`sweep_defaults()` returns them), so the stubs state types only."""
 
 from collections.abc import Callable, Mapping, Sequence
 from os import PathLike
-from typing import Any, Literal
+from typing import Any, Literal, TypedDict, Unpack
 
 __version__: str
 METRICS: list[str]
@@ -26,17 +26,35 @@ def info(model: str = ...) -> str:
 def sweep_defaults() -> dict[str, Any]:
     """The default of every sweep keyword, from the Rust SweepSpec."""
 
-def stand(
-    *,
-    model: str = ...,
-    mode: Literal["servo", "torque"] = ...,
-    seconds: float = ...,
-    kp: float = ...,
-    kd: float = ...,
-    max_torque: float = ...,
-    keyframe: str = ...,
-    pose: Sequence[float] | None = ...,
-) -> str:
+class SimOptions(TypedDict, total=False):
+    """Keywords of every simulating call (`stand`, `sweep`)."""
+
+    model: str
+    mode: Literal["servo", "torque"]
+    seconds: float
+    kp: float
+    kd: float
+    max_torque: float
+    keyframe: str
+    pose: Sequence[float] | None
+
+class SweepOptions(SimOptions, total=False):
+    """The other keywords of `sweep`."""
+
+    push: bool
+    push_force: float
+    push_at: float
+    push_duration: float
+    sine: Sequence[float] | None
+    trace: bool
+    trace_every: int
+    threads: int
+    chunk_cells: int
+    max_cells: int
+    force: bool
+    resume: bool
+
+def stand(**options: Unpack[SimOptions]) -> str:
     """Stand report as JSON (what `pupper stand --json` prints)."""
 
 def sweep(
@@ -45,26 +63,7 @@ def sweep(
     preset: str | None = ...,
     out: str | PathLike[str] | None = ...,
     progress: Callable[[int, int], object] | None = ...,
-    model: str = ...,
-    mode: Literal["servo", "torque"] = ...,
-    seconds: float = ...,
-    kp: float = ...,
-    kd: float = ...,
-    max_torque: float = ...,
-    push: bool = ...,
-    push_force: float = ...,
-    push_at: float = ...,
-    push_duration: float = ...,
-    sine: Sequence[float] | None = ...,
-    keyframe: str = ...,
-    pose: Sequence[float] | None = ...,
-    trace: bool = ...,
-    trace_every: int = ...,
-    threads: int = ...,
-    chunk_cells: int = ...,
-    max_cells: int = ...,
-    force: bool = ...,
-    resume: bool = ...,
+    **options: Unpack[SweepOptions],
 ) -> str:
     """Runs a sweep; the summary table (and traces) as JSON."""
 
