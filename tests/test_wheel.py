@@ -91,7 +91,9 @@ def test_wheel_cli_and_module_equal_the_checkout_build(wheel_env, run, tmp_path)
     _run(["pupper", "sweep", *GRID, "--plot", "--render", "-o", "wheel", "-q"], cwd=work, env=env)
     _run([str(venv / "bin" / "python"), "-c",
           "import pupper_core as pc\n"
-          "pc.sweep({'kp': [5, 30]}, seconds=2, out='module', progress=False)\n"],
+          "pc.sweep({'kp': [5, 30]}, seconds=2, out='module', trace=True, progress=False)\n"
+          "pc.plots.write_run_plots('module')\n"
+          "pc.render.write_run_effects('module')\n"],
          cwd=work, env=env)
     run("sweep", *GRID, "-o", tmp_path / "checkout", "-q", check=0)
 
@@ -100,6 +102,7 @@ def test_wheel_cli_and_module_equal_the_checkout_build(wheel_env, run, tmp_path)
     assert len(rows) == 2 and all(r["status"] == "ok" for r in rows)
     assert (work / "wheel" / "summary.csv").read_bytes() == want
     assert (work / "module" / "summary.csv").read_bytes() == want
-    plots = sorted(p.name for p in (work / "wheel" / "plots").iterdir())
-    assert any(n.endswith(".png") and n.startswith("base_z") for n in plots), plots
-    assert "gain_sweep_effects.gif" in plots and "gain_sweep_effects.png" in plots, plots
+    for run_dir in ("wheel", "module"):
+        plots = sorted(p.name for p in (work / run_dir / "plots").iterdir())
+        assert any(n.endswith(".png") and n.startswith("base_z") for n in plots), plots
+        assert "gain_sweep_effects.gif" in plots and "gain_sweep_effects.png" in plots, plots
