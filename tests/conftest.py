@@ -91,3 +91,25 @@ def read_csv(path: Path) -> tuple[list[str], list[dict[str, str]]]:
 
 def as_float(s: str) -> float:
     return float(s) if s != "" else float("nan")
+
+
+def assert_drawn_as_traced(run_dir: Path) -> None:
+    """Every frame that --render drew shows the base where traces.csv (written
+    by the sweep itself, one sample per step) has it, at that time, exactly."""
+    import csv
+
+    with open(run_dir / "traces.csv", newline="") as f:
+        traced = {(r["id"], float(r["t"])): float(r["z"]) for r in csv.DictReader(f)}
+    with open(run_dir / "plots" / "gain_sweep_effects.csv", newline="") as f:
+        drawn = list(csv.DictReader(f))
+    ids = {r["id"] for r in drawn}
+    assert ids == {k[0] for k in traced}, (ids, {k[0] for k in traced})
+    checked = 0
+    for r in drawn:
+        t = float(r["time"])
+        if t == 0.0:
+            continue  # the initial state precedes the first trace sample
+        assert (r["id"], t) in traced, f"frame at t={t} of {r['id']} has no trace sample"
+        assert float(r["base_z"]) == traced[(r["id"], t)], r
+        checked += 1
+    assert checked >= len(ids) * 10, checked

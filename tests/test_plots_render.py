@@ -18,6 +18,8 @@ from typing import Any
 import numpy as np
 import pytest
 
+from conftest import assert_drawn_as_traced
+
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "python" / "pupper_core"
 
@@ -315,7 +317,7 @@ def test_render_png_shows_the_robot(tmp_path: Path) -> None:
     from PIL import Image
 
     _need_gl()
-    path = render.render_png(render.builtin_model_path("pupper_v3"), tmp_path / "pupper.png", width=320, height=240)
+    path = render.render_png(tmp_path / "pupper.png", width=320, height=240, seconds=0.01)
     assert path.exists()
     _no_temp_files(tmp_path)
     img = np.asarray(Image.open(path).convert("RGB"), dtype=float)
@@ -340,22 +342,31 @@ def test_render_png_shows_the_robot(tmp_path: Path) -> None:
     assert np.abs(with_robot - img).mean() < 5.0  # render_png drew the same scene
 
 
+def test_record_gives_the_runners_states() -> None:
+    import pupper_core as pc
+
+    recs = render.record({"leg_scale": [1, 1.5]}, fps=10, seconds=1.0, sine=(2, 1.2), mode="torque")
+    assert [r["id"] for r in recs] == ["leg1", "leg1.5"]
+    for r in recs:
+        assert r["qpos"].shape == (11, 19) and r["times"].shape == (11,)
+        assert r["times"][0] == 0.0 and r["times"][-1] == pytest.approx(1.0, abs=0.01)
+        assert r["status"] == "ok" and r["fps"] == 10
+    # each cell is drawn on its own compiled body: the long legs' calves sit lower
+    short, long = (r["model"] for r in recs)
+    assert np.linalg.norm(long.body_pos - short.body_pos) > 0.01
+    # the same runner as the sweep: the final state's base z is its final_z
+    res = pc.sweep({"leg_scale": [1, 1.5]}, seconds=1.0, sine=(2, 1.2), mode="torque", progress=False)
+    assert [r["qpos"][-1, 2] for r in recs] == list(res["final_z"])
+
+
 def test_write_effects_two_cells(tmp_path: Path) -> None:
     from PIL import Image
 
     _need_gl()
-    cells = [{"name": "soft", "kp": 2.0, "kd": 0.05}, {"name": "stiff", "kp": 20.0, "kd": 0.5}]
-    png, gif = render.write_effects(
-        render.builtin_model_path("pupper_v3"),
-        cells,
-        tmp_path / "out",
-        seconds=1.0,
-        fps=20,
-        push=(0.3, 0.25, -25.0),
-        width=160,
-        height=120,
-    )
+    recs = render.record({"kp": [2, 20]}, kd=0.5, fps=20, seconds=1.0, push_at=0.3)
+    png, gif, table = render.write_effects(recs, tmp_path / "out", width=160, height=120)
     assert png.name == "gain_sweep_effects.png" and gif.name == "gain_sweep_effects.gif"
+    assert table.name == "gain_sweep_effects.csv"
     _no_temp_files(tmp_path / "out")
     with Image.open(gif) as g:
         assert g.format == "GIF"
@@ -370,17 +381,44 @@ def test_write_effects_two_cells(tmp_path: Path) -> None:
         assert 2 * 160 <= p.width <= 2 * 160 + 20, p.width
         assert p.height > 120
         assert np.asarray(p.convert("RGB"), dtype=float).std() > 10
-
-
-def test_write_effects_reads_a_run_dir(tmp_path: Path) -> None:
-    _need_gl()
-    run, _ = make_run(tmp_path, {"kp": [10, 30]}, traces=False)
-    frames = render.simulate_frames(render.builtin_model_path("pupper_v3"), [{"kp": 30, "kd": 1}], seconds=0.2, fps=10, width=64, height=48)
-    assert len(frames) == 1 and len(frames[0]) == 3 and frames[0][0].shape == (48, 64, 3)
+    frames = render.draw(recs[:1], width=64, height=48)
+    assert len(frames) == 1 and len(frames[0]) == 21 and frames[0][0].shape == (48, 64, 3)
     assert frames[0][0].dtype == np.uint8
-    png, gif = render.write_effects(run, [{"kp": 30}], run / "plots", seconds=0.2, fps=10, width=64, height=48)
-    assert png.exists() and gif.exists()
 
 
-def test_render_unavailable_is_runtime_error() -> None:
-    assert issubclass(render.RenderUnavailable, RuntimeError)
+def test_sweep_render_draws_what_was_simulated(run, tmp_path: Path) -> None:
+    _need_gl()
+    out = tmp_path / "variants"
+    run("sweep", "--grid", "leg_scale=1,1.5", "--sine", "2,1.2", "--seconds", "1.5", "--trace",
+        "--trace-every", "1", "--render", "--plot", "-o", out, "-q", check=0)
+    assert_drawn_as_traced(out)
+    plots = sorted(p.name for p in (out / "plots").iterdir())
+    assert {"gain_sweep_effects.gif", "gain_sweep_effects.png", "gain_sweep_effects.csv"} <= set(plots)
+    assert any(n.startswith("base_z") and n.endswith(".png") for n in plots), plots
+    _check_png(out / "plots" / "gain_sweep_effects.png")
+    _no_temp_files(out / "plots")
+
+
+def test_pupper_render_command(run, tmp_path: Path) -> None:
+    _need_gl()
+    run("render", "--seconds", "0.5", "--mode", "torque", "--kp", "20", "--width", "320", "--height", "240",
+        "-o", tmp_path / "pic.png", check=0)
+    _check_png(tmp_path / "pic.png")
+    p = run("render", "--kp", "-1", "-o", tmp_path / "bad.png", check=2)
+    assert len(p.stderr.strip().splitlines()) == 1 and "kp" in p.stderr
+    assert not (tmp_path / "bad.png").exists()
+
+
+def test_render_without_gl_says_how_to_fix(tmp_path: Path) -> None:
+    import subprocess
+
+    code = (
+        "import sys; sys.path.insert(0, sys.argv[1]); import pupper_core.render as r\n"
+        "try:\n    r.render_png(sys.argv[2], seconds=0.1)\n"
+        "except r.RenderUnavailable as e:\n    print('unavailable:', e)\n"
+    )
+    p = subprocess.run([sys.executable, "-c", code, str(PKG.parent), str(tmp_path / "x.png")],
+                       env={**__import__("os").environ, "MUJOCO_GL": "no-such-backend"},
+                       capture_output=True, text=True, timeout=120)
+    assert p.stdout.startswith("unavailable: MUJOCO_GL=no-such-backend cannot render"), p.stdout + p.stderr
+    assert "fix:" in p.stdout and not (tmp_path / "x.png").exists()

@@ -13,9 +13,11 @@ from pathlib import Path
 
 import pytest
 
-from conftest import REPO, clean_env, read_csv
+from conftest import REPO, assert_drawn_as_traced, clean_env, read_csv
 
 GRID = ["--grid", "kp=5,30", "--seconds", "2"]
+#: Body variants and a sine force, traced every step: --render must draw exactly this.
+VARIANTS = ["--grid", "leg_scale=1,1.5", "--sine", "2,1.2", "--seconds", "1", "--trace", "--trace-every", "1"]
 #: What the wheel's venv must not see: anything pointing back at the checkout.
 LEAKY = ("VIRTUAL_ENV", "PYTHONPATH", "PUPPER_PYTHON", "PUPPER_BIN", "PYO3_PYTHON")
 
@@ -88,12 +90,15 @@ def test_wheel_cli_and_module_equal_the_checkout_build(wheel_env, run, tmp_path)
     doctor = _run(["pupper", "doctor"], cwd=work, env=env).stdout
     assert str(venv) in doctor, doctor
 
-    _run(["pupper", "sweep", *GRID, "--plot", "--render", "-o", "wheel", "-q"], cwd=work, env=env)
+    _run(["pupper", "sweep", *GRID, "--plot", "-o", "wheel", "-q"], cwd=work, env=env)
+    _run(["pupper", "sweep", *VARIANTS, "--render", "-o", "wheel-variants", "-q"], cwd=work, env=env)
     _run([str(venv / "bin" / "python"), "-c",
           "import pupper_core as pc\n"
           "pc.sweep({'kp': [5, 30]}, seconds=2, out='module', trace=True, progress=False)\n"
           "pc.plots.write_run_plots('module')\n"
-          "pc.render.write_run_effects('module')\n"],
+          "pc.sweep({'leg_scale': [1, 1.5]}, sine=(2, 1.2), seconds=1, trace=True, trace_every=1,\n"
+          "         out='module-variants', progress=False)\n"
+          "pc.render.write_run_effects('module-variants')\n"],
          cwd=work, env=env)
     run("sweep", *GRID, "-o", tmp_path / "checkout", "-q", check=0)
 
@@ -105,4 +110,7 @@ def test_wheel_cli_and_module_equal_the_checkout_build(wheel_env, run, tmp_path)
     for run_dir in ("wheel", "module"):
         plots = sorted(p.name for p in (work / run_dir / "plots").iterdir())
         assert any(n.endswith(".png") and n.startswith("base_z") for n in plots), plots
+    for run_dir in ("wheel-variants", "module-variants"):
+        plots = sorted(p.name for p in (work / run_dir / "plots").iterdir())
         assert "gain_sweep_effects.gif" in plots and "gain_sweep_effects.png" in plots, plots
+        assert_drawn_as_traced(work / run_dir)

@@ -6,6 +6,8 @@ there alone (`sweep_defaults()` returns them), so the stubs state types only."""
 
 from collections.abc import Callable, Mapping, Sequence
 from os import PathLike
+import numpy as np
+from numpy.typing import NDArray
 from typing import Any, Literal, TypedDict, Unpack
 
 __version__: str
@@ -75,3 +77,49 @@ def builtin_xml(name: str) -> str:
 
 def cli_main(argv: Sequence[str]) -> int:
     """The `pupper` command inside this interpreter; returns the exit status."""
+
+class RecordedSetup(TypedDict):
+    """A recorded cell's physical setting, as the runner resolved it."""
+
+    kp: float
+    kd: float
+    max_torque: float
+    push_force: list[float]
+    """World-frame push force (N) while the push acts."""
+    friction: float | None
+    timestep: float | None
+    leg_scale: float
+    torso_mass_scale: float
+
+class Recording(TypedDict):
+    """One cell simulated by the sweep's runner, with its states at `fps`."""
+
+    index: int
+    id: str
+    name: str
+    values: dict[str, float]
+    """The cell's grid values by axis name."""
+    setup: RecordedSetup
+    status: Literal["ok", "fell", "diverged"]
+    event_time: float
+    model: Any
+    """The compiled `mujoco.MjModel` the cell ran on (its body variant)."""
+    fps: float
+    times: NDArray[np.float64]
+    """Time of each frame (s); frame 0 is the initial state."""
+    qpos: NDArray[np.float64]
+    """(frames, nq) joint positions."""
+    pushing: NDArray[np.bool_]
+    """Whether the push acted on the step that led to each frame."""
+
+def record(
+    grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | str | None = ...,
+    *,
+    preset: str | None = ...,
+    fps: float = ...,
+    **options: Unpack[SweepOptions],
+) -> list[Recording]:
+    """Simulates every cell (nothing written), recording qpos at `fps`."""
+
+def record_run(run_dir: str, cells: Sequence[int], fps: float = ...) -> list[Recording]:
+    """`record` for cells of a run directory, by their `index` column."""

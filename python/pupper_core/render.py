@@ -1,4 +1,10 @@
-"""Offscreen rendering of Pupper with ``mujoco.Renderer``.
+"""Drawing Pupper with ``mujoco.Renderer``.
+
+Nothing here simulates a sweep: :func:`record` and :func:`record_run` get
+recorded states (qpos at a frame rate) from the Rust runner that computes
+the metrics, so a picture shows exactly the simulation that was measured —
+body variants, sine forces, torque mode and all. This module only draws
+them, each on the compiled body its cell ran on.
 
 MuJoCo picks its OpenGL backend from the ``MUJOCO_GL`` environment variable
 when ``mujoco`` is first imported. :func:`gl_available` respects a value that
@@ -7,12 +13,6 @@ a display exists) in a short subprocess, sets ``MUJOCO_GL`` to the first that
 works and, if ``mujoco`` was already imported with another backend, installs
 the chosen backend's context class in MuJoCo's renderer. Setting
 ``MUJOCO_GL=egl`` before starting Python is the most reliable way.
-
-Rendering runs its own plain Python loop with ``mujoco.mj_step`` (rendering
-is not the sweep's hot path); its physics follows the Rust core's: servo mode
-writes Kp/Kd into the affine actuators, torque mode computes the clipped PD
-torque in Python, and the push is an external force on the base body while
-``start <= data.time < start + duration``.
 """
 
 from __future__ import annotations
@@ -21,15 +21,16 @@ import copy
 import os
 import subprocess
 import sys
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping, Sequence, Union
+from typing import TYPE_CHECKING, Any, Callable, Sequence, Union
 
 import numpy as np
 
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco
+
+    from pupper_core._native import Recording
     from PIL import Image as PILImage
     from PIL import ImageFont
 
@@ -38,9 +39,14 @@ __all__ = [
     "builtin_model_path",
     "gl_available",
     "frame",
+    "record",
+    "record_run",
+    "draw",
     "simulate_frames",
     "write_effects",
+    "write_run_effects",
     "render_png",
+    "view",
 ]
 
 FIX_HINT = (
@@ -64,7 +70,6 @@ _PROBE_CODE = (
 )
 
 ModelLike = Union["mujoco.MjModel", str, os.PathLike]
-Push = Union[tuple[float, float, float], tuple[float, float, Sequence[float]], None]
 
 _gl_status: tuple[str, str | None] | None = None  # (MUJOCO_GL, reason) of the last check
 
@@ -231,21 +236,6 @@ def _load_model(model: ModelLike) -> "mujoco.MjModel":
     return mujoco.MjModel.from_xml_string(xml)
 
 
-def _base_body(model: "mujoco.MjModel", name: str = "") -> int:
-    import mujoco
-
-    if name:
-        bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
-        if bid < 0:
-            raise ValueError(f"push body '{name}' is not in the model")
-        return int(bid)
-    free = np.flatnonzero(model.jnt_type == mujoco.mjtJoint.mjJNT_FREE)
-    if free.size:
-        return int(model.jnt_bodyid[free[0]])
-    bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "base_link")
-    return int(bid) if bid >= 0 else min(1, model.nbody - 1)
-
-
 def _reset(model: "mujoco.MjModel", data: "mujoco.MjData", keyframe: str | int | None) -> None:
     """Resets to a keyframe (name or index); None: the model's default state.
 
@@ -321,207 +311,114 @@ def frame(
 
 
 # ---------------------------------------------------------------------------
-# Simulation
+# Recorded states
+
+
+def _fps_of(rec: "Recording") -> float:
+    return float(rec["fps"])
+
+
+def record(
+    grid: Any = None,
+    *,
+    fps: float = 25.0,
+    preset: str | None = None,
+    **options: Any,
+) -> list["Recording"]:
+    """Simulates every cell of a grid with the sweep's own runner and returns
+    its recorded states (qpos at ``fps``, frame 0 the initial state).
+
+    ``grid``, ``preset`` and the keywords are those of :func:`pupper_core.sweep`
+    (nothing is written). Each recording holds the compiled body the cell ran
+    on (``model``: its leg/torso variant), so drawing it shows that body.
+    """
+    from pupper_core import _native, _options
+
+    return _native.record(grid, preset=preset, fps=float(fps), **_options(options))
+
+
+def record_run(run_dir: str | os.PathLike[str], cells: Sequence[int], fps: float = 25.0) -> list["Recording"]:
+    """Re-runs cells of a run directory (by their ``index`` column) with its
+    manifest's settings, recording qpos at ``fps``."""
+    from pupper_core import _native
+
+    return _native.record_run(os.fspath(run_dir), [int(c) for c in cells], float(fps))
+
+
+def _base_body(model: "mujoco.MjModel") -> int:
+    """The body of the first free joint (the floating base)."""
+    import mujoco
+
+    free = np.flatnonzero(model.jnt_type == mujoco.mjtJoint.mjJNT_FREE)
+    return int(model.jnt_bodyid[free[0]]) if free.size else 0
 
 
 @dataclass
-class _CellRun:
-    label: str
-    params: str
+class _Drawn:
+    """One recording drawn: its frames and the base height in each."""
+
     frames: list[np.ndarray] = field(default_factory=list)
-    times: list[float] = field(default_factory=list)
-    pushing: list[bool] = field(default_factory=list)
-    z: list[float] = field(default_factory=list)
-    diverged_at: float | None = None
+    base_z: list[float] = field(default_factory=list)
 
 
-def _push_tuple(push: Push) -> tuple[float, float, np.ndarray] | None:
-    if push is None:
-        return None
-    start, duration, force = push
-    f = np.zeros(3)
-    if np.ndim(force) == 0:
-        f[2] = float(force)  # type: ignore[arg-type]
-    else:
-        f[:] = np.asarray(force, dtype=float)[:3]
-    return float(start), float(duration), f
-
-
-def _cell_label(cell: Mapping[str, Any], kp: float, kd: float) -> tuple[str, str]:
-    params = f"Kp {kp:g}  Kd {kd:g}"
-    extras = [
-        f"{k} {float(cell[k]):g}"
-        for k in ("max_torque", "push_force", "friction", "timestep")
-        if k in cell and cell[k] is not None
-    ]
-    if extras:
-        params += "  " + "  ".join(extras)
-    label = str(cell.get("label") or cell.get("name") or "")
-    return label, params
-
-
-def _simulate(
-    model: ModelLike,
-    cells: Sequence[Mapping[str, Any]],
-    seconds: float,
-    fps: float,
-    push: Push,
-    mode: str,
+def _draw(
+    recordings: Sequence["Recording"],
     width: int,
     height: int,
-    *,
-    camera: str | int | None = "tracking_cam",
-    keyframe: str | int | None = "home",
-    max_torque: float = 3.0,
-    push_body: str = "",
-    defaults: Mapping[str, float] | None = None,
-    shadows: bool = True,
-    pose: Sequence[float] | None = None,
-) -> list[_CellRun]:
+    camera: str | int | None,
+    shadows: bool,
+) -> list[_Drawn]:
     _require_gl()
     import mujoco
 
-    if mode not in ("servo", "torque"):
-        raise ValueError(f"mode must be 'servo' or 'torque', got {mode!r}")
-    if fps <= 0 or seconds < 0:
-        raise ValueError("fps must be > 0 and seconds >= 0")
-    base_model = _load_model(model)
-    _ensure_buffer(base_model, width, height)
-    base_push = _push_tuple(push)
-    runs: list[_CellRun] = []
-    with _new_renderer(base_model, width, height) as renderer:
-        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = bool(shadows)
-        cam = _camera_arg(base_model, camera)
-        for cell in cells:
-            for k in ("leg_scale", "torso_mass_scale"):
-                if k in cell and cell[k] is not None and float(cell[k]) != 1.0:
-                    warnings.warn(
-                        f"render: {k}={cell[k]} is not applied (the rendered body is unscaled)",
-                        stacklevel=3,
-                    )
-            dflt = defaults or {}
-            kp = float(cell.get("kp", dflt.get("kp", 5.0)))
-            kd = float(cell.get("kd", dflt.get("kd", 0.1)))
-            tmax = float(cell.get("max_torque", max_torque))
-            label, params = _cell_label(cell, kp, kd)
-            run = _CellRun(label=label, params=params)
-            runs.append(run)
-
-            m = copy.copy(base_model)
-            if cell.get("timestep") is not None:
-                m.opt.timestep = float(cell["timestep"])
-            if cell.get("friction") is not None:
-                colliding = (m.geom_contype != 0) | (m.geom_conaffinity != 0)
-                m.geom_friction[colliding, 0] = float(cell["friction"])
-            m.actuator_forcerange[:, 0] = -tmax
-            m.actuator_forcerange[:, 1] = tmax
-            m.actuator_forcelimited[:] = 1
-            m.actuator_gainprm[:, :] = 0.0
-            m.actuator_biasprm[:, :] = 0.0
-            if mode == "servo":
-                m.actuator_gainprm[:, 0] = kp
-                m.actuator_biasprm[:, 1] = -kp
-                m.actuator_biasprm[:, 2] = -kd
-            else:
-                m.actuator_gainprm[:, 0] = 1.0
-                m.actuator_ctrllimited[:] = 0
-            d = mujoco.MjData(m)
-            jnt = m.actuator_trnid[:, 0]
-            qadr = m.jnt_qposadr[jnt]
-            vadr = m.jnt_dofadr[jnt]
-            if pose is not None:  # start and target pose; the base as in the first keyframe
-                if len(pose) != m.nu:
-                    raise ValueError(f"pose has {len(pose)} angles, the model has {m.nu} actuators")
-                _reset(m, d, 0 if m.nkey > 0 else None)
-                d.qpos[qadr] = np.asarray(pose, dtype=float)
-                d.ctrl[:] = np.asarray(pose, dtype=float)
+    out: list[_Drawn] = []
+    for rec in recordings:
+        m = copy.copy(rec["model"])  # the buffer size is set on our copy only
+        _ensure_buffer(m, width, height)
+        d = mujoco.MjData(m)
+        body = _base_body(m)
+        drawn = _Drawn()
+        with _new_renderer(m, width, height) as renderer:
+            renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = bool(shadows)
+            cam = _camera_arg(m, camera)
+            for q in rec["qpos"]:
+                d.qpos[:] = q
                 mujoco.mj_forward(m, d)
-            else:
-                _reset(m, d, keyframe)
-            targets = d.ctrl.copy()
-            if mode == "torque":
-                d.ctrl[:] = 0.0
-            body = _base_body(m, push_body)
-            cell_push = base_push
-            if cell.get("push_force") is not None:
-                pf = np.zeros(3) if base_push is None else base_push[2].copy()
-                pf[2] = float(cell["push_force"])
-                s, du = (2.0, 0.25) if base_push is None else base_push[:2]
-                cell_push = (s, du, pf)
-
-            def capture(pushing: bool) -> None:
                 renderer.update_scene(d, camera=cam)
-                run.frames.append(renderer.render().copy())
-                run.times.append(float(d.time))
-                run.pushing.append(pushing)
-                run.z.append(float(d.xpos[body, 2]))
+                drawn.frames.append(renderer.render().copy())
+                drawn.base_z.append(float(d.xpos[body, 2]))
+        out.append(drawn)
+    return out
 
-            capture(False)
-            nframes = int(round(seconds * fps)) + 1
-            nsteps = int(round(seconds / m.opt.timestep))
-            bad0 = int(d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number)
-            k = 1
-            pushing = False
-            for _ in range(nsteps):
-                t = d.time
-                pushing = cell_push is not None and cell_push[0] <= t < cell_push[0] + cell_push[1]
-                d.xfrc_applied[body, :3] = cell_push[2] if pushing else 0.0  # type: ignore[index]
-                if mode == "torque":
-                    tau = kp * (targets - d.qpos[qadr]) - kd * d.qvel[vadr]
-                    d.ctrl[:] = np.clip(tau, -tmax, tmax)
-                mujoco.mj_step(m, d)
-                if run.diverged_at is None and (
-                    int(d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number) > bad0
-                    or not np.isfinite(d.qpos).all()
-                ):
-                    run.diverged_at = float(d.time)
-                while k < nframes and d.time >= k / fps - 1e-9:
-                    capture(pushing)
-                    k += 1
-            while k < nframes:  # rounding: pad with the last state
-                capture(pushing)
-                k += 1
-    return runs
+
+def draw(
+    recordings: Sequence["Recording"],
+    *,
+    width: int = 320,
+    height: int = 240,
+    camera: str | int | None = "tracking_cam",
+    shadows: bool = True,
+) -> list[list[np.ndarray]]:
+    """The frames (H, W, 3 uint8) of each recording, drawn on its own body.
+
+    Falls back to the free camera when a model has no camera of that name.
+    ``shadows=False`` draws about 3x faster on software OpenGL (llvmpipe).
+    """
+    return [d.frames for d in _draw(recordings, width, height, camera, shadows)]
 
 
 def simulate_frames(
-    model_xml_path_or_string: ModelLike,
-    cells: Sequence[Mapping[str, Any]],
-    seconds: float = 10.0,
-    fps: float = 25,
-    push: Push = (2.0, 0.25, -25.0),
-    mode: str = "servo",
+    grid: Any = None,
+    *,
+    fps: float = 25.0,
     width: int = 320,
     height: int = 240,
-    *,
     camera: str | int | None = "tracking_cam",
-    keyframe: str | int | None = "home",
-    max_torque: float = 3.0,
     shadows: bool = True,
+    **options: Any,
 ) -> list[list[np.ndarray]]:
-    """Simulates each cell and returns its frames (H, W, 3 uint8) at ``fps``.
-
-    ``cells`` are dicts with ``kp``, ``kd`` and optionally ``max_torque``,
-    ``push_force`` (world z, N), ``friction``, ``timestep``, ``name``/``label``.
-    ``push`` is ``(start_s, duration_s, force_z_N or (fx, fy, fz))`` or None.
-    Frames are taken at t = 0, 1/fps, ..., seconds (``round(seconds*fps)+1``).
-    ``shadows=False`` renders about 3x faster on software OpenGL (llvmpipe).
-    """
-    runs = _simulate(
-        model_xml_path_or_string,
-        cells,
-        seconds,
-        fps,
-        push,
-        mode,
-        width,
-        height,
-        camera=camera,
-        keyframe=keyframe,
-        max_torque=max_torque,
-        shadows=shadows,
-    )
-    return [r.frames for r in runs]
+    """:func:`record` then :func:`draw`: each cell's frames at ``fps``."""
+    return draw(record(grid, fps=fps, **options), width=width, height=height, camera=camera, shadows=shadows)
 
 
 # ---------------------------------------------------------------------------
@@ -609,18 +506,26 @@ def _compose(panels: Sequence["PILImage.Image"], gap: int = 4) -> "PILImage.Imag
     return out
 
 
-def _atomic_save(img_or_frames: Any, path: Path, fmt: str, **kw: Any) -> None:
+def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+    """``write(tmp)`` then rename over ``path``: never a half-written file."""
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def _atomic_save(img_or_frames: Any, path: Path, fmt: str, **kw: Any) -> None:
+    def save(tmp: Path) -> None:
         if isinstance(img_or_frames, list):
             first, rest = img_or_frames[0], img_or_frames[1:]
             first.save(tmp, format=fmt, save_all=True, append_images=rest, **kw)
         else:
             img_or_frames.save(tmp, format=fmt, **kw)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+
+    _atomic_write(path, save)
 
 
 _LABEL_COLOURS = [(255, 60, 60), (230, 30, 30), (255, 255, 255), (255, 200, 60), (20, 20, 20), (60, 60, 60), (245, 245, 245), (0, 0, 0)]
@@ -665,179 +570,123 @@ def _shared_palette(frames: Sequence["PILImage.Image"]) -> list["PILImage.Image"
     return [f.quantize(palette=pal, dither=Image.Dither.NONE) for f in frames]
 
 
-def _run_settings(source: ModelLike | Path) -> dict[str, Any]:
-    """Model, mode, push and defaults of a run directory, else of a model."""
-    p = Path(source) if isinstance(source, (str, os.PathLike)) and not str(source).lstrip().startswith("<") else None
-    if p is not None and p.is_dir():
-        import json
+def _labels(rec: "Recording") -> tuple[str, str]:
+    """A panel's title (the cell's name) and its parameter line."""
+    setup = rec["setup"]
+    params = f"Kp {setup['kp']:g}  Kd {setup['kd']:g}"
+    extras = [f"{axis} {value:g}" for axis, value in rec["values"].items() if axis not in ("kp", "kd")]
+    if extras:
+        params += "  " + "  ".join(extras)
+    return rec["name"], params
 
-        man_path = p / "manifest.json"
-        if not man_path.exists():
-            raise FileNotFoundError(f"{p} has no manifest.json: is it a pupper run directory?")
-        man = json.loads(man_path.read_text())
-        cfg = man.get("config", {})
-        src = cfg.get("model") or {"builtin": "pupper_v3"}
-        if "path" in src:
-            model: ModelLike = src["path"]
-        else:
-            model = src.get("builtin", "pupper_v3")
-        sched = cfg.get("schedule") or {}
-        pu = sched.get("push")
-        push: Push = None if not pu else (float(pu["start"]), float(pu["duration"]), tuple(pu["force"]))
-        initial = sched.get("initial")
-        keyframe = initial.get("keyframe", "home") if isinstance(initial, dict) else "home"
-        pose = initial.get("pose") if isinstance(initial, dict) else None
-        return {
-            "pose": pose,
-            "model": model,
-            "mode": cfg.get("mode", "servo"),
-            "push": push,
-            "push_body": (pu or {}).get("body", "") or "",
-            "defaults": cfg.get("defaults") or {"kp": 5.0, "kd": 0.1, "max_torque": 3.0},
-            "keyframe": keyframe,
-        }
-    return {
-        "pose": None,
-        "model": source,
-        "mode": "servo",
-        "push": (2.0, 0.25, -25.0),
-        "push_body": "",
-        "defaults": {"kp": 5.0, "kd": 0.1, "max_torque": 3.0},
-        "keyframe": "home",
-    }
+
+def _push_text(rec: "Recording") -> str:
+    f = np.asarray(rec["setup"]["push_force"], dtype=float)
+    if f[0] == 0 and f[1] == 0:  # vertical: magnitude and an arrow
+        return f"PUSH {abs(f[2]):g} N {'↓' if f[2] < 0 else '↑'}"
+    return f"PUSH {float(np.linalg.norm(f)):g} N"
 
 
 def write_effects(
-    run_dir_or_model: ModelLike | Path,
-    cells: Sequence[Mapping[str, Any]],
-    out_dir: str | os.PathLike,
-    seconds: float = 10.0,
-    fps: float = 20,
+    recordings: Sequence["Recording"],
+    out_dir: str | os.PathLike[str],
     *,
-    push: Push | str = "auto",
-    mode: str | None = None,
     width: int = 320,
     height: int = 240,
     stem: str = "gain_sweep_effects",
+    camera: str | int | None = "tracking_cam",
     shadows: bool = True,
-) -> tuple[Path, Path]:
-    """Writes ``<stem>.png`` (final frames) and ``<stem>.gif`` (synchronized panels).
+) -> tuple[Path, Path, Path]:
+    """Draws recordings side by side: ``<stem>.png`` (final frames),
+    ``<stem>.gif`` (synchronized panels at the recordings' frame rate) and
+    ``<stem>.csv`` (id, frame, time, base z and push of every frame drawn).
 
-    ``run_dir_or_model`` is a run directory (model, mode, push and default
-    gains come from its manifest) or a model (path, XML, MjModel, built-in
-    name; servo mode and the default push then). ``push="auto"`` keeps that
-    push; pass a ``(start, duration, force)`` tuple or None to override.
-    Returns ``(png_path, gif_path)``.
+    Returns ``(png_path, gif_path, csv_path)``.
     """
+    import csv
+
     from PIL import Image
 
-    if not cells:
-        raise ValueError("write_effects needs at least one cell")
-    st = _run_settings(run_dir_or_model)
-    the_push: Push = st["push"] if isinstance(push, str) else push
-    the_mode = mode or st["mode"]
-    defaults = {k: float(v) for k, v in st["defaults"].items() if v is not None}
-    runs = _simulate(
-        st["model"],
-        cells,
-        seconds,
-        fps,
-        the_push,
-        the_mode,
-        width,
-        height,
-        keyframe=st["keyframe"],
-        pose=st["pose"],
-        push_body=st["push_body"],
-        max_torque=defaults.get("max_torque", 3.0),
-        defaults=defaults,
-        shadows=shadows,
-    )
-    pt = _push_tuple(the_push)
-    push_text = "PUSH"
-    if pt is not None:
-        f = pt[2]
-        if f[0] == 0 and f[1] == 0:  # vertical: magnitude and an arrow
-            push_text = f"PUSH {abs(f[2]):g} N {'↓' if f[2] < 0 else '↑'}"
-        else:
-            push_text = f"PUSH {float(np.linalg.norm(f)):g} N"
+    if not recordings:
+        raise ValueError("write_effects needs at least one recording")
+    drawn = _draw(recordings, width, height, camera, shadows)
     scale = max(1.0, width / 320)
     fonts = (_font(int(round(17 * scale))), _font(int(round(13 * scale))))
-    any_title = any(r.label for r in runs)
+    any_title = any(r["name"] for r in recordings)
     header_h = int(round((46 if any_title else 28) * scale))
 
-    def status(r: _CellRun, i: int) -> str:
-        if r.diverged_at is not None and r.times[i] >= r.diverged_at:
-            return "DIVERGED"
-        return f"base z {r.z[i] * 1000:.0f} mm"
+    def panel(i: int, k: int, final: bool) -> "PILImage.Image":
+        rec, dr = recordings[i], drawn[i]
+        t = float(rec["times"][k])
+        event = float(rec["event_time"])
+        if rec["status"] == "diverged" and t >= event:
+            status = "DIVERGED"
+        else:
+            status = f"base z {dr.base_z[k] * 1000:.0f} mm"
+        title, params = _labels(rec)
+        pushing = bool(rec["pushing"][k]) and not final
+        return _panel(dr.frames[k], title, params, t, pushing, _push_text(rec), status, fonts, header_h)
 
-    nframes = min(len(r.frames) for r in runs)
-    gif_frames: list[Image.Image] = []
-    for i in range(nframes):
-        panels = [
-            _panel(r.frames[i], r.label, r.params, r.times[i], r.pushing[i], push_text, status(r, i), fonts, header_h)
-            for r in runs
-        ]
-        gif_frames.append(_compose(panels))
-    finals = []
-    for r in runs:
-        i = len(r.frames) - 1
-        finals.append(_panel(r.frames[i], r.label, r.params, r.times[i], False, push_text, status(r, i), fonts, header_h))
+    nframes = min(len(d.frames) for d in drawn)
+    gif_frames = [_compose([panel(i, k, False) for i in range(len(drawn))]) for k in range(nframes)]
+    finals = [panel(i, len(d.frames) - 1, True) for i, d in enumerate(drawn)]
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     png_path = out / f"{stem}.png"
     gif_path = out / f"{stem}.gif"
+    csv_path = out / f"{stem}.csv"
     _atomic_save(_compose(finals), png_path, "PNG")
+    fps = _fps_of(recordings[0])
     _atomic_save(_shared_palette(gif_frames), gif_path, "GIF", duration=int(round(1000 / fps)), loop=0)
-    return png_path, gif_path
+
+    def table(tmp: Path) -> None:
+        with open(tmp, "w", newline="") as f:
+            w = csv.writer(f, lineterminator="\n")
+            w.writerow(["id", "frame", "time", "base_z", "pushing"])
+            for rec, dr in zip(recordings, drawn):
+                for k, z in enumerate(dr.base_z):
+                    w.writerow([rec["id"], k, repr(float(rec["times"][k])), repr(z), int(bool(rec["pushing"][k]))])
+
+    _atomic_write(csv_path, table)
+    return png_path, gif_path, csv_path
 
 
 def render_png(
-    model: ModelLike,
-    path: str | os.PathLike,
-    camera: str | int | None = "tracking_cam",
-    keyframe: str | int | None = "home",
-    seconds: float = 0.0,
-    kp: float | None = None,
-    kd: float | None = None,
+    path: str | os.PathLike[str],
+    *,
     width: int = 640,
     height: int = 480,
+    camera: str | int | None = "tracking_cam",
+    **options: Any,
 ) -> Path:
-    """Renders one model (optionally after ``seconds`` of servo simulation) to a PNG.
+    """The robot after standing ``seconds`` (no push), drawn to a PNG.
 
-    ``kp``/``kd`` override the servo gains (None keeps the model's). No push.
+    Keywords are those of :func:`pupper_core.stand` (model, mode, seconds,
+    gains, keyframe or pose); the stand is simulated by the sweep's runner.
     """
-    _require_gl()  # before importing mujoco: a broken MUJOCO_GL breaks that import
-    import mujoco
     from PIL import Image
 
-    m = copy.copy(_load_model(model))
-    if kp is not None:
-        m.actuator_gainprm[:, 0] = kp
-        m.actuator_biasprm[:, 1] = -kp
-    if kd is not None:
-        m.actuator_biasprm[:, 2] = -kd
-    d = mujoco.MjData(m)
-    _reset(m, d, keyframe)
-    if seconds > 0:
-        mujoco.mj_step(m, d, nstep=max(1, int(round(seconds / m.opt.timestep))))
-    img = frame(m, d, camera=camera, width=int(width), height=int(height))
+    _require_gl()
+    seconds = float(options.get("seconds", 10.0))
+    fps = 1.0 / seconds if seconds > 0 else 1.0
+    recs = record(None, fps=fps, **{**options, "push": False})
+    img = draw(recs, width=int(width), height=int(height), camera=camera)[0][-1]
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     _atomic_save(Image.fromarray(img), out, "PNG")
     return out
 
 
-def write_run_effects(run_dir: str | os.PathLike, max_cells: int = 6, fps: float = 15) -> list[Path]:
-    """`pupper sweep --render`: the effects GIF and final-frame PNG of a run.
+def write_run_effects(run_dir: str | os.PathLike[str], max_cells: int = 6, fps: float = 15) -> list[Path]:
+    """`pupper sweep --render`: the effects GIF, final-frame PNG and frame
+    table of a run, in ``<run_dir>/plots/``.
 
-    Renders up to ``max_cells`` cells of the run's summary.csv (all of them if
+    Draws up to ``max_cells`` cells of the run's summary.csv (all of them if
     the grid is that small, else evenly spread ones, the steadiest included),
-    for the run's duration, into ``<run_dir>/plots/``. Shadows are off to keep
-    software rendering quick.
+    re-simulated by the sweep's runner with the run's manifest, for the run's
+    duration. Shadows are off to keep software rendering quick.
     """
     import csv
-    import json
 
     run = Path(run_dir)
     with open(run / "summary.csv", newline="") as f:
@@ -854,23 +703,8 @@ def write_run_effects(run_dir: str | os.PathLike, max_cells: int = 6, fps: float
             if best not in picks:
                 picks[-1] = best
                 picks.sort()
-    skip = {"index", "id", "name", "status"}
-    cells: list[dict[str, Any]] = []
-    for i in picks:
-        cell: dict[str, Any] = {}
-        for key, value in rows[i].items():
-            if key in skip or value == "":
-                continue
-            try:
-                cell[key] = float(value)
-            except ValueError:
-                continue
-        if rows[i]["name"]:
-            cell["name"] = rows[i]["name"]
-        cells.append(cell)
-    seconds = float(json.loads((run / "manifest.json").read_text())["config"]["schedule"]["duration"])
-    png, gif = write_effects(run, cells, run / "plots", seconds=seconds, fps=fps, shadows=False)
-    return [png, gif]
+    recs = record_run(run, [int(rows[i]["index"]) for i in picks], fps=fps)
+    return list(write_effects(recs, run / "plots", shadows=False))
 
 
 def view(model: ModelLike) -> None:

@@ -307,20 +307,25 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
             }
         }
         Command::Render(a) => {
-            // the spec checks the values; the picture is drawn in Python
+            // the spec checks the values; the runner simulates, Python draws
             let spec = a.sim.spec()?;
             spec.build()?;
             let out = bridge::call_helper(
                 "pupper_core.render",
                 "render_png",
-                &[spec.model.clone(), a.out.display().to_string()],
-                &[
-                    ("seconds", spec.seconds),
-                    ("kp", spec.kp),
-                    ("kd", spec.kd),
-                    ("width", a.width as f64),
-                    ("height", a.height as f64),
-                ],
+                &[a.out.display().to_string()],
+                &serde_json::json!({
+                    "width": a.width,
+                    "height": a.height,
+                    "model": spec.model,
+                    "mode": spec.mode,
+                    "seconds": spec.seconds,
+                    "kp": spec.kp,
+                    "kd": spec.kd,
+                    "max_torque": spec.max_torque,
+                    "keyframe": spec.keyframe,
+                    "pose": spec.pose,
+                }),
             )?;
             println!("wrote {}", out.first().cloned().unwrap_or_default());
         }
@@ -337,7 +342,12 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
                 ModelSource::Path(p) => p.display().to_string(),
                 ModelSource::Builtin(n) => n.clone(),
             };
-            bridge::call_helper("pupper_core.render", "view", &[name], &[])?;
+            bridge::call_helper(
+                "pupper_core.render",
+                "view",
+                &[name],
+                &serde_json::json!({}),
+            )?;
         }
     }
     Ok(0)
@@ -402,13 +412,18 @@ fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
             "pupper_core.plots",
             "write_run_plots",
             std::slice::from_ref(&dir_s),
-            &[],
+            &serde_json::json!({}),
         )? {
             eprintln!("wrote {p}");
         }
     }
     if a.render {
-        for p in bridge::call_helper("pupper_core.render", "write_run_effects", &[dir_s], &[])? {
+        for p in bridge::call_helper(
+            "pupper_core.render",
+            "write_run_effects",
+            &[dir_s],
+            &serde_json::json!({}),
+        )? {
             eprintln!("wrote {p}");
         }
     }

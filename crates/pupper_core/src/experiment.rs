@@ -6,7 +6,9 @@ use std::cell::RefCell;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::frames::{FrameRecorder, Frames, frame_count};
 use crate::grid::{Axis, Cell, Grid};
+use crate::layout::Layout;
 use crate::metrics::{Metrics, Recorder, Status};
 use crate::model::ModelSource;
 use crate::pd;
@@ -55,8 +57,8 @@ impl Default for SweepConfig {
     }
 }
 
-/// How to run (not what): changes speed, never numbers.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// How to run (not what): changes speed and what is kept, never numbers.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RunOptions {
     /// Threads of the batch; 0 for all cores.
     pub threads: usize,
@@ -64,6 +66,8 @@ pub struct RunOptions {
     pub chunk_cells: usize,
     /// Steps per open-loop call in servo mode.
     pub chunk_steps: usize,
+    /// Record qpos at this many frames per second (for drawing).
+    pub frame_rate: Option<f64>,
 }
 
 impl Default for RunOptions {
@@ -72,6 +76,7 @@ impl Default for RunOptions {
             threads: 0,
             chunk_cells: 256,
             chunk_steps: 250,
+            frame_rate: None,
         }
     }
 }
@@ -133,6 +138,8 @@ pub struct CellResult {
     pub metrics: Metrics,
     /// Decimated (time, base z) samples when a trace was asked for.
     pub trace: Vec<(f64, f64)>,
+    /// States at the frame rate, when [`RunOptions::frame_rate`] is set.
+    pub frames: Option<Frames>,
 }
 
 /// Callbacks from a running sweep.
@@ -164,6 +171,9 @@ pub fn run_cells(
     hooks: &mut dyn Hooks,
 ) -> Result<Vec<CellResult>> {
     cfg.validate()?;
+    if let Some(fps) = opts.frame_rate {
+        frame_count(cfg.schedule.duration, fps)?;
+    }
     // Cells of one batch must share a timestep: group, keeping grid order within.
     let model_dt = physics.info().timestep;
     let mut groups: Vec<(u64, Vec<&Cell>)> = Vec::new();
@@ -194,6 +204,35 @@ pub fn run_cells(
     Ok(out)
 }
 
+/// Per-cell accumulators of a chunk.
+struct ChunkState<'a> {
+    layout: &'a Layout,
+    targets: &'a [f64],
+    recorders: Vec<Recorder>,
+    frames: Vec<Option<FrameRecorder>>,
+}
+
+impl ChunkState<'_> {
+    /// One post-step sample of simulation `sim`, whose step ended at `t`.
+    fn sample(&mut self, sim: usize, t: f64, pushing: bool, qpos: &[f64], peak: f64, nsat: usize) {
+        let layout = self.layout;
+        let z = qpos[layout.base.z()];
+        let qi = layout.base.quat();
+        let tilt = quat::tilt([qpos[qi], qpos[qi + 1], qpos[qi + 2], qpos[qi + 3]]).to_degrees();
+        let track: f64 = layout
+            .act_qpos
+            .iter()
+            .zip(self.targets)
+            .map(|(&i, &q)| (q - qpos[i]) * (q - qpos[i]))
+            .sum();
+        let nu = layout.nu;
+        self.recorders[sim].observe(z, tilt, track, nu, peak, nsat, nu);
+        if let Some(f) = &mut self.frames[sim] {
+            f.offer(t, qpos, pushing);
+        }
+    }
+}
+
 struct TorqueScratch {
     peak: f64,
     nsat: usize,
@@ -215,23 +254,23 @@ fn run_chunk(
     let nsteps = schedule.steps(dt);
     let push = schedule.push_steps(dt);
     let n = cells.len();
-    let mut recorders: Vec<Recorder> = (0..n).map(|_| Recorder::new(schedule, dt)).collect();
+    let mut state = ChunkState {
+        layout: &layout,
+        targets: &targets,
+        recorders: (0..n).map(|_| Recorder::new(schedule, dt)).collect(),
+        frames: match opts.frame_rate {
+            Some(fps) => {
+                let count = frame_count(schedule.duration, fps)?;
+                (0..n)
+                    .map(|sim| Ok(Some(FrameRecorder::new(fps, count, &batch.qpos(sim)?))))
+                    .collect::<Result<_>>()?
+            }
+            None => vec![None; n],
+        },
+    };
     let mut alive: Vec<usize> = (0..n).collect();
     let nu = layout.nu;
 
-    // Reads one post-step sample into a recorder.
-    let sample = |rec: &mut Recorder, qpos: &[f64], peak: f64, nsat: usize| {
-        let z = qpos[layout.base.z()];
-        let qi = layout.base.quat();
-        let tilt = quat::tilt([qpos[qi], qpos[qi + 1], qpos[qi + 2], qpos[qi + 3]]).to_degrees();
-        let track: f64 = layout
-            .act_qpos
-            .iter()
-            .zip(&targets)
-            .map(|(&i, &q)| (q - qpos[i]) * (q - qpos[i]))
-            .sum();
-        rec.observe(z, tilt, track, nu, peak, nsat, nu);
-    };
     // Time before each step of a call: the clock the schedule is written in.
     let mut step_time = Vec::new();
     let sine = schedule.sine.is_some();
@@ -285,7 +324,7 @@ fn run_chunk(
                     forces = alive.iter().map(|&s| force_of(s, 0)).collect();
                     Force::Constant(&forces)
                 };
-                batch.advance(&alive, nstep, force, &mut |pos, _step, qpos, act| {
+                batch.advance(&alive, nstep, force, &mut |pos, step, qpos, act| {
                     let sim = alive[pos];
                     let lim = setups[sim].max_torque;
                     let (mut peak, mut nsat) = (0.0f64, 0usize);
@@ -296,7 +335,7 @@ fn run_chunk(
                             nsat += 1;
                         }
                     }
-                    sample(&mut recorders[sim], qpos, peak, nsat);
+                    state.sample(sim, step_time[step] + dt, pushing, qpos, peak, nsat);
                 })?
             }
             Mode::Torque => {
@@ -332,7 +371,14 @@ fn run_chunk(
                     &mut |pos, _step, qpos, _act| {
                         let scratch = scratch.borrow();
                         let sc = &scratch[pos];
-                        sample(&mut recorders[alive[pos]], qpos, sc.peak, sc.nsat);
+                        state.sample(
+                            alive[pos],
+                            step_time[0] + dt,
+                            pushing,
+                            qpos,
+                            sc.peak,
+                            sc.nsat,
+                        );
                     },
                 )?;
                 d.into_iter().map(|p| (p, 0)).collect()
@@ -342,9 +388,7 @@ fn run_chunk(
         let mut dead: Vec<usize> = Vec::new();
         for (pos, step) in diverged {
             let sim = alive[pos];
-            let rec = &mut recorders[sim];
-            let t_event = step_time[step] + dt;
-            rec.diverge(t_event);
+            state.recorders[sim].diverge(step_time[step] + dt);
             dead.push(sim);
         }
         alive.retain(|s| !dead.contains(s));
@@ -361,14 +405,16 @@ fn run_chunk(
     }
     Ok(cells
         .iter()
-        .zip(recorders)
-        .map(|(c, r)| {
+        .zip(state.recorders)
+        .zip(state.frames)
+        .map(|((c, r), f)| {
             let (metrics, trace) = r.finish();
             debug_assert!(metrics.status != Status::Diverged || metrics.event_time.is_finite());
             CellResult {
                 cell: (*c).clone(),
                 metrics,
                 trace,
+                frames: f.map(FrameRecorder::finish),
             }
         })
         .collect())

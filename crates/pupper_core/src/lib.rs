@@ -8,6 +8,7 @@
 
 pub mod error;
 pub mod experiment;
+pub mod frames;
 pub mod grid;
 pub mod layout;
 pub mod metrics;

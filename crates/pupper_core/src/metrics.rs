@@ -141,15 +141,6 @@ impl Recorder {
         }
     }
 
-    /// Post-step time of the last sample.
-    pub fn time(&self) -> f64 {
-        self.t
-    }
-
-    pub fn status(&self) -> Status {
-        self.status
-    }
-
     /// One sample after a step: base height, tilt (deg), the sum of squared
     /// joint tracking errors over `njoint` joints, and the step's torques as
     /// (peak |tau|, number saturated, number of actuators).
@@ -197,11 +188,6 @@ impl Recorder {
     pub fn diverge(&mut self, t: f64) {
         self.status = Status::Diverged;
         self.event_time = t;
-    }
-
-    /// Advances the clock without a sample (steps of a diverged cell).
-    pub fn skip(&mut self) {
-        self.t += self.dt;
     }
 
     pub fn finish(self) -> (Metrics, Vec<(f64, f64)>) {

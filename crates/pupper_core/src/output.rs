@@ -405,6 +405,7 @@ mod tests {
                 event_time: f64::NAN,
             },
             trace: vec![],
+            frames: None,
         }
     }
 

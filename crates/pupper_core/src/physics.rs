@@ -80,6 +80,8 @@ pub trait SimBatch {
     }
     /// The joint targets, in ctrl order.
     fn targets(&self) -> &[f64];
+    /// The current qpos of simulation `sim`.
+    fn qpos(&self, sim: usize) -> Result<Vec<f64>>;
     /// Open-loop advance of simulations `ids` (sorted) by `nstep` steps,
     /// observing after each. Returns `(position in ids, step)` of simulations
     /// that diverged; they are not observed from that step on.

@@ -3,16 +3,17 @@
 
 use std::path::PathBuf;
 
+use pyo3::prelude::*;
 use serde::Serialize;
 
 use crate::bridge;
 use pupper_core::error::{Error, Result};
-use pupper_core::experiment::{self, CellResult, Hooks};
+use pupper_core::experiment::{self, CellResult, Hooks, RunOptions, SweepConfig};
 use pupper_core::grid::Cell;
 use pupper_core::metrics::Status;
 use pupper_core::model::{ModelInfo, ModelSource};
-use pupper_core::output::{Manifest, ModelRecord, RunWriter};
-use pupper_core::physics::Mode;
+use pupper_core::output::{self, Manifest, ModelRecord, RunWriter};
+use pupper_core::physics::{CellSetup, Mode};
 use pupper_core::schedule::InitialState;
 use pupper_core::spec::{GridInput, Sweep, SweepSpec};
 
@@ -63,6 +64,58 @@ pub fn stand(spec: &SweepSpec) -> Result<StandReport> {
         max_tilt_deg: m.max_tilt_deg,
         status: m.status,
     })
+}
+
+/// One cell simulated for drawing: its result with frames, its physical
+/// setting, and the compiled body it ran on (an `MjModel`).
+pub struct Recording {
+    pub result: CellResult,
+    pub setup: CellSetup,
+    pub model: Py<PyAny>,
+}
+
+/// Runs `cells` of `cfg` with the sweep's runner, recording qpos at `fps`:
+/// what rendering draws, so a picture shows the simulation that was measured.
+pub fn record(cfg: &SweepConfig, cells: &[Cell], fps: f64) -> Result<Vec<Recording>> {
+    let opts = RunOptions {
+        frame_rate: Some(fps),
+        ..RunOptions::default()
+    };
+    bridge::with_model(&cfg.model, true, |model| {
+        check_start(model.info(), &cfg.schedule.initial)?;
+        let results = experiment::run_cells(model, cfg, cells, opts, &mut experiment::NoHooks)?;
+        results
+            .into_iter()
+            .map(|result| {
+                let setup = cfg.setup(&result.cell);
+                let body = model.variant(setup.leg_scale, setup.torso_mass_scale)?;
+                Ok(Recording {
+                    result,
+                    setup,
+                    model: body.unbind(),
+                })
+            })
+            .collect()
+    })
+}
+
+/// [`record`] for cells of a run directory, by their index in its grid.
+pub fn record_run(dir: &std::path::Path, indices: &[usize], fps: f64) -> Result<Vec<Recording>> {
+    let cfg = output::read_manifest(dir)?.config;
+    let all = cfg.grid.cells();
+    let cells = indices
+        .iter()
+        .map(|&i| {
+            all.get(i).cloned().ok_or_else(|| {
+                Error::Config(format!(
+                    "cell {i} is not in {}'s grid of {} cells: give indices from its summary.csv",
+                    dir.display(),
+                    all.len()
+                ))
+            })
+        })
+        .collect::<Result<Vec<Cell>>>()?;
+    record(&cfg, &cells, fps)
 }
 
 /// The checks of where cells start that need the model.

@@ -6,6 +6,7 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+use numpy::{PyArray1, PyArrayMethods};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyTypeError};
 use pyo3::prelude::*;
@@ -16,7 +17,7 @@ use pupper_core::experiment::Hooks;
 use pupper_core::model::ModelSource;
 use pupper_core::output;
 use pupper_core::spec::{AxisInput, GridInput, SweepSpec};
-use pupper_mujoco::api::{self, SweepRequest, SweepUi};
+use pupper_mujoco::api::{self, Recording, SweepRequest, SweepUi};
 
 create_exception!(
     pupper_core,
@@ -336,6 +337,88 @@ fn sweep(
     }))
 }
 
+/// A recording as a dict of Python objects (the stub's `Recording`).
+fn recording_dict<'py>(py: Python<'py>, r: Recording, fps: f64) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("fps", fps)?;
+    let cell = &r.result.cell;
+    d.set_item("index", cell.index)?;
+    d.set_item("id", &cell.id)?;
+    d.set_item("name", &cell.name)?;
+    let values = PyDict::new(py);
+    for (axis, v) in &cell.values {
+        values.set_item(axis.name(), v)?;
+    }
+    d.set_item("values", values)?;
+    let s = &r.setup;
+    let setup = PyDict::new(py);
+    setup.set_item("kp", s.kp)?;
+    setup.set_item("kd", s.kd)?;
+    setup.set_item("max_torque", s.max_torque)?;
+    setup.set_item("push_force", s.push_force.to_vec())?;
+    setup.set_item("friction", s.friction)?;
+    setup.set_item("timestep", s.timestep)?;
+    setup.set_item("leg_scale", s.leg_scale)?;
+    setup.set_item("torso_mass_scale", s.torso_mass_scale)?;
+    d.set_item("setup", setup)?;
+    let m = &r.result.metrics;
+    d.set_item("status", m.status.as_str())?;
+    d.set_item("event_time", m.event_time)?;
+    d.set_item("model", r.model)?;
+    let frames = r
+        .result
+        .frames
+        .ok_or_else(|| InternalError::new_err("a recording came back without frames"))?;
+    let n = frames.len();
+    d.set_item("times", PyArray1::from_vec(py, frames.times))?;
+    d.set_item(
+        "qpos",
+        PyArray1::from_vec(py, frames.qpos).reshape([n, frames.nq])?,
+    )?;
+    d.set_item("pushing", PyArray1::from_vec(py, frames.pushing))?;
+    Ok(d)
+}
+
+/// Simulates every cell of a sweep (same keywords as `sweep`, nothing
+/// written) recording qpos at `fps`; returns one `Recording` per cell.
+#[pyfunction]
+#[pyo3(signature = (grid=None, *, preset=None, fps=25.0, **options))]
+fn record<'py>(
+    py: Python<'py>,
+    grid: Option<&Bound<'py, PyAny>>,
+    preset: Option<String>,
+    fps: f64,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let spec = SweepSpec {
+        grid: grid_from(grid, preset)?,
+        ..spec_from(py, options)?
+    };
+    let sweep = spec.build().map_err(to_py)?;
+    let cells = sweep.config.grid.cells();
+    api::record(&sweep.config, &cells, fps)
+        .map_err(to_py)?
+        .into_iter()
+        .map(|r| recording_dict(py, r, fps))
+        .collect()
+}
+
+/// [`record`] for cells of a run directory, by their `index` column.
+#[pyfunction]
+#[pyo3(signature = (run_dir, cells, fps=25.0))]
+fn record_run(
+    py: Python<'_>,
+    run_dir: PathBuf,
+    cells: Vec<usize>,
+    fps: f64,
+) -> PyResult<Vec<Bound<'_, PyDict>>> {
+    api::record_run(&run_dir, &cells, fps)
+        .map_err(to_py)?
+        .into_iter()
+        .map(|r| recording_dict(py, r, fps))
+        .collect()
+}
+
 /// The manifest of a run directory, as JSON.
 #[pyfunction]
 fn read_manifest(dir: PathBuf) -> PyResult<String> {
@@ -394,6 +477,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(stand, m)?)?;
     m.add_function(wrap_pyfunction!(sweep, m)?)?;
     m.add_function(wrap_pyfunction!(read_manifest, m)?)?;
+    m.add_function(wrap_pyfunction!(record, m)?)?;
+    m.add_function(wrap_pyfunction!(record_run, m)?)?;
     m.add_function(wrap_pyfunction!(sweep_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(builtin_xml, m)?)?;
     m.add_function(wrap_pyfunction!(cli_main, m)?)?;

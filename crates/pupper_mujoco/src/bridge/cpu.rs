@@ -376,6 +376,13 @@ impl SimBatch for MujocoBatch<'_, '_> {
         &self.targets
     }
 
+    fn qpos(&self, sim: usize) -> Result<Vec<f64>> {
+        let s = self.state.readonly();
+        let rows = s.as_slice().map_err(|e| Error::Internal(e.to_string()))?;
+        let at = sim * self.off.nstate + self.off.qpos;
+        Ok(rows[at..at + self.owner.info.nq].to_vec())
+    }
+
     fn advance(
         &mut self,
         ids: &[usize],

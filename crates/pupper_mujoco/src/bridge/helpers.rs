@@ -24,14 +24,15 @@ pub fn with_model<T>(
 }
 
 /// Calls a function of our Python package (plots, rendering, the viewer)
-/// with string arguments and keyword arguments; returns its result as
+/// with string arguments and keyword arguments (a JSON object, so numbers,
+/// text and lists cross as themselves); returns its result as
 /// strings (a path or a list of paths). `RenderUnavailable` and
 /// `DisplayUnavailable` become one-line [`Error::Display`]s.
 pub fn call_helper(
     module: &str,
     func: &str,
     args: &[String],
-    kwargs: &[(&str, f64)],
+    kwargs: &serde_json::Value,
 ) -> Result<Vec<String>> {
     Python::attach(|py| {
         Mujoco::import(py)?;
@@ -41,10 +42,11 @@ pub fn call_helper(
                 python_message(py, &e)
             ))
         })?;
-        let kw = PyDict::new(py);
-        for (k, v) in kwargs {
-            kw.set_item(k, v).internal()?;
-        }
+        let kw: Bound<'_, PyDict> = PyModule::import(py, "json")
+            .and_then(|j| j.getattr("loads"))
+            .and_then(|loads| loads.call1((kwargs.to_string(),)))
+            .and_then(|d| d.cast_into::<PyDict>().map_err(PyErr::from))
+            .internal()?;
         let out = m
             .getattr(func)
             .and_then(|f| f.call(pyo3::types::PyTuple::new(py, args)?, Some(&kw)))

@@ -104,11 +104,7 @@ impl<'py> LoadedModel<'py> {
     }
 
     /// A model with scaled legs and torso, compiled from an edited spec.
-    pub(crate) fn variant(
-        &self,
-        leg_scale: f64,
-        torso_mass_scale: f64,
-    ) -> Result<Bound<'py, PyAny>> {
+    pub fn variant(&self, leg_scale: f64, torso_mass_scale: f64) -> Result<Bound<'py, PyAny>> {
         if leg_scale == 1.0 && torso_mass_scale == 1.0 {
             return Ok(self.model.clone());
         }
