@@ -57,6 +57,8 @@ def test_sweep_from_dict_and_best(result):
     assert result.axes == ["kp", "kd"]
     assert result.complete is True and result.out is None
     np.testing.assert_array_equal(result["kp"], [5.0, 30.0])
+    assert result["kp"].dtype == np.float64 and result["index"].dtype == np.int64
+    assert result["status"] == ["ok", "ok"]
     best = result.best("last_1s_std_mm")
     assert isinstance(best, dict)
     assert best["id"] == "kp30_kd0.1"

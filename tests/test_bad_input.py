@@ -241,13 +241,26 @@ def test_api_fixed_model_stand_is_model_error():
         pc.stand(model="pupper_v3_fixed")
 
 
-def test_api_exceptions_are_pupper_errors():
+def test_api_errors_have_a_kind_and_the_os_error_users_catch(tmp_path):
     import pupper_core as pc
 
-    for cls in (pc.GridError, pc.ModelError, pc.ConfigError, pc.MujocoError, pc.OutputError):
-        assert issubclass(cls, pc.PupperError)
-    assert issubclass(pc.PupperError, Exception)
-    assert not issubclass(pc.GridError, pc.ModelError)
+    (tmp_path / "taken").mkdir()
+    with pytest.raises(FileExistsError) as e:
+        pc.sweep({"kp": [5]}, seconds=0.1, progress=False, out=tmp_path / "taken")
+    assert isinstance(e.value, pc.OutputError) and e.value.kind == "run_exists"
+    with pytest.raises(FileNotFoundError) as e:
+        pc.info(tmp_path / "nope.xml")
+    assert isinstance(e.value, pc.ModelError) and e.value.kind == "model_not_found"
+    with pytest.raises(FileNotFoundError) as e:
+        pc.load_run(tmp_path / "nowhere")
+    assert isinstance(e.value, pc.OutputError) and e.value.kind == "run_not_found"
+    with pytest.raises(pc.GridError) as e:
+        pc.sweep({"kq": [1]}, progress=False)
+    assert e.value.kind == "grid" and not isinstance(e.value, OSError)
+    pc.sweep({"kp": [5]}, seconds=0.1, progress=False, out=tmp_path / "run")
+    with pytest.raises(pc.OutputError) as e:
+        pc.sweep({"kp": [6]}, seconds=0.1, progress=False, out=tmp_path / "run", resume=True)
+    assert e.value.kind == "resume_mismatch"
 
 
 def test_wrong_mujoco_version_is_one_clear_line(pupper_bin: Path, tmp_path: Path) -> None:

@@ -45,8 +45,9 @@ def _typed_dict_fields(tree: ast.Module, name: str) -> dict[str, str]:
 
 def test_stub_lists_every_keyword_without_restating_defaults():
     tree = ast.parse(STUB.read_text())
-    sim = _typed_dict_fields(tree, "SimOptions")
-    sweep = {**sim, **_typed_dict_fields(tree, "SweepOptions")}
+    types = ast.parse((STUB.parent / "_types.py").read_text())
+    sim = _typed_dict_fields(types, "SimOptions")
+    sweep = {**sim, **_typed_dict_fields(types, "SweepOptions")}
     # `out` is a named keyword of its own (str or PathLike, checked apart)
     assert set(sweep) | {"out"} == set(defaults()), set(sweep) ^ set(defaults())
     assert set(sim) == set(inspect.signature(pc.stand).parameters)

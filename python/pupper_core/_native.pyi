@@ -6,58 +6,122 @@ there alone (`sweep_defaults()` returns them), so the stubs state types only."""
 
 from collections.abc import Callable, Mapping, Sequence
 from os import PathLike
+from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
-from typing import Any, Literal, TypedDict, Unpack
+from typing import Any, Literal, Unpack
+
+from pupper_core._types import (
+    JointInfo,
+    ActuatorInfo,
+    KeyframeInfo,
+    SensorInfo,
+    ModelInfo,
+    StandReport,
+    SimOptions,
+    SweepOptions,
+    RecordedSetup,
+    Recording,
+)
 
 __version__: str
 METRICS: list[str]
 
-class PupperError(Exception): ...
-class GridError(PupperError): ...
-class ConfigError(PupperError): ...
-class ModelError(PupperError): ...
-class MujocoError(PupperError): ...
-class OutputError(PupperError): ...
-class DisplayError(PupperError): ...
-class InternalError(PupperError): ...
+ErrorCode = Literal[
+    "grid", "config", "model", "model_not_found", "mujoco", "output", "run_not_found",
+    "run_exists", "resume_mismatch", "not_found", "permission", "disk_full", "io",
+    "interrupted", "display", "internal",
+]
 
-def info(model: str = ...) -> str:
-    """Model info as JSON (what `pupper info --json` prints)."""
+class PupperError(Exception):
+    """Base class of pupper's errors. The message is one line naming the
+    problem and the fix; `kind` names the error for programs."""
+
+    kind: ErrorCode
+    """A stable name of the error, finer than the class (e.g. `run_exists`)."""
+
+class GridError(PupperError):
+    """A bad grid: unknown axis, bad values, too many cells."""
+
+class ConfigError(PupperError):
+    """A bad schedule, pose, gain or option."""
+
+class ModelError(PupperError):
+    """A model that is missing, unreadable, invalid or unsuitable."""
+
+class MujocoError(PupperError):
+    """The mujoco package is missing or the wrong version."""
+
+class OutputError(PupperError):
+    """A run directory that cannot be used: exists, differs, unreadable."""
+
+class DisplayError(PupperError):
+    """Rendering or a viewer is not possible here."""
+
+class InternalError(PupperError):
+    """A bug in pupper or MuJoCo."""
+
+class ModelNotFoundError(ModelError, FileNotFoundError):
+    """A model file that does not exist."""
+
+class RunNotFoundError(OutputError, FileNotFoundError):
+    """A run directory, or a file in it, that does not exist."""
+
+class RunExistsError(OutputError, FileExistsError):
+    """The run directory exists; pass force=True or resume=True."""
+
+class OutputPermissionError(OutputError, PermissionError):
+    """The run directory cannot be written or read."""
+
+class SweepResult:
+    """Per-cell metrics of a sweep: the rows of its summary.csv, as numpy
+    columns (float64, NaN where the file is empty; `index` int64; `id`,
+    `name`, `status` lists of str)."""
+
+    traces: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]]
+    """Cell id -> (t, z) arrays, when traces were kept."""
+    out: Path | None
+    """The run directory, or None when nothing was written."""
+    complete: bool
+    """False when the sweep was interrupted before every cell ran."""
+    wall_seconds: float
+    """Seconds the sweep took (NaN for a run read back from disk)."""
+    config: dict[str, Any]
+    """The inputs that decide the numbers, as stored in manifest.json."""
+    @property
+    def table(self) -> dict[str, NDArray[Any] | list[str]]:
+        """Every column by name."""
+    @property
+    def header(self) -> list[str]:
+        """summary.csv's columns, in order."""
+    @property
+    def rows(self) -> list[list[str]]:
+        """summary.csv's rows as text, in cell order."""
+    @property
+    def axes(self) -> list[str]:
+        """The grid's axis columns, in grid order."""
+    @property
+    def ids(self) -> list[str]:
+        """Cell ids, in cell order."""
+    def __len__(self) -> int: ...
+    def __getitem__(self, column: str) -> NDArray[Any] | list[str]:
+        """A column; KeyError names the columns there are."""
+    def row(self, i: int) -> dict[str, Any]:
+        """Row `i` as a dict: index an int, text as str, numbers as float."""
+    def best(self, metric: str = "last_1s_std_mm", *, minimize: bool = True) -> dict[str, Any]:
+        """The healthy cell (status ok, finite metric) with the lowest metric
+        (highest with `minimize=False`); ties go to the first in cell order."""
+    def to_pandas(self) -> Any:
+        """The table as a pandas DataFrame (pandas must be installed)."""
+
+def info(model: str = ...) -> ModelInfo:
+    """What `pupper info --json` prints, as a dict."""
 
 def sweep_defaults() -> dict[str, Any]:
     """The default of every sweep keyword, from the Rust SweepSpec."""
 
-class SimOptions(TypedDict, total=False):
-    """Keywords of every simulating call (`stand`, `sweep`)."""
-
-    model: str
-    mode: Literal["servo", "torque"]
-    seconds: float
-    kp: float
-    kd: float
-    max_torque: float
-    keyframe: str
-    pose: Sequence[float] | None
-
-class SweepOptions(SimOptions, total=False):
-    """The other keywords of `sweep`."""
-
-    push: bool
-    push_force: float
-    push_at: float
-    push_duration: float
-    sine: Sequence[float] | None
-    trace: bool
-    trace_every: int
-    threads: int
-    chunk_cells: int
-    max_cells: int
-    force: bool
-    resume: bool
-
-def stand(**options: Unpack[SimOptions]) -> str:
-    """Stand report as JSON (what `pupper stand --json` prints)."""
+def stand(**options: Unpack[SimOptions]) -> StandReport:
+    """What `pupper stand --json` prints, as a dict."""
 
 def sweep(
     grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | str | None = ...,
@@ -66,51 +130,20 @@ def sweep(
     out: str | PathLike[str] | None = ...,
     progress: Callable[[int, int], object] | None = ...,
     **options: Unpack[SweepOptions],
-) -> str:
-    """Runs a sweep; the summary table (and traces) as JSON."""
+) -> SweepResult:
+    """Runs a sweep; its table as a `SweepResult`."""
 
-def read_manifest(dir: str) -> str:
-    """The manifest of a run directory, as JSON."""
+def load_run(run_dir: str) -> SweepResult:
+    """A run directory read back, its rows checked against its manifest."""
+
+def read_manifest(dir: str) -> dict[str, Any]:
+    """The manifest of a run directory, as a dict."""
 
 def builtin_xml(name: str) -> str:
     """The MJCF text of a built-in model."""
 
 def cli_main(argv: Sequence[str]) -> int:
     """The `pupper` command inside this interpreter; returns the exit status."""
-
-class RecordedSetup(TypedDict):
-    """A recorded cell's physical setting, as the runner resolved it."""
-
-    kp: float
-    kd: float
-    max_torque: float
-    push_force: list[float]
-    """World-frame push force (N) while the push acts."""
-    friction: float | None
-    timestep: float | None
-    leg_scale: float
-    torso_mass_scale: float
-
-class Recording(TypedDict):
-    """One cell simulated by the sweep's runner, with its states at `fps`."""
-
-    index: int
-    id: str
-    name: str
-    values: dict[str, float]
-    """The cell's grid values by axis name."""
-    setup: RecordedSetup
-    status: Literal["ok", "fell", "diverged"]
-    event_time: float
-    model: Any
-    """The compiled `mujoco.MjModel` the cell ran on (its body variant)."""
-    fps: float
-    times: NDArray[np.float64]
-    """Time of each frame (s); frame 0 is the initial state."""
-    qpos: NDArray[np.float64]
-    """(frames, nq) joint positions."""
-    pushing: NDArray[np.bool_]
-    """Whether the push acted on the step that led to each frame."""
 
 def record(
     grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | str | None = ...,

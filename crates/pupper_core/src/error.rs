@@ -38,6 +38,18 @@ pub enum Error {
     Mujoco(String),
     #[error("{0}")]
     Output(String),
+    /// A model file that does not exist.
+    #[error("{0}")]
+    ModelNotFound(String),
+    /// A run directory (or its manifest) that does not exist.
+    #[error("{0}")]
+    RunNotFound(String),
+    /// `--out` exists and neither --force nor --resume was given.
+    #[error("{0}")]
+    RunExists(String),
+    /// A resume whose inputs differ from the run's.
+    #[error("{0}")]
+    ResumeMismatch(String),
     #[error("interrupted: {0}")]
     Interrupted(String),
     #[error("{0}")]
@@ -58,12 +70,46 @@ impl Error {
         match self {
             Error::Grid(_) => ErrorKind::Grid,
             Error::Config(_) => ErrorKind::Config,
-            Error::Model(_) => ErrorKind::Model,
+            Error::Model(_) | Error::ModelNotFound(_) => ErrorKind::Model,
             Error::Mujoco(_) => ErrorKind::Mujoco,
-            Error::Output(_) | Error::Io { .. } => ErrorKind::Output,
+            Error::Output(_)
+            | Error::RunNotFound(_)
+            | Error::RunExists(_)
+            | Error::ResumeMismatch(_)
+            | Error::Io { .. } => ErrorKind::Output,
             Error::Interrupted(_) => ErrorKind::Interrupted,
             Error::Display(_) => ErrorKind::Display,
             Error::Internal(_) => ErrorKind::Internal,
+        }
+    }
+
+    /// A stable name for this error, finer than its kind, for programs to
+    /// match on (Python's `PupperError.kind`): `grid`, `config`, `model`,
+    /// `model_not_found`, `mujoco`, `output`, `run_not_found`, `run_exists`,
+    /// `resume_mismatch`, `not_found`, `permission`, `disk_full`, `io`,
+    /// `interrupted`, `display`, `internal`.
+    pub fn code(&self) -> &'static str {
+        match self {
+            Error::Grid(_) => "grid",
+            Error::Config(_) => "config",
+            Error::Model(_) => "model",
+            Error::ModelNotFound(_) => "model_not_found",
+            Error::Mujoco(_) => "mujoco",
+            Error::Output(_) => "output",
+            Error::RunNotFound(_) => "run_not_found",
+            Error::RunExists(_) => "run_exists",
+            Error::ResumeMismatch(_) => "resume_mismatch",
+            Error::Io { source, .. } => match source.kind() {
+                std::io::ErrorKind::NotFound => "not_found",
+                std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::ReadOnlyFilesystem => {
+                    "permission"
+                }
+                std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded => "disk_full",
+                _ => "io",
+            },
+            Error::Interrupted(_) => "interrupted",
+            Error::Display(_) => "display",
+            Error::Internal(_) => "internal",
         }
     }
 
@@ -82,3 +128,24 @@ impl Error {
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn io_errors_are_named_by_their_cause() {
+        let io = |k: std::io::ErrorKind| Error::io("write", "/x", std::io::Error::from(k));
+        assert_eq!(io(std::io::ErrorKind::NotFound).code(), "not_found");
+        assert_eq!(
+            io(std::io::ErrorKind::PermissionDenied).code(),
+            "permission"
+        );
+        assert_eq!(io(std::io::ErrorKind::StorageFull).code(), "disk_full");
+        assert_eq!(io(std::io::ErrorKind::Other).code(), "io");
+        assert_eq!(io(std::io::ErrorKind::Other).kind(), ErrorKind::Output);
+        assert_eq!(Error::RunExists("x".into()).kind(), ErrorKind::Output);
+        assert_eq!(Error::ModelNotFound("x".into()).kind(), ErrorKind::Model);
+        assert!(!Error::Internal("x".into()).is_user_error());
+    }
+}

@@ -45,7 +45,7 @@ impl ModelSource {
                     BUILTIN_NAMES.join(", ")
                 )
             };
-            return Err(Error::Model(format!(
+            return Err(Error::ModelNotFound(format!(
                 "model file '{text}' does not exist{hint}: check the path, or use --model pupper_v3"
             )));
         }

@@ -111,54 +111,176 @@ pub enum Existing {
 /// Reads a run's manifest.
 pub fn read_manifest(dir: &Path) -> Result<Manifest> {
     let p = dir.join(MANIFEST);
-    let text = std::fs::read_to_string(&p).map_err(|e| {
-        Error::Output(format!(
-            "cannot resume '{}': no readable {MANIFEST} in it ({e}); give the directory of an earlier `pupper sweep`",
+    let text = std::fs::read_to_string(&p).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => Error::RunNotFound(format!(
+            "'{}' is not a run directory: it has no {MANIFEST}; give the directory of an earlier `pupper sweep`",
             dir.display()
-        ))
+        )),
+        _ => Error::io("read", &p, e),
     })?;
     serde_json::from_str(&text).map_err(|e| {
         Error::Output(format!(
-            "cannot resume '{}': its {MANIFEST} is not a pupper manifest ({e}); start a new run with --out",
+            "'{}': its {MANIFEST} is not a pupper manifest ({e}); start a new run with --out",
             dir.display()
         ))
     })
 }
 
-/// Finished rows of an earlier run, by cell index.
-fn read_rows(dir: &Path, header: &[String]) -> Result<BTreeMap<usize, Vec<String>>> {
+/// A cell's trace: its id and (t, z) samples.
+pub type Trace = (String, Vec<(f64, f64)>);
+
+/// Lines of a file that ends cleanly: a last line without its newline is
+/// the trace of a write that was cut short, and is left out.
+fn whole_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    let whole = match text.rfind('\n') {
+        Some(i) => &text[..i + 1],
+        None => "",
+    };
+    whole.lines().enumerate().map(|(i, l)| (i + 1, l))
+}
+
+/// The rows of a run's `summary.csv`, by cell index, each checked against
+/// the manifest's grid: its index in range, its id and axis values those of
+/// that cell. A truncated last line is dropped (its cell runs again).
+fn read_rows(dir: &Path, config: &SweepConfig) -> Result<BTreeMap<usize, Vec<String>>> {
     let p = dir.join(SUMMARY);
     let mut rows = BTreeMap::new();
-    if !p.exists() {
-        return Ok(rows);
-    }
-    let broken = |what: String| {
+    let text = match std::fs::read_to_string(&p) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(rows),
+        Err(e) => return Err(Error::io("read", &p, e)),
+    };
+    let axes: Vec<String> = config
+        .grid
+        .axes
+        .iter()
+        .map(|a| a.axis.name().to_string())
+        .collect();
+    let want = header(&axes);
+    let cells = config.grid.cells();
+    let broken = |line: usize, what: String| {
         Error::Output(format!(
-            "cannot resume '{}': {what}; remove it and rerun with --force",
+            "{}:{line}: {what}; this file does not belong to the run's manifest: move it away, or start a new run with --force",
             p.display()
         ))
     };
-    let mut r = csv::ReaderBuilder::new()
-        .from_path(&p)
-        .map_err(|e| broken(e.to_string()))?;
-    let h: Vec<String> = r
-        .headers()
-        .map_err(|e| broken(e.to_string()))?
-        .iter()
-        .map(String::from)
-        .collect();
-    if h != header {
-        return Err(broken("its columns differ from this grid's".into()));
-    }
-    for rec in r.records() {
-        let rec = rec.map_err(|e| broken(e.to_string()))?;
-        let fields: Vec<String> = rec.iter().map(String::from).collect();
-        let index: usize = fields[0]
-            .parse()
-            .map_err(|_| broken("a row has no index".into()))?;
-        rows.insert(index, fields);
+    for (n, line) in whole_lines(&text) {
+        let mut r = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .from_reader(line.as_bytes());
+        let fields: Vec<String> = match r.records().next() {
+            Some(Ok(rec)) => rec.iter().map(String::from).collect(),
+            _ => return Err(broken(n, "not a CSV row".into())),
+        };
+        if n == 1 {
+            if fields != want {
+                return Err(broken(n, format!("its columns are not {}", want.join(","))));
+            }
+            continue;
+        }
+        if fields.len() != want.len() {
+            return Err(broken(
+                n,
+                format!(
+                    "{} fields where the header has {}",
+                    fields.len(),
+                    want.len()
+                ),
+            ));
+        }
+        let cell = fields[0]
+            .parse::<usize>()
+            .ok()
+            .and_then(|i| cells.get(i))
+            .ok_or_else(|| {
+                broken(
+                    n,
+                    format!(
+                        "index '{}' is not a cell of this {}-cell grid",
+                        fields[0],
+                        cells.len()
+                    ),
+                )
+            })?;
+        let values: Vec<String> = cell.values.iter().map(|(_, v)| fmt_f64(*v)).collect();
+        if fields[1] != cell.id || fields[3..3 + values.len()] != values[..] {
+            return Err(broken(
+                n,
+                format!(
+                    "row {} is cell '{}' of another grid (this grid's cell {} is '{}')",
+                    fields[0], fields[1], cell.index, cell.id
+                ),
+            ));
+        }
+        rows.insert(cell.index, fields);
     }
     Ok(rows)
+}
+
+/// The traces of a run's `traces.csv` by cell id (a truncated last line is
+/// dropped), for the cells in `keep`.
+fn read_traces(dir: &Path, keep: &BTreeMap<usize, Vec<String>>) -> Result<BTreeMap<usize, Trace>> {
+    let p = dir.join(TRACES);
+    let mut out = BTreeMap::new();
+    let text = match std::fs::read_to_string(&p) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(out),
+        Err(e) => return Err(Error::io("read", &p, e)),
+    };
+    let by_id: BTreeMap<&str, usize> = keep.iter().map(|(i, r)| (r[1].as_str(), *i)).collect();
+    let mut samples: BTreeMap<usize, Vec<(f64, f64)>> = BTreeMap::new();
+    for (n, line) in whole_lines(&text).skip(1) {
+        let mut parts = line.rsplitn(3, ',');
+        let (z, t, id) = (parts.next(), parts.next(), parts.next());
+        let parsed = match (id, t.map(str::parse::<f64>), z.map(str::parse::<f64>)) {
+            (Some(id), Some(Ok(t)), Some(Ok(z))) => Some((id, t, z)),
+            _ => None,
+        };
+        let Some((id, t, z)) = parsed else {
+            return Err(Error::Output(format!(
+                "{}:{n}: not an 'id,t,z' row; move the file away, or start a new run with --force",
+                p.display()
+            )));
+        };
+        if let Some(&i) = by_id.get(id) {
+            samples.entry(i).or_default().push((t, z));
+        }
+    }
+    for (i, s) in samples {
+        out.insert(i, (keep[&i][1].clone(), s));
+    }
+    Ok(out)
+}
+
+/// A run directory read back (what Python's `load_run` returns).
+#[derive(Debug, Clone)]
+pub struct RunTables {
+    pub manifest: Manifest,
+    pub header: Vec<String>,
+    /// summary.csv's rows in cell order.
+    pub rows: Vec<Vec<String>>,
+    /// (cell id, (t, z) samples) in cell order, for traced runs.
+    pub traces: Vec<(String, Vec<(f64, f64)>)>,
+}
+
+/// Reads a run directory, checking its rows against its manifest.
+pub fn read_run(dir: &Path) -> Result<RunTables> {
+    let manifest = read_manifest(dir)?;
+    let rows = read_rows(dir, &manifest.config)?;
+    let traces = read_traces(dir, &rows)?;
+    let axes: Vec<String> = manifest
+        .config
+        .grid
+        .axes
+        .iter()
+        .map(|a| a.axis.name().to_string())
+        .collect();
+    Ok(RunTables {
+        header: header(&axes),
+        rows: rows.into_values().collect(),
+        traces: traces.into_values().collect(),
+        manifest,
+    })
 }
 
 /// Writes a run directory as chunks finish.
@@ -167,7 +289,7 @@ pub struct RunWriter {
     dir: Option<PathBuf>,
     header: Vec<String>,
     rows: BTreeMap<usize, Vec<String>>,
-    traces: BTreeMap<usize, (String, Vec<(f64, f64)>)>,
+    traces: BTreeMap<usize, Trace>,
     want_traces: bool,
     pub manifest: Manifest,
     created: bool,
@@ -189,6 +311,7 @@ impl RunWriter {
             .collect();
         let header = header(&axes);
         let mut rows = BTreeMap::new();
+        let mut traces = BTreeMap::new();
         let Some(dir) = dir else {
             return Ok(RunWriter {
                 dir: None,
@@ -204,7 +327,7 @@ impl RunWriter {
         };
         match existing {
             Existing::Refuse if dir.exists() => {
-                return Err(Error::Output(format!(
+                return Err(Error::RunExists(format!(
                     "output directory '{}' already exists: choose another --out, add --force to overwrite it, or --resume it",
                     dir.display()
                 )));
@@ -212,7 +335,7 @@ impl RunWriter {
             Existing::Resume => {
                 let old = read_manifest(dir)?;
                 if old.config != manifest.config {
-                    return Err(Error::Output(format!(
+                    return Err(Error::ResumeMismatch(format!(
                         "cannot resume '{}': its inputs ({}) differ from this command's ({}); rerun the original command with --resume, or use a new --out",
                         dir.display(),
                         describe(&old.config),
@@ -220,12 +343,14 @@ impl RunWriter {
                     )));
                 }
                 if old.model.sha256 != manifest.model.sha256 {
-                    return Err(Error::Output(format!(
+                    return Err(Error::ResumeMismatch(format!(
                         "cannot resume '{}': the model file changed since the run started (SHA-256 differs); use a new --out",
                         dir.display()
                     )));
                 }
-                rows = read_rows(dir, &header)?;
+                rows = read_rows(dir, &manifest.config)?;
+                // earlier cells' traces stay: a resumed run keeps them all
+                traces = read_traces(dir, &rows)?;
             }
             _ => {}
         }
@@ -240,7 +365,7 @@ impl RunWriter {
             dir: Some(dir.to_path_buf()),
             header,
             rows,
-            traces: BTreeMap::new(),
+            traces,
             want_traces,
             manifest,
             created: false,
@@ -312,8 +437,7 @@ impl RunWriter {
         self.manifest.cells_done = self.rows.len();
         self.manifest.wall_seconds = self.started.elapsed().as_secs_f64();
         let Some(dir) = &self.dir else { return Ok(()) };
-        let rows: Vec<Vec<String>> = self.rows.values().cloned().collect();
-        write_atomic(&dir.join(SUMMARY), &csv_bytes(&self.header, &rows)?)?;
+        // traces first: a row in summary.csv promises its trace is on disk
         if self.want_traces {
             let mut out = String::from("id,t,z\n");
             for (id, tr) in self.traces.values() {
@@ -323,6 +447,8 @@ impl RunWriter {
             }
             write_atomic(&dir.join(TRACES), out.as_bytes())?;
         }
+        let rows: Vec<Vec<String>> = self.rows.values().cloned().collect();
+        write_atomic(&dir.join(SUMMARY), &csv_bytes(&self.header, &rows)?)?;
         self.write_manifest()
     }
 

@@ -1,7 +1,10 @@
 //! The `#[pymodule]` behind `import pupper_core` (as `pupper_core._native`):
 //! a thin layer that turns Python arguments into the same Rust calls the CLI
-//! makes, and Rust errors into `PupperError` subclasses. Results cross as
-//! JSON text; the Python package decodes them.
+//! makes, and Rust errors into `PupperError` subclasses. Results come back
+//! as Python objects: a `SweepResult` with numpy columns, dicts of plain
+//! values for reports, numpy arrays for recorded states.
+
+mod result;
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -68,22 +71,79 @@ create_exception!(
     "A bug in pupper or MuJoCo."
 );
 
+/// Errors that are also the builtin `OSError` subclass a user would catch
+/// (the way polars raises `FileNotFoundError`): (name, family, builtin, doc).
+const DUAL_ERRORS: [(&str, &str, &str, &str); 4] = [
+    (
+        "ModelNotFoundError",
+        "ModelError",
+        "FileNotFoundError",
+        "A model file that does not exist.",
+    ),
+    (
+        "RunNotFoundError",
+        "OutputError",
+        "FileNotFoundError",
+        "A run directory, or a file in it, that does not exist.",
+    ),
+    (
+        "RunExistsError",
+        "OutputError",
+        "FileExistsError",
+        "The run directory exists; pass force=True or resume=True.",
+    ),
+    (
+        "OutputPermissionError",
+        "OutputError",
+        "PermissionError",
+        "The run directory cannot be written or read.",
+    ),
+];
+
+/// The Python exception of a Rust error: the family's class (or its
+/// `OSError` twin), with the stable `kind` code as an attribute.
 fn to_py(e: Error) -> PyErr {
     let msg = e.to_string();
-    match e.kind() {
-        ErrorKind::Grid => GridError::new_err(msg),
-        ErrorKind::Config => ConfigError::new_err(msg),
-        ErrorKind::Model => ModelError::new_err(msg),
-        ErrorKind::Mujoco => MujocoError::new_err(msg),
-        ErrorKind::Output => OutputError::new_err(msg),
-        ErrorKind::Interrupted => PyKeyboardInterrupt::new_err(msg),
-        ErrorKind::Display => DisplayError::new_err(msg),
-        ErrorKind::Internal => InternalError::new_err(msg),
-    }
+    let dual = match e.code() {
+        "model_not_found" => Some("ModelNotFoundError"),
+        "run_not_found" | "not_found" => Some("RunNotFoundError"),
+        "run_exists" => Some("RunExistsError"),
+        "permission" => Some("OutputPermissionError"),
+        _ => None,
+    };
+    Python::attach(|py| {
+        let dual = dual
+            .and_then(|name| {
+                PyModule::import(py, "pupper_core._native")
+                    .and_then(|m| m.getattr(name))
+                    .ok()
+            })
+            .and_then(|c| c.cast_into::<pyo3::types::PyType>().ok());
+        let err = match dual {
+            Some(cls) => PyErr::from_type(cls, msg),
+            None => match e.kind() {
+                ErrorKind::Grid => GridError::new_err(msg),
+                ErrorKind::Config => ConfigError::new_err(msg),
+                ErrorKind::Model => ModelError::new_err(msg),
+                ErrorKind::Mujoco => MujocoError::new_err(msg),
+                ErrorKind::Output => OutputError::new_err(msg),
+                ErrorKind::Interrupted => PyKeyboardInterrupt::new_err(msg),
+                ErrorKind::Display => DisplayError::new_err(msg),
+                ErrorKind::Internal => InternalError::new_err(msg),
+            },
+        };
+        // an exception without the attribute is still raised, only plainer
+        let _ = err.value(py).setattr("kind", e.code());
+        err
+    })
 }
 
-fn json<T: serde::Serialize>(v: &T) -> PyResult<String> {
-    serde_json::to_string(v).map_err(|e| InternalError::new_err(e.to_string()))
+/// A serializable report as a dict of plain Python values.
+fn to_dict<'py, T: serde::Serialize>(py: Python<'py>, v: &T) -> PyResult<Bound<'py, PyAny>> {
+    let text = serde_json::to_string(v).map_err(|e| InternalError::new_err(e.to_string()))?;
+    PyModule::import(py, "json")?
+        .getattr("loads")?
+        .call1((text,))
 }
 
 /// The spec from Python keyword arguments: their names are the fields of
@@ -204,21 +264,24 @@ fn out_from(out: Option<&Bound<'_, PyAny>>) -> PyResult<Option<PathBuf>> {
     }
 }
 
-/// Model info as JSON (what `pupper info --json` prints).
+/// Model info (what `pupper info --json` prints), as a dict.
 #[pyfunction]
-#[pyo3(signature = (model="pupper_v3"))]
-fn info(model: &str) -> PyResult<String> {
-    let source = ModelSource::parse(model).map_err(to_py)?;
-    json(&api::info(&source).map_err(to_py)?)
+#[pyo3(signature = (model=PathBuf::from("pupper_v3")))]
+fn info<'py>(py: Python<'py>, model: PathBuf) -> PyResult<Bound<'py, PyAny>> {
+    let source = ModelSource::parse(&model.to_string_lossy()).map_err(to_py)?;
+    to_dict(py, &api::info(&source).map_err(to_py)?)
 }
 
-/// Stand report as JSON (what `pupper stand --json` prints). Keyword
+/// Stand report (what `pupper stand --json` prints), as a dict. Keyword
 /// arguments are those of `sweep`; the grid and the push are ignored.
 #[pyfunction]
 #[pyo3(signature = (**options))]
-fn stand(py: Python<'_>, options: Option<&Bound<'_, PyDict>>) -> PyResult<String> {
+fn stand<'py>(
+    py: Python<'py>,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
     let spec = spec_from(py, options)?;
-    json(&api::stand(&spec).map_err(to_py)?)
+    to_dict(py, &api::stand(&spec).map_err(to_py)?)
 }
 
 /// Progress to a Python callable, throttled; Ctrl-C through check_signals.
@@ -276,7 +339,7 @@ impl Hooks for PyUi<'_> {
     }
 }
 
-/// Runs a sweep; returns the summary table (and traces) as JSON.
+/// Runs a sweep; returns its table as a `SweepResult`.
 ///
 /// `grid`: a dict, `AXIS=VALUES` strings or one string; other keyword
 /// arguments are the fields of the Rust `SweepSpec`. On Ctrl-C the finished
@@ -291,7 +354,7 @@ fn sweep(
     out: Option<&Bound<'_, PyAny>>,
     progress: Option<Bound<'_, PyAny>>,
     options: Option<&Bound<'_, PyDict>>,
-) -> PyResult<String> {
+) -> PyResult<result::SweepResult> {
     let spec = SweepSpec {
         grid: grid_from(grid, preset)?,
         out: out_from(out)?,
@@ -323,18 +386,36 @@ fn sweep(
             "sweep interrupted; finished cells are kept (resume=True continues a run directory)",
         ));
     }
-    json(&serde_json::json!({
-        "header": outcome.header,
-        "rows": outcome.rows,
-        "traces": outcome.traces,
-        "out": outcome.out,
-        "complete": outcome.complete,
-        "cells_total": outcome.cells_total,
-        "cells_run": outcome.cells_run,
-        "wall_seconds": outcome.wall_seconds,
-        "mujoco_version": outcome.mujoco_version,
-        "config": req.sweep.config,
-    }))
+    result::SweepResult::new(
+        py,
+        result::Parts {
+            header: outcome.header,
+            rows: outcome.rows,
+            traces: &outcome.traces,
+            out: outcome.out.as_deref(),
+            complete: outcome.complete,
+            wall_seconds: outcome.wall_seconds,
+            config: &req.sweep.config,
+        },
+    )
+}
+
+/// A run directory read back: its rows checked against its manifest.
+#[pyfunction]
+fn load_run(py: Python<'_>, run_dir: PathBuf) -> PyResult<result::SweepResult> {
+    let run = output::read_run(&run_dir).map_err(to_py)?;
+    result::SweepResult::new(
+        py,
+        result::Parts {
+            header: run.header,
+            rows: run.rows,
+            traces: &run.traces,
+            out: Some(&run_dir),
+            complete: run.manifest.complete,
+            wall_seconds: f64::NAN,
+            config: &run.manifest.config,
+        },
+    )
 }
 
 /// A recording as a dict of Python objects (the stub's `Recording`).
@@ -419,21 +500,17 @@ fn record_run(
         .collect()
 }
 
-/// The manifest of a run directory, as JSON.
+/// The manifest of a run directory, as a dict.
 #[pyfunction]
-fn read_manifest(dir: PathBuf) -> PyResult<String> {
-    json(&output::read_manifest(&dir).map_err(to_py)?)
+fn read_manifest(py: Python<'_>, dir: PathBuf) -> PyResult<Bound<'_, PyAny>> {
+    to_dict(py, &output::read_manifest(&dir).map_err(to_py)?)
 }
 
 /// The defaults of every sweep keyword argument, as `SweepSpec::default()`
 /// holds them (the Python signature takes its defaults from here).
 #[pyfunction]
 fn sweep_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
-    let text = serde_json::to_string(&SweepSpec::defaults_json())
-        .map_err(|e| InternalError::new_err(e.to_string()))?;
-    PyModule::import(py, "json")?
-        .getattr("loads")?
-        .call1((text,))
+    to_dict(py, &SweepSpec::defaults_json())
 }
 
 /// The MJCF text of a built-in model (for rendering and viewers).
@@ -473,10 +550,21 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("OutputError", py.get_type::<OutputError>())?;
     m.add("DisplayError", py.get_type::<DisplayError>())?;
     m.add("InternalError", py.get_type::<InternalError>())?;
+    let builtins = PyModule::import(py, "builtins")?;
+    for (name, family, builtin, doc) in DUAL_ERRORS {
+        let bases =
+            pyo3::types::PyTuple::new(py, [m.getattr(family)?, builtins.getattr(builtin)?])?;
+        let ns = PyDict::new(py);
+        ns.set_item("__doc__", doc)?;
+        ns.set_item("__module__", "pupper_core")?;
+        m.add(name, builtins.getattr("type")?.call1((name, bases, ns))?)?;
+    }
     m.add_function(wrap_pyfunction!(info, m)?)?;
     m.add_function(wrap_pyfunction!(stand, m)?)?;
     m.add_function(wrap_pyfunction!(sweep, m)?)?;
     m.add_function(wrap_pyfunction!(read_manifest, m)?)?;
+    m.add_function(wrap_pyfunction!(load_run, m)?)?;
+    m.add_class::<result::SweepResult>()?;
     m.add_function(wrap_pyfunction!(record, m)?)?;
     m.add_function(wrap_pyfunction!(record_run, m)?)?;
     m.add_function(wrap_pyfunction!(sweep_defaults, m)?)?;

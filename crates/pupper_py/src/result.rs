@@ -1,0 +1,297 @@
+//! `SweepResult`: a sweep's table as Python objects. Numeric columns are
+//! numpy float64 arrays (NaN where summary.csv has an empty field), `index`
+//! is int64, `id`/`name`/`status` are lists of str; traces are numpy too.
+
+use std::path::Path;
+
+use numpy::PyArray1;
+use pyo3::exceptions::{PyIndexError, PyKeyError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use crate::ConfigError;
+use pupper_core::metrics::METRIC_NAMES;
+
+/// Columns of text in summary.csv.
+const TEXT: [&str; 3] = ["id", "name", "status"];
+
+/// Per-cell metrics of a sweep: the rows of its summary.csv, as numpy columns.
+///
+/// `res["kp"]` is a column; `res.table` maps every column to its array;
+/// `res.traces` maps a cell id to its (t, z) arrays when traces were kept.
+#[pyclass(module = "pupper_core", name = "SweepResult", frozen)]
+pub struct SweepResult {
+    header: Vec<String>,
+    rows: Vec<Vec<String>>,
+    columns: Py<PyDict>,
+    /// Cell id -> (t, z) numpy arrays.
+    #[pyo3(get)]
+    traces: Py<PyDict>,
+    /// The run directory, or None when nothing was written.
+    #[pyo3(get)]
+    out: Py<PyAny>,
+    /// False when the sweep was interrupted before every cell ran.
+    #[pyo3(get)]
+    complete: bool,
+    /// Seconds the sweep took (NaN for a run read back from disk).
+    #[pyo3(get)]
+    wall_seconds: f64,
+    /// The inputs that decide the numbers, as stored in manifest.json.
+    #[pyo3(get)]
+    config: Py<PyAny>,
+}
+
+/// What a result is made from.
+pub struct Parts<'a> {
+    pub header: Vec<String>,
+    pub rows: Vec<Vec<String>>,
+    pub traces: &'a [(String, Vec<(f64, f64)>)],
+    pub out: Option<&'a Path>,
+    pub complete: bool,
+    pub wall_seconds: f64,
+    pub config: &'a pupper_core::experiment::SweepConfig,
+}
+
+fn number(text: &str) -> f64 {
+    // written by fmt_f64: shortest round-trip text, empty for NaN
+    text.parse().unwrap_or(f64::NAN)
+}
+
+impl SweepResult {
+    pub fn new(py: Python<'_>, p: Parts<'_>) -> PyResult<SweepResult> {
+        let columns = PyDict::new(py);
+        for (i, name) in p.header.iter().enumerate() {
+            let values = p.rows.iter().map(|r| r[i].as_str());
+            if TEXT.contains(&name.as_str()) {
+                columns.set_item(name, PyList::new(py, values)?)?;
+            } else if name == "index" {
+                let v: Vec<i64> = values.map(|s| s.parse().unwrap_or(-1)).collect();
+                columns.set_item(name, PyArray1::from_vec(py, v))?;
+            } else {
+                let v: Vec<f64> = values.map(number).collect();
+                columns.set_item(name, PyArray1::from_vec(py, v))?;
+            }
+        }
+        let traces = PyDict::new(py);
+        for (id, samples) in p.traces {
+            let t: Vec<f64> = samples.iter().map(|s| s.0).collect();
+            let z: Vec<f64> = samples.iter().map(|s| s.1).collect();
+            traces.set_item(id, (PyArray1::from_vec(py, t), PyArray1::from_vec(py, z)))?;
+        }
+        let out = match p.out {
+            Some(dir) => PyModule::import(py, "pathlib")?
+                .getattr("Path")?
+                .call1((dir,))?
+                .unbind(),
+            None => py.None(),
+        };
+        let config_text = serde_json::to_string(p.config)
+            .map_err(|e| crate::InternalError::new_err(e.to_string()))?;
+        let config = PyModule::import(py, "json")?
+            .getattr("loads")?
+            .call1((config_text,))?
+            .unbind();
+        Ok(SweepResult {
+            header: p.header,
+            rows: p.rows,
+            columns: columns.unbind(),
+            traces: traces.unbind(),
+            out,
+            complete: p.complete,
+            wall_seconds: p.wall_seconds,
+            config,
+        })
+    }
+
+    fn column<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
+        self.columns.bind(py).get_item(name)?.ok_or_else(|| {
+            PyKeyError::new_err(format!(
+                "no column '{name}'; columns are {}",
+                self.header.join(", ")
+            ))
+        })
+    }
+
+    fn value<'py>(&self, py: Python<'py>, row: usize, col: usize) -> PyResult<Bound<'py, PyAny>> {
+        let text = &self.rows[row][col];
+        let name = self.header[col].as_str();
+        Ok(if TEXT.contains(&name) {
+            text.into_pyobject(py)?.into_any()
+        } else if name == "index" {
+            text.parse::<i64>()
+                .unwrap_or(-1)
+                .into_pyobject(py)?
+                .into_any()
+        } else {
+            number(text).into_pyobject(py)?.into_any()
+        })
+    }
+}
+
+#[pymethods]
+impl SweepResult {
+    /// Every column by name (a new dict; the arrays are shared).
+    #[getter]
+    fn table<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        self.columns.bind(py).copy()
+    }
+
+    /// summary.csv's columns, in order.
+    #[getter]
+    fn header(&self) -> Vec<String> {
+        self.header.clone()
+    }
+
+    /// summary.csv's rows as text, in cell order.
+    #[getter]
+    fn rows(&self) -> Vec<Vec<String>> {
+        self.rows.clone()
+    }
+
+    /// The grid's axis columns, in grid order.
+    #[getter]
+    fn axes(&self) -> Vec<String> {
+        let end = self
+            .header
+            .iter()
+            .position(|h| h == METRIC_NAMES[0])
+            .unwrap_or(self.header.len());
+        self.header[3.min(end)..end].to_vec()
+    }
+
+    /// Cell ids, in cell order.
+    #[getter]
+    fn ids(&self) -> Vec<String> {
+        self.rows.iter().map(|r| r[1].clone()).collect()
+    }
+
+    fn __len__(&self) -> usize {
+        self.rows.len()
+    }
+
+    fn __getitem__<'py>(&self, py: Python<'py>, column: &str) -> PyResult<Bound<'py, PyAny>> {
+        self.column(py, column)
+    }
+
+    /// Row `i` as a dict: index an int, text as str, numbers as float.
+    fn row<'py>(&self, py: Python<'py>, i: isize) -> PyResult<Bound<'py, PyDict>> {
+        let n = self.rows.len() as isize;
+        let k = if i < 0 { i + n } else { i };
+        if !(0..n).contains(&k) {
+            return Err(PyIndexError::new_err(format!(
+                "row {i} is out of range for {n} rows"
+            )));
+        }
+        let d = PyDict::new(py);
+        for (c, name) in self.header.iter().enumerate() {
+            d.set_item(name, self.value(py, k as usize, c)?)?;
+        }
+        Ok(d)
+    }
+
+    /// The healthy cell (status ok, finite metric) with the lowest metric
+    /// (highest with `minimize=False`); ties go to the first in cell order.
+    #[pyo3(signature = (metric = "last_1s_std_mm", *, minimize = true))]
+    fn best<'py>(
+        &self,
+        py: Python<'py>,
+        metric: &str,
+        minimize: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let numeric: Vec<&str> = METRIC_NAMES
+            .iter()
+            .copied()
+            .filter(|m| !TEXT.contains(m))
+            .collect();
+        let Some(col) = self
+            .header
+            .iter()
+            .position(|h| h == metric)
+            .filter(|_| numeric.contains(&metric))
+        else {
+            return Err(ConfigError::new_err(format!(
+                "unknown metric '{metric}': use one of {}",
+                numeric.join(", ")
+            )));
+        };
+        let status = self.header.iter().position(|h| h == "status");
+        let mut best: Option<(usize, f64)> = None;
+        for (i, r) in self.rows.iter().enumerate() {
+            let v = number(&r[col]);
+            let ok = status.is_some_and(|s| r[s] == "ok");
+            if !ok || !v.is_finite() {
+                continue;
+            }
+            let better = match best {
+                None => true,
+                Some((_, b)) => (minimize && v < b) || (!minimize && v > b),
+            };
+            if better {
+                best = Some((i, v));
+            }
+        }
+        match best {
+            Some((i, _)) => self.row(py, i as isize),
+            None => Err(ConfigError::new_err(format!(
+                "no healthy cell has a finite {metric}: every cell fell, diverged or has no value"
+            ))),
+        }
+    }
+
+    /// The table as a pandas DataFrame (pandas must be installed).
+    fn to_pandas<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let pd = PyModule::import(py, "pandas").map_err(|_| {
+            pyo3::exceptions::PyImportError::new_err("to_pandas() needs pandas: pip install pandas")
+        })?;
+        let data = PyDict::new(py);
+        for name in &self.header {
+            data.set_item(name, self.column(py, name)?)?;
+        }
+        pd.getattr("DataFrame")?.call1((data,))
+    }
+
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        let mut cols: Vec<String> = vec!["name".into()];
+        cols.extend(self.axes());
+        cols.extend(
+            ["final_z", "last_1s_std_mm", "push_dip_mm", "status"]
+                .iter()
+                .map(|s| s.to_string()),
+        );
+        let idx: Vec<usize> = cols
+            .iter()
+            .filter_map(|c| self.header.iter().position(|h| h == c))
+            .collect();
+        let format = PyModule::import(py, "builtins")?.getattr("format")?;
+        let mut lines = vec![
+            idx.iter()
+                .map(|&c| format!("{:>14}", self.header[c]))
+                .collect::<Vec<_>>()
+                .join("  "),
+        ];
+        for r in 0..self.rows.len() {
+            let mut cells = Vec::with_capacity(idx.len());
+            for &c in &idx {
+                let v = self.value(py, r, c)?;
+                let spec = if v.is_instance_of::<pyo3::types::PyFloat>() {
+                    ">14.4g"
+                } else {
+                    ">14"
+                };
+                cells.push(format.call1((v, spec))?.extract::<String>()?);
+            }
+            lines.push(cells.join("  "));
+        }
+        let out = self.out.bind(py);
+        let place = if out.is_none() {
+            String::new()
+        } else {
+            format!(", written to {}", out.str()?)
+        };
+        Ok(format!(
+            "SweepResult({} cells{place})\n{}",
+            self.rows.len(),
+            lines.join("\n")
+        ))
+    }
+}

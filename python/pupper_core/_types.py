@@ -1,0 +1,146 @@
+"""The shapes of what pupper_core returns and takes, as TypedDicts (the
+native module's stubs import them from here, so each is written once)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, Literal, TypedDict
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
+
+class JointInfo(TypedDict):
+    name: str
+    kind: Literal["free", "ball", "slide", "hinge"]
+    qpos_adr: int
+    dof_adr: int
+    range: list[float] | None
+    """[low, high] (rad or m) when the joint is limited."""
+    body: int
+    """Index into `bodies` of the body the joint moves."""
+
+
+class ActuatorInfo(TypedDict):
+    name: str
+    joint: int | None
+    """Index into `joints` of the joint it drives."""
+    gainprm: list[float]
+    biasprm: list[float]
+    forcerange: list[float] | None
+
+
+class KeyframeInfo(TypedDict):
+    name: str
+    qpos: list[float]
+    ctrl: list[float]
+
+
+class SensorInfo(TypedDict):
+    name: str
+    kind: str
+    dim: int
+
+
+class ModelInfo(TypedDict):
+    """What `pupper info --json` prints."""
+
+    name: str
+    source: str
+    sha256: str
+    """SHA-256 of the model's XML text."""
+    nq: int
+    nv: int
+    nu: int
+    nbody: int
+    timestep: float
+    total_mass: float
+    """kg."""
+    bodies: list[str]
+    joints: list[JointInfo]
+    actuators: list[ActuatorInfo]
+    """In ctrl order."""
+    keyframes: list[KeyframeInfo]
+    sensors: list[SensorInfo]
+
+
+class StandReport(TypedDict):
+    """What `pupper stand --json` prints."""
+
+    model: str
+    mode: Literal["servo", "torque"]
+    kp: float
+    kd: float
+    seconds: float
+    final_z: float
+    """Base height at the end (m)."""
+    last_1s_std_mm: float
+    max_tilt_deg: float
+    status: Literal["ok", "fell", "diverged"]
+
+
+class SimOptions(TypedDict, total=False):
+    """Keywords of every simulating call (`stand`, `sweep`)."""
+
+    model: str
+    mode: Literal["servo", "torque"]
+    seconds: float
+    kp: float
+    kd: float
+    max_torque: float
+    keyframe: str
+    pose: Sequence[float] | None
+
+
+class RecordedSetup(TypedDict):
+    """A recorded cell's physical setting, as the runner resolved it."""
+
+    kp: float
+    kd: float
+    max_torque: float
+    push_force: list[float]
+    """World-frame push force (N) while the push acts."""
+    friction: float | None
+    timestep: float | None
+    leg_scale: float
+    torso_mass_scale: float
+
+
+class Recording(TypedDict):
+    """One cell simulated by the sweep's runner, with its states at `fps`."""
+
+    index: int
+    id: str
+    name: str
+    values: dict[str, float]
+    """The cell's grid values by axis name."""
+    setup: RecordedSetup
+    status: Literal["ok", "fell", "diverged"]
+    event_time: float
+    model: Any
+    """The compiled `mujoco.MjModel` the cell ran on (its body variant)."""
+    fps: float
+    times: NDArray[np.float64]
+    """Time of each frame (s); frame 0 is the initial state."""
+    qpos: NDArray[np.float64]
+    """(frames, nq) joint positions."""
+    pushing: NDArray[np.bool_]
+    """Whether the push acted on the step that led to each frame."""
+
+
+class SweepOptions(SimOptions, total=False):
+    """The other keywords of `sweep`."""
+
+    push: bool
+    push_force: float
+    push_at: float
+    push_duration: float
+    sine: Sequence[float] | None
+    trace: bool
+    trace_every: int
+    threads: int
+    chunk_cells: int
+    max_cells: int
+    force: bool
+    resume: bool
