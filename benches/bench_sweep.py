@@ -64,13 +64,14 @@ import os
 import statistics
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 import mujoco
 import pupper_core
-from pupper_core import _native
 
+ROOT = Path(__file__).resolve().parent.parent
 KP = [10.0, 30.0, 60.0, 120.0]
 KD = [0.5, 1.0, 2.0, 5.0]
 SECONDS = 10.0
@@ -86,7 +87,7 @@ BUSY_CORES = 0.1  # other processes' average use (cores) above which timings are
 
 
 def load_model() -> tuple[mujoco.MjModel, int]:
-    model = mujoco.MjModel.from_xml_string(_native.builtin_xml("pupper_v3"))
+    model = mujoco.MjModel.from_xml_path(str(ROOT / "models" / "pupper_v3" / "scene.xml"))
     assert abs(model.opt.timestep - DT) < 1e-15, model.opt.timestep
     base = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "base_link")
     assert base >= 0

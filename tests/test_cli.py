@@ -222,14 +222,35 @@ HELP_FLAGS = {
         "--chunk-cells", "--max-cells", "--plot", "--json", "--quiet",
     ],
     "doctor": ["--json"],
+    "render": ["--model", "--mode", "--seconds", "--kp", "--kd", "--pose", "--out", "--width", "--height"],
 }
+HELP_FLAGS["sweep"].append("--render")
+
+
+def _documented(help_text: str, flag: str) -> bool:
+    """`flag` opens an option line of --help (not as part of a longer flag:
+    `--mode` is not `--model`) and the option has a description."""
+    pattern = rf"^\s+(?:-\w, )?{re.escape(flag)}(?![\w-])[^\n]*\n?(?P<desc>.*)$"
+    for m in re.finditer(pattern, help_text, re.M):
+        line = m.group(0)
+        rest = line.split(flag, 1)[1]
+        if re.search(r"\S\s{2,}\S", rest) or re.search(r"\w", m.group("desc") or ""):
+            return True
+    return False
 
 
 @pytest.mark.parametrize("sub", sorted(HELP_FLAGS))
 def test_help_mentions_flags(run, sub):
     p = run(sub, "--help", check=0)
     for flag in HELP_FLAGS[sub]:
-        assert flag in p.stdout, f"`pupper {sub} --help` does not mention {flag}"
+        assert _documented(p.stdout, flag), f"`pupper {sub} --help` does not document {flag}"
+
+
+def test_help_check_can_fail():
+    text = "Options:\n      --model <MODEL>  Which model\n      --json\n"
+    assert _documented(text, "--model")
+    assert not _documented(text, "--mode")  # only a prefix of --model
+    assert not _documented(text, "--threads")
 
 
 def test_top_level_help_lists_commands(run):

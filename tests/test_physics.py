@@ -9,11 +9,13 @@ import math
 import numpy as np
 import pytest
 
-from conftest import as_float, read_csv
+from conftest import REPO, as_float, read_csv
 
 mujoco = pytest.importorskip("mujoco")
 pc = pytest.importorskip("pupper_core")
 
+#: The built-in model's file, loaded by MuJoCo alone (not through pupper).
+SCENE = REPO / "models" / "pupper_v3" / "scene.xml"
 NUMERIC = ["final_z", "last_1s_std_mm", "push_dip_mm", "settle_time_s", "max_tilt_deg",
            "peak_torque", "saturation_frac", "tracking_rms", "event_time"]
 
@@ -21,7 +23,7 @@ NUMERIC = ["final_z", "last_1s_std_mm", "push_dip_mm", "settle_time_s", "max_til
 def serial_servo(kp: float, kd: float, seconds: float) -> dict[str, float]:
     """The chapter's loop, one MjData, no batching: servo gains written into
     the affine actuators, -25 N on base_link while 2.0 <= data.time < 2.25."""
-    m = mujoco.MjModel.from_xml_string(pc._native.builtin_xml("pupper_v3"))
+    m = mujoco.MjModel.from_xml_path(str(SCENE))
     m.actuator_gainprm[:, 0] = kp
     m.actuator_biasprm[:, 1] = -kp
     m.actuator_biasprm[:, 2] = -kd

@@ -309,7 +309,8 @@ def _need_gl() -> None:
 
 def test_builtin_model_path() -> None:
     p = render.builtin_model_path("pupper_v3")
-    assert p is not None and p.name == "pupper_v3.xml" and p.exists()
+    assert p is not None and p.name == "scene.xml" and p.exists()
+    assert render.builtin_model_path("pupper_v3_fixed") is None  # derived in memory
     assert render.builtin_model_path("no_such_model") is None
 
 

@@ -69,14 +69,18 @@ def test_wheel_carries_models_and_stubs(wheel_env) -> None:
         "import pathlib, pupper_core, pupper_core.render as r\n"
         "p = pathlib.Path(pupper_core.__file__).parent\n"
         "print(p)\n"
-        "print(sorted(x.name for x in (p / 'models').iterdir()))\n"
+        "print(sorted(x.name for x in (p / 'models' / 'pupper_v3').iterdir()))\n"
         "print((p / '_native.pyi').is_file(), (p / 'py.typed').is_file())\n"
-        "print(r.builtin_model_path('pupper_v3').read_text() == pupper_core._native.builtin_xml('pupper_v3'))\n"
+        "import mujoco, numpy as np\n"
+        "a = mujoco.MjModel.from_xml_path(str(r.builtin_model_path('pupper_v3')))\n"
+        "b = pupper_core._native.builtin_model('pupper_v3')\n"
+        "print(all(np.array_equal(getattr(a, f), getattr(b, f)) for f in\n"
+        "          ('body_mass', 'body_pos', 'geom_size', 'jnt_range', 'key_qpos', 'actuator_gainprm')))\n"
     )
     out = _run([str(venv / "bin" / "python"), "-c", code], cwd=venv, env=env).stdout.splitlines()
     assert Path(out[0]).is_relative_to(venv), f"pupper_core imported from {out[0]}, not the wheel's venv"
     assert not Path(out[0]).is_relative_to(REPO)
-    assert out[1] == "['pupper_v3.xml', 'pupper_v3_fixed.xml']", out[1]
+    assert out[1] == "['pupper_v3.xml', 'scene.xml']", out[1]
     assert out[2] == "True True"
     assert out[3] == "True", "the packaged model file differs from the one compiled in"
 

@@ -139,8 +139,8 @@ def load_run(run_dir: str) -> SweepResult:
 def read_manifest(dir: str) -> dict[str, Any]:
     """The manifest of a run directory, as a dict."""
 
-def builtin_xml(name: str) -> str:
-    """The MJCF text of a built-in model."""
+def builtin_model(name: str) -> Any:
+    """A built-in model compiled as the CLI compiles it (a `mujoco.MjModel`)."""
 
 def cli_main(argv: Sequence[str]) -> int:
     """The `pupper` command inside this interpreter; returns the exit status."""

@@ -209,8 +209,10 @@ def _require_gl() -> None:
 
 
 def builtin_model_path(name: str) -> Path | None:
-    """Path of a built-in model's XML, shipped as package data, or None."""
-    p = Path(__file__).parent / "models" / f"{name}.xml"
+    """The MJCF file of a built-in model, shipped as package data (the scene
+    for ``pupper_v3``), or None for names that are not files (``pupper_v3_fixed``
+    is derived in memory; ``_native.builtin_model`` compiles any of them)."""
+    p = Path(__file__).parent / "models" / name / "scene.xml"
     return p if p.is_file() else None
 
 
@@ -227,13 +229,12 @@ def _load_model(model: ModelLike) -> "mujoco.MjModel":
         return mujoco.MjModel.from_xml_path(str(p))
     from pupper_core import _native
 
-    try:  # the XML compiled into the native module, as the CLI uses it
-        xml = _native.builtin_xml(str(model))
+    try:  # compiled by the native module, as the CLI compiles it
+        return _native.builtin_model(str(model))
     except _native.ModelError:
         raise FileNotFoundError(
             f"model '{model}' is neither an existing XML file nor a built-in model"
         ) from None
-    return mujoco.MjModel.from_xml_string(xml)
 
 
 def _reset(model: "mujoco.MjModel", data: "mujoco.MjData", keyframe: str | int | None) -> None:

@@ -9,9 +9,10 @@ use crate::model::ModelInfo;
 /// The floating base: a free joint.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Base {
+    /// The body the free joint moves (pushes act on it).
     pub body: usize,
+    /// qpos address of the free joint (x, y, z, then the quaternion).
     pub qpos: usize,
-    pub dof: usize,
 }
 
 impl Base {
@@ -27,8 +28,6 @@ impl Base {
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Layout {
-    pub nq: usize,
-    pub nv: usize,
     pub nu: usize,
     pub base: Base,
     /// qpos address of the joint each actuator drives, in ctrl order.
@@ -73,13 +72,10 @@ impl Layout {
             act_dof.push(j.dof_adr);
         }
         Ok(Layout {
-            nq: info.nq,
-            nv: info.nv,
             nu: info.nu,
             base: Base {
                 body: base.body,
                 qpos: base.qpos_adr,
-                dof: base.dof_adr,
             },
             act_qpos,
             act_dof,
@@ -150,10 +146,8 @@ pub(crate) mod tests {
     #[test]
     fn free_joint_bookkeeping() {
         let l = Layout::floating(&quadruped_info(4)).unwrap();
-        assert_eq!((l.nq, l.nv, l.nu), (19, 18, 12));
-        assert_eq!(l.base.z(), 2);
-        assert_eq!(l.base.quat(), 3);
-        assert_eq!(l.base.dof, 0);
+        assert_eq!(l.nu, 12);
+        assert_eq!((l.base.body, l.base.z(), l.base.quat()), (1, 2, 3));
         // actuator 0 drives the last joint: qpos 18, qvel 17
         assert_eq!(l.act_qpos[0], 18);
         assert_eq!(l.act_dof[0], 17);
@@ -189,6 +183,29 @@ pub(crate) mod tests {
     fn actuator_without_joint_is_rejected() {
         let mut info = quadruped_info(1);
         info.actuators[0].joint = None;
-        assert!(Layout::floating(&info).is_err());
+        let e = Layout::floating(&info).unwrap_err();
+        assert_eq!(e.kind(), crate::ErrorKind::Model);
+        assert!(
+            e.to_string()
+                .contains("does not drive a hinge or slide joint"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn actuator_on_a_ball_joint_is_rejected() {
+        let mut info = quadruped_info(1);
+        info.joints[1].kind = "ball".into();
+        let e = Layout::floating(&info).unwrap_err().to_string();
+        assert!(e.contains("does not drive a hinge or slide joint"), "{e}");
+    }
+
+    #[test]
+    fn no_actuators_is_rejected() {
+        let mut info = quadruped_info(1);
+        info.actuators.clear();
+        info.nu = 0;
+        let e = Layout::floating(&info).unwrap_err().to_string();
+        assert!(e.contains("has no actuators"), "{e}");
     }
 }

@@ -8,12 +8,40 @@ use sha2::{Digest, Sha256};
 
 use crate::error::{Error, Result};
 
-/// The project's floating-base Pupper v3.
-pub const PUPPER_V3_XML: &str = include_str!("../../../models/pupper_v3.xml");
-/// The fixed-base Pupper v3 (hung in the air; for joint-level tests).
-pub const PUPPER_V3_FIXED_XML: &str = include_str!("../../../models/pupper_v3_fixed.xml");
+/// The Pupper v3 robot alone (models/pupper_v3/, laid out as in MuJoCo
+/// Menagerie: the robot file, and a scene that includes it).
+pub const PUPPER_V3_ROBOT_XML: &str = include_str!("../../../models/pupper_v3/pupper_v3.xml");
+/// Pupper v3 on a floor, under a light and a sky.
+pub const PUPPER_V3_SCENE_XML: &str = include_str!("../../../models/pupper_v3/scene.xml");
 
-pub const BUILTIN_NAMES: [&str; 2] = ["pupper_v3", "pupper_v3_fixed"];
+/// A model compiled into pupper: a main MJCF text, the files it includes
+/// (by the name it includes them under), and whether the base is welded to
+/// the world (the free joint removed in memory, with MjSpec).
+#[derive(Debug)]
+pub struct Builtin {
+    pub name: &'static str,
+    pub main: &'static str,
+    pub includes: &'static [(&'static str, &'static str)],
+    pub fixed_base: bool,
+}
+
+pub const BUILTINS: [Builtin; 2] = [
+    Builtin {
+        name: "pupper_v3",
+        main: PUPPER_V3_SCENE_XML,
+        includes: &[("pupper_v3.xml", PUPPER_V3_ROBOT_XML)],
+        fixed_base: false,
+    },
+    // hung in the air at the robot file's base height; for joint-level tests
+    Builtin {
+        name: "pupper_v3_fixed",
+        main: PUPPER_V3_ROBOT_XML,
+        includes: &[],
+        fixed_base: true,
+    },
+];
+
+pub const BUILTIN_NAMES: [&str; 2] = [BUILTINS[0].name, BUILTINS[1].name];
 
 /// A built-in model by name, or an MJCF file.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -62,12 +90,11 @@ impl ModelSource {
         Ok(ModelSource::Path(path))
     }
 
-    /// The built-in XML text, if this is a built-in model.
-    pub fn builtin_xml(&self) -> Option<&'static str> {
+    /// The built-in model, if this names one.
+    pub fn builtin(&self) -> Option<&'static Builtin> {
         match self {
-            ModelSource::Builtin(n) if n == "pupper_v3" => Some(PUPPER_V3_XML),
-            ModelSource::Builtin(n) if n == "pupper_v3_fixed" => Some(PUPPER_V3_FIXED_XML),
-            _ => None,
+            ModelSource::Builtin(n) => BUILTINS.iter().find(|b| b.name == n),
+            ModelSource::Path(_) => None,
         }
     }
 
@@ -78,10 +105,17 @@ impl ModelSource {
         }
     }
 
-    /// SHA-256 of the MJCF text (the main file; included files are not hashed).
+    /// SHA-256 of the MJCF text: a file's main text (included files are not
+    /// hashed), or a built-in's name, main text and included texts.
     pub fn sha256(&self) -> Result<String> {
-        let bytes = match self.builtin_xml() {
-            Some(xml) => xml.as_bytes().to_vec(),
+        let bytes = match self.builtin() {
+            Some(b) => {
+                let mut all = format!("{}\n{}", b.name, b.main);
+                for (name, text) in b.includes {
+                    all.push_str(&format!("\n{name}\n{text}"));
+                }
+                all.into_bytes()
+            }
             None => match self {
                 ModelSource::Path(p) => std::fs::read(p).map_err(|e| Error::io("read", p, e))?,
                 ModelSource::Builtin(n) => {

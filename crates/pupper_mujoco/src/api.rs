@@ -22,6 +22,11 @@ pub fn info(source: &ModelSource) -> Result<ModelInfo> {
     bridge::with_model(source, false, |m| Ok(m.info().clone()))
 }
 
+/// The compiled `MjModel` of a model source, for Python callers.
+pub fn compiled(source: &ModelSource) -> Result<Py<PyAny>> {
+    bridge::with_model(source, false, |m| Ok(m.model().clone().unbind()))
+}
+
 /// The outcome of `pupper stand`.
 #[derive(Debug, Clone, Serialize)]
 pub struct StandReport {

@@ -513,18 +513,18 @@ fn sweep_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
     to_dict(py, &SweepSpec::defaults_json())
 }
 
-/// The MJCF text of a built-in model (for rendering and viewers).
+/// A built-in model compiled as the CLI compiles it, as a `mujoco.MjModel`
+/// (for rendering, viewers and hand-written loops).
 #[pyfunction]
-fn builtin_xml(name: &str) -> PyResult<String> {
-    ModelSource::Builtin(name.to_string())
-        .builtin_xml()
-        .map(String::from)
-        .ok_or_else(|| {
-            ModelError::new_err(format!(
-                "no built-in model '{name}': use one of {}",
-                pupper_core::model::BUILTIN_NAMES.join(", ")
-            ))
-        })
+fn builtin_model(name: &str) -> PyResult<Py<PyAny>> {
+    let source = ModelSource::Builtin(name.to_string());
+    if source.builtin().is_none() {
+        return Err(ModelError::new_err(format!(
+            "no built-in model '{name}': use one of {}",
+            pupper_core::model::BUILTIN_NAMES.join(", ")
+        )));
+    }
+    api::compiled(&source).map_err(to_py)
 }
 
 /// The `pupper` command inside this interpreter (the wheel's console
@@ -568,7 +568,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(record, m)?)?;
     m.add_function(wrap_pyfunction!(record_run, m)?)?;
     m.add_function(wrap_pyfunction!(sweep_defaults, m)?)?;
-    m.add_function(wrap_pyfunction!(builtin_xml, m)?)?;
+    m.add_function(wrap_pyfunction!(builtin_model, m)?)?;
     m.add_function(wrap_pyfunction!(cli_main, m)?)?;
     Ok(())
 }

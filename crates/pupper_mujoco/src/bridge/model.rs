@@ -4,19 +4,22 @@
 use std::cell::RefCell;
 
 use pyo3::prelude::*;
-use pyo3::types::PyList;
+use pyo3::types::{PyBytes, PyDict, PyList};
 
 use super::python::{Mujoco, PyResultExt, python_message};
 use pupper_core::error::{Error, Result};
 use pupper_core::layout::Layout;
-use pupper_core::model::{ModelInfo, ModelSource};
+use pupper_core::model::{Builtin, ModelInfo, ModelSource};
 
 impl<'py> Mujoco<'py> {
     /// Parses the model's MJCF into an `MjSpec`.
     pub(crate) fn spec(&self, source: &ModelSource) -> Result<Bound<'py, PyAny>> {
         let spec_cls = self.module.getattr("MjSpec").internal()?;
-        let res = match source.builtin_xml() {
-            Some(xml) => spec_cls.call_method1("from_string", (xml,)),
+        let res = match source.builtin() {
+            Some(b) => {
+                let spec = builtin_spec(&spec_cls, b).internal()?;
+                return Ok(spec);
+            }
             None => match source {
                 ModelSource::Path(p) => {
                     spec_cls.call_method1("from_file", (p.to_string_lossy().into_owned(),))
@@ -60,6 +63,39 @@ impl<'py> Mujoco<'py> {
             variants: RefCell::new(Vec::new()),
         })
     }
+}
+
+/// The spec of a built-in model: its main text with its includes given as
+/// in-memory files; a fixed base loses its free joint (and the keyframes
+/// their base coordinates).
+fn builtin_spec<'py>(spec_cls: &Bound<'py, PyAny>, b: &Builtin) -> PyResult<Bound<'py, PyAny>> {
+    let py = spec_cls.py();
+    let include = PyDict::new(py);
+    for (name, text) in b.includes {
+        include.set_item(name, PyBytes::new(py, text.as_bytes()))?;
+    }
+    let kw = PyDict::new(py);
+    kw.set_item("include", include)?;
+    let spec = spec_cls.call_method("from_string", (b.main,), Some(&kw))?;
+    spec.setattr("modelname", b.name)?;
+    if b.fixed_base {
+        for joint in spec.getattr("joints")?.try_iter()? {
+            let joint = joint?;
+            if joint.getattr("type")?.getattr("value")?.extract::<i64>()? == 0 {
+                // mjJNT_FREE: weld the base where the file puts it
+                spec.call_method1("delete", (joint,))?;
+                for key in spec.getattr("keys")?.try_iter()? {
+                    let key = key?;
+                    let qpos: Vec<f64> = key.getattr("qpos")?.extract()?;
+                    if qpos.len() >= 7 {
+                        key.setattr("qpos", qpos[7..].to_vec())?;
+                    }
+                }
+                break;
+            }
+        }
+    }
+    Ok(spec)
 }
 
 /// A compiled body variant, keyed by the bits of (leg_scale, torso_mass_scale).
