@@ -47,18 +47,8 @@ def _load(name: str) -> types.ModuleType:
 plots = _load("plots")
 render = _load("render")
 
-METRIC_COLS = [
-    "final_z",
-    "last_1s_std_mm",
-    "push_dip_mm",
-    "settle_time_s",
-    "max_tilt_deg",
-    "peak_torque",
-    "saturation_frac",
-    "tracking_rms",
-    "status",
-    "event_time",
-]
+#: summary.csv's metric columns, as the Rust core names them
+METRIC_COLS = list(sys.modules["pupper_core"].METRICS)
 
 
 def _fmt(v: Any) -> str:

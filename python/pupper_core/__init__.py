@@ -12,9 +12,14 @@ same inputs give the same summary.csv.
 
 from __future__ import annotations
 
+import functools
+import inspect
 import os
 import sys
-from typing import Any, Callable, Literal, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Literal, Mapping, Sequence
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
 from pupper_core import _native
 from pupper_core._native import (
@@ -32,7 +37,7 @@ from pupper_core._native import (
     RunNotFoundError,
     SweepResult,
 )
-from pupper_core._types import ModelInfo, Recording, StandReport
+from pupper_core._types import ModelInfo, Recording, SimOptions, StandReport, SweepOptions
 
 __version__: str = _native.__version__
 
@@ -76,19 +81,46 @@ _D: dict[str, Any] = _native.sweep_defaults()
 Mode = Literal["servo", "torque"]
 
 
-def stand(
-    model: str | os.PathLike[str] = _D["model"],
-    *,
-    seconds: float = _D["seconds"],
-    kp: float = _D["kp"],
-    kd: float = _D["kd"],
-    max_torque: float = _D["max_torque"],
-    keyframe: str = _D["keyframe"],
-    pose: Sequence[float] | None = _D["pose"],
-    mode: Mode = _D["mode"],
-) -> StandReport:
-    """Reset to a keyframe (or pose), stand with no push; final z, last-second std, tilt."""
-    return _native.stand(**_options(locals()))
+def _with_spec_signature(options: type, *, after: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Gives a wrapper taking `**options` the full signature notebooks and
+    help() show: each keyword of the TypedDict `options` (names and types
+    written once, in _types.py) with its default from the Rust spec (_D),
+    placed after the parameter `after`."""
+
+    def wrap(fn: Callable[..., Any]) -> Callable[..., Any]:
+        sig = inspect.signature(fn)
+        head = [p for p in sig.parameters.values() if p.kind is not p.VAR_KEYWORD]
+        at = [p.name for p in head].index(after) + 1
+        spec = [
+            inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=_D[name],
+                              annotation=getattr(kind, "__forward_arg__", kind))
+            for name, kind in options.__annotations__.items()
+            if name not in sig.parameters
+        ]
+        fn.__signature__ = sig.replace(parameters=head[:at] + spec + head[at:])  # type: ignore[attr-defined]
+        known = set(options.__annotations__) | set(sig.parameters)
+
+        @functools.wraps(fn)
+        def checked(*args: Any, **kwargs: Any) -> Any:
+            unknown = sorted(set(kwargs) - known)
+            if unknown:
+                raise TypeError(
+                    f"{fn.__name__}() got an unexpected keyword argument {unknown[0]!r}; "
+                    f"it takes {', '.join(p for p in fn.__signature__.parameters)}"  # type: ignore[attr-defined]
+                )
+            return fn(*args, **kwargs)
+
+        return checked
+
+    return wrap
+
+
+@_with_spec_signature(SimOptions, after="model")
+def stand(model: str | os.PathLike[str] = _D["model"], **options: Unpack[SimOptions]) -> StandReport:
+    """Reset to a keyframe (or pose), stand with no push; final z, last-second std, tilt.
+
+    Keywords are those of `pupper stand` (`--help` there), same defaults."""
+    return _native.stand(**_options({**options, "model": model}))
 
 
 def _options(arguments: Mapping[str, Any]) -> dict[str, Any]:
@@ -125,32 +157,14 @@ def _progress_printer() -> Callable[[int, int], None] | None:
     return update
 
 
+@_with_spec_signature(SweepOptions, after="preset")
 def sweep(
     grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | str | None = None,
     *,
     preset: str | None = None,
-    model: str | os.PathLike[str] = _D["model"],
-    mode: Mode = _D["mode"],
-    seconds: float = _D["seconds"],
-    kp: float = _D["kp"],
-    kd: float = _D["kd"],
-    max_torque: float = _D["max_torque"],
-    push: bool = _D["push"],
-    push_force: float = _D["push_force"],
-    push_at: float = _D["push_at"],
-    push_duration: float = _D["push_duration"],
-    sine: tuple[float, float] | None = _D["sine"],
-    keyframe: str = _D["keyframe"],
-    pose: Sequence[float] | None = _D["pose"],
-    trace: bool = _D["trace"],
-    trace_every: int = _D["trace_every"],
-    threads: int = _D["threads"],
-    chunk_cells: int = _D["chunk_cells"],
-    max_cells: int = _D["max_cells"],
-    out: str | os.PathLike[str] | None = _D["out"],
-    force: bool = _D["force"],
-    resume: bool = _D["resume"],
+    out: str | os.PathLike[str] | None = None,
     progress: bool | Callable[[int, int], None] = True,
+    **options: Unpack[SweepOptions],
 ) -> SweepResult:
     """Run a grid of settings as one batched MuJoCo simulation.
 
@@ -165,9 +179,8 @@ def sweep(
     (done_steps, total_steps). Ctrl-C stops within a second, keeps what is
     finished, and raises KeyboardInterrupt.
     """
-    options = _options(locals())
     callback = _progress_printer() if progress is True else (progress or None)
-    return _native.sweep(grid, preset=preset, out=out, progress=callback, **options)
+    return _native.sweep(grid, preset=preset, out=out, progress=callback, **_options(options))
 
 
 def load_run(run_dir: str | os.PathLike[str]) -> SweepResult:

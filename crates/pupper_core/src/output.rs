@@ -47,6 +47,17 @@ pub fn header(axes: &[String]) -> Vec<String> {
     h
 }
 
+/// The header of a sweep's `summary.csv`.
+pub fn header_of(config: &SweepConfig) -> Vec<String> {
+    let axes: Vec<String> = config
+        .grid
+        .axes
+        .iter()
+        .map(|a| a.axis.name().to_string())
+        .collect();
+    header(&axes)
+}
+
 /// One summary row as text fields.
 pub fn row(cell: &Cell, m: &Metrics) -> Vec<String> {
     let mut r = vec![cell.index.to_string(), cell.id.clone(), cell.name.clone()];
@@ -150,13 +161,7 @@ fn read_rows(dir: &Path, config: &SweepConfig) -> Result<BTreeMap<usize, Vec<Str
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(rows),
         Err(e) => return Err(Error::io("read", &p, e)),
     };
-    let axes: Vec<String> = config
-        .grid
-        .axes
-        .iter()
-        .map(|a| a.axis.name().to_string())
-        .collect();
-    let want = header(&axes);
+    let want = header_of(config);
     let cells = config.grid.cells();
     let broken = |line: usize, what: String| {
         Error::Output(format!(
@@ -268,15 +273,8 @@ pub fn read_run(dir: &Path) -> Result<RunTables> {
     let manifest = read_manifest(dir)?;
     let rows = read_rows(dir, &manifest.config)?;
     let traces = read_traces(dir, &rows)?;
-    let axes: Vec<String> = manifest
-        .config
-        .grid
-        .axes
-        .iter()
-        .map(|a| a.axis.name().to_string())
-        .collect();
     Ok(RunTables {
-        header: header(&axes),
+        header: header_of(&manifest.config),
         rows: rows.into_values().collect(),
         traces: traces.into_values().collect(),
         manifest,
@@ -302,14 +300,7 @@ impl RunWriter {
     /// so bad input never leaves a directory behind). For a resume, loads the
     /// finished rows and checks the manifest's inputs equal `manifest.config`.
     pub fn new(dir: Option<&Path>, existing: Existing, manifest: Manifest) -> Result<RunWriter> {
-        let axes: Vec<String> = manifest
-            .config
-            .grid
-            .axes
-            .iter()
-            .map(|a| a.axis.name().to_string())
-            .collect();
-        let header = header(&axes);
+        let header = header_of(&manifest.config);
         let mut rows = BTreeMap::new();
         let mut traces = BTreeMap::new();
         let Some(dir) = dir else {
