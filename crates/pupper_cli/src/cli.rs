@@ -9,6 +9,7 @@ use pupper_core::experiment::{Hooks, SweepConfig};
 use pupper_core::model::ModelSource;
 use pupper_core::output;
 use pupper_core::physics::Mode;
+use pupper_core::rundir::Existing;
 use pupper_core::spec::{self, GridInput, SweepSpec};
 use pupper_core::{Error, Result};
 use pupper_mujoco::api::{self, SweepRequest, SweepUi};
@@ -376,10 +377,12 @@ fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
         .build()?,
         None => {
             let mut s = a.spec()?.build()?;
-            s.out = Some(match &a.out {
-                Some(dir) => dir.clone(),
-                None => default_out(&a.preset, &s.config),
-            });
+            s.out = a.out.clone();
+            if s.out.is_none() {
+                // created when the run starts, the first free name in one step
+                s.out = Some(default_out(&a.preset, &s.config));
+                s.existing = Existing::Unique;
+            }
             s
         }
     };
@@ -430,6 +433,7 @@ fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
     Ok(0)
 }
 
+/// The name a run without --out starts from (`-1`, `-2`, ... when taken).
 fn default_out(preset: &Option<String>, cfg: &SweepConfig) -> PathBuf {
     let name = match preset {
         Some(p) => p.clone(),
@@ -443,18 +447,7 @@ fn default_out(preset: &Option<String>, cfg: &SweepConfig) -> PathBuf {
             .join("-"),
     };
     let stamp = chrono::Local::now().format("%Y%m%d-%H%M%S");
-    let base = PathBuf::from("runs").join(format!("{stamp}-{name}"));
-    // two runs in one second get distinct directories
-    (0..)
-        .map(|i| {
-            if i == 0 {
-                base.clone()
-            } else {
-                PathBuf::from(format!("{}-{i}", base.display()))
-            }
-        })
-        .find(|p| !p.exists())
-        .unwrap_or(base)
+    PathBuf::from("runs").join(format!("{stamp}-{name}"))
 }
 
 /// Progress bar on stderr (hidden when stderr is not a terminal) and the

@@ -50,11 +50,14 @@ pub enum Error {
     /// A resume whose inputs differ from the run's.
     #[error("{0}")]
     ResumeMismatch(String),
+    /// Another process is writing the run directory.
+    #[error("{0}")]
+    RunBusy(String),
     #[error("interrupted: {0}")]
     Interrupted(String),
     #[error("{0}")]
     Display(String),
-    #[error("cannot {action} {path}: {source}")]
+    #[error("cannot {action} {}: {source}{}", path.display(), io_fix(source))]
     Io {
         action: &'static str,
         path: PathBuf,
@@ -76,6 +79,7 @@ impl Error {
             | Error::RunNotFound(_)
             | Error::RunExists(_)
             | Error::ResumeMismatch(_)
+            | Error::RunBusy(_)
             | Error::Io { .. } => ErrorKind::Output,
             Error::Interrupted(_) => ErrorKind::Interrupted,
             Error::Display(_) => ErrorKind::Display,
@@ -86,7 +90,7 @@ impl Error {
     /// A stable name for this error, finer than its kind, for programs to
     /// match on (Python's `PupperError.kind`): `grid`, `config`, `model`,
     /// `model_not_found`, `mujoco`, `output`, `run_not_found`, `run_exists`,
-    /// `resume_mismatch`, `not_found`, `permission`, `disk_full`, `io`,
+    /// `resume_mismatch`, `run_busy`, `not_found`, `permission`, `disk_full`, `io`,
     /// `interrupted`, `display`, `internal`.
     pub fn code(&self) -> &'static str {
         match self {
@@ -99,6 +103,7 @@ impl Error {
             Error::RunNotFound(_) => "run_not_found",
             Error::RunExists(_) => "run_exists",
             Error::ResumeMismatch(_) => "resume_mismatch",
+            Error::RunBusy(_) => "run_busy",
             Error::Io { source, .. } => match source.kind() {
                 std::io::ErrorKind::NotFound => "not_found",
                 std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::ReadOnlyFilesystem => {
@@ -128,6 +133,19 @@ impl Error {
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// The fix for an I/O failure a user can act on.
+fn io_fix(e: &std::io::Error) -> &'static str {
+    match e.kind() {
+        std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded => {
+            "; free some space, then continue with --resume (finished cells are kept)"
+        }
+        std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::ReadOnlyFilesystem => {
+            "; choose an --out you can write to"
+        }
+        _ => "",
+    }
+}
 
 #[cfg(test)]
 mod tests {

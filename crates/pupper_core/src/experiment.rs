@@ -62,8 +62,12 @@ impl Default for SweepConfig {
 pub struct RunOptions {
     /// Threads of the batch; 0 for all cores.
     pub threads: usize,
-    /// Cells per batch.
+    /// Most cells per batch.
     pub chunk_cells: usize,
+    /// Wall seconds of work a batch aims at: the most a stop (Ctrl-C, a
+    /// kill) can lose, whatever the grid. Batches grow or shrink with the
+    /// measured speed; numbers never depend on it.
+    pub chunk_seconds: f64,
     /// Steps per open-loop call in servo mode.
     pub chunk_steps: usize,
     /// Record qpos at this many frames per second (for drawing).
@@ -75,6 +79,7 @@ impl Default for RunOptions {
         RunOptions {
             threads: 0,
             chunk_cells: 256,
+            chunk_seconds: 5.0,
             chunk_steps: 250,
             frame_rate: None,
         }
@@ -184,13 +189,23 @@ pub fn run_cells(
             None => groups.push((dt.to_bits(), vec![c])),
         }
     }
+    let mut plans = Vec::with_capacity(groups.len());
+    for (bits, _) in &groups {
+        plans.push(cfg.schedule.plan(f64::from_bits(*bits))?.steps);
+    }
+    let mut pace = Pace::new(opts);
     let mut out: Vec<CellResult> = Vec::with_capacity(cells.len());
-    for (bits, group) in &groups {
+    for ((bits, group), steps) in groups.iter().zip(plans) {
         let dt = f64::from_bits(*bits);
-        for chunk in group.chunks(opts.chunk_cells.max(1)) {
+        let mut rest: &[&Cell] = group;
+        while !rest.is_empty() {
+            let (chunk, more) = rest.split_at(pace.cells(steps).min(rest.len()));
+            let started = std::time::Instant::now();
             let results = run_chunk(physics, cfg, chunk, dt, opts, hooks)?;
+            pace.measured(chunk.len(), steps, started.elapsed().as_secs_f64());
             hooks.chunk_done(&results)?;
             out.extend(results);
+            rest = more;
         }
     }
     // back to the caller's order
@@ -202,6 +217,49 @@ pub fn run_cells(
     };
     out.sort_by_key(|r| pos(&r.cell));
     Ok(out)
+}
+
+/// Sizes batches to about `chunk_seconds` of work from the speed measured
+/// so far (a cautious guess before the first batch). Up to one cell per
+/// thread costs the same wall time, so a batch is never smaller than that.
+struct Pace {
+    max_cells: usize,
+    seconds: f64,
+    threads: usize,
+    /// Steps per wall second of one thread.
+    lane_rate: f64,
+}
+
+impl Pace {
+    fn new(opts: RunOptions) -> Pace {
+        let threads = match opts.threads {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            n => n,
+        };
+        Pace {
+            max_cells: opts.chunk_cells.max(1),
+            seconds: opts.chunk_seconds,
+            threads,
+            // 100 µs per step: slower than Pupper on any core
+            lane_rate: 1.0e4,
+        }
+    }
+
+    /// Cells of `steps` steps for the next batch.
+    fn cells(&self, steps: usize) -> usize {
+        let fit = self.seconds * self.lane_rate * self.threads as f64 / steps.max(1) as f64;
+        (fit.floor() as usize)
+            .max(self.threads)
+            .clamp(1, self.max_cells)
+    }
+
+    /// A batch of `cells` cells of `steps` steps took `seconds`.
+    fn measured(&mut self, cells: usize, steps: usize, seconds: f64) {
+        if seconds > 0.05 {
+            let lanes = cells.min(self.threads).max(1);
+            self.lane_rate = (cells * steps) as f64 / seconds / lanes as f64;
+        }
+    }
 }
 
 /// Per-cell accumulators of a chunk.
@@ -251,8 +309,8 @@ fn run_chunk(
     let layout = physics.layout().clone();
     let targets = batch.targets().to_vec();
     let schedule = &cfg.schedule;
-    let nsteps = schedule.steps(dt);
-    let push = schedule.push_steps(dt);
+    let plan = schedule.plan(dt)?;
+    let (nsteps, push) = (plan.steps, plan.push);
     let n = cells.len();
     let mut state = ChunkState {
         layout: &layout,

@@ -104,9 +104,12 @@ impl Axis {
             Axis::Kp | Axis::Kd if v < 0.0 => Some("gains must be >= 0"),
             Axis::MaxTorque if v <= 0.0 => Some("max_torque must be > 0"),
             Axis::Friction if v <= 0.0 => Some("friction must be > 0"),
-            Axis::Timestep if !(v > 0.0 && v <= 0.05) => Some("timestep must be in (0, 0.05] s"),
-            Axis::LegScale | Axis::TorsoMassScale if !(v > 0.0 && v <= 10.0) => {
-                Some("scales must be in (0, 10]")
+            Axis::Timestep if !(1e-6..=0.05).contains(&v) => {
+                Some("timestep must be in [1e-6, 0.05] s")
+            }
+            Axis::LegScale if !(0.25..=4.0).contains(&v) => Some("leg_scale must be in [0.25, 4]"),
+            Axis::TorsoMassScale if !(0.05..=20.0).contains(&v) => {
+                Some("torso_mass_scale must be in [0.05, 20]")
             }
             _ => None,
         };

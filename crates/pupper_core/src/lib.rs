@@ -17,6 +17,7 @@ pub mod output;
 pub mod pd;
 pub mod physics;
 pub mod quat;
+pub mod rundir;
 pub mod schedule;
 pub mod spec;
 pub mod stats;

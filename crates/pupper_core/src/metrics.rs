@@ -179,7 +179,7 @@ impl Recorder {
             self.status = Status::Fell;
             self.event_time = t;
         }
-        if self.trace_every > 0 && (self.samples - 1) % self.trace_every == 0 {
+        if self.trace_every > 0 && (self.samples - 1).is_multiple_of(self.trace_every) {
             self.trace.push((t, z));
         }
     }

@@ -1,34 +1,22 @@
 //! The run directory: `summary.csv` (one row per cell), `manifest.json`
 //! (inputs, model hash, versions, timing, completeness) and optional
-//! `traces.csv`. Every file is written to a temporary name and renamed, so a
-//! killed process never leaves a truncated one; rows are formatted the same
-//! way every time, so the same inputs give the same bytes.
+//! `traces.csv`: their formats, and reading them back (rows checked
+//! against the manifest's grid). Rows are formatted the same way every time,
+//! so the same inputs give the same bytes; `rundir` writes them.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::experiment::{CellResult, SweepConfig};
+use crate::experiment::SweepConfig;
 use crate::grid::Cell;
 use crate::metrics::{METRIC_NAMES, Metrics};
 
 pub const SUMMARY: &str = "summary.csv";
 pub const MANIFEST: &str = "manifest.json";
 pub const TRACES: &str = "traces.csv";
-
-/// Writes `bytes` to `path` through a temporary file in the same directory.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-    std::fs::write(&tmp, bytes).map_err(|e| Error::io("write", &tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::io("rename into", path, e)
-    })
-}
 
 /// A float as the shortest text that reads back to the same bits; NaN empty.
 pub fn fmt_f64(v: f64) -> String {
@@ -71,12 +59,15 @@ pub fn row(cell: &Cell, m: &Metrics) -> Vec<String> {
     r
 }
 
-fn csv_bytes(header: &[String], rows: &[Vec<String>]) -> Result<Vec<u8>> {
+/// CSV text of `rows` after a `header` row (none when empty).
+pub(crate) fn csv_bytes(header: &[String], rows: &[Vec<String>]) -> Result<Vec<u8>> {
     let mut w = csv::WriterBuilder::new()
         .terminator(csv::Terminator::Any(b'\n'))
         .from_writer(Vec::new());
     let bad = |e: csv::Error| Error::Internal(format!("csv: {e}"));
-    w.write_record(header).map_err(bad)?;
+    if !header.is_empty() {
+        w.write_record(header).map_err(bad)?;
+    }
     for r in rows {
         w.write_record(r).map_err(bad)?;
     }
@@ -106,17 +97,6 @@ pub struct Manifest {
     pub started_unix: u64,
     pub wall_seconds: f64,
     pub command: Vec<String>,
-}
-
-/// How an existing `--out` directory is treated.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Existing {
-    /// Refuse if it exists.
-    Refuse,
-    /// Overwrite pupper's files in it.
-    Overwrite,
-    /// Continue it: keep its finished rows.
-    Resume,
 }
 
 /// Reads a run's manifest.
@@ -153,7 +133,7 @@ fn whole_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
 /// The rows of a run's `summary.csv`, by cell index, each checked against
 /// the manifest's grid: its index in range, its id and axis values those of
 /// that cell. A truncated last line is dropped (its cell runs again).
-fn read_rows(dir: &Path, config: &SweepConfig) -> Result<BTreeMap<usize, Vec<String>>> {
+pub(crate) fn read_rows(dir: &Path, config: &SweepConfig) -> Result<BTreeMap<usize, Vec<String>>> {
     let p = dir.join(SUMMARY);
     let mut rows = BTreeMap::new();
     let text = match std::fs::read_to_string(&p) {
@@ -224,7 +204,10 @@ fn read_rows(dir: &Path, config: &SweepConfig) -> Result<BTreeMap<usize, Vec<Str
 
 /// The traces of a run's `traces.csv` by cell id (a truncated last line is
 /// dropped), for the cells in `keep`.
-fn read_traces(dir: &Path, keep: &BTreeMap<usize, Vec<String>>) -> Result<BTreeMap<usize, Trace>> {
+pub(crate) fn read_traces(
+    dir: &Path,
+    keep: &BTreeMap<usize, Vec<String>>,
+) -> Result<BTreeMap<usize, Trace>> {
     let p = dir.join(TRACES);
     let mut out = BTreeMap::new();
     let text = match std::fs::read_to_string(&p) {
@@ -281,250 +264,46 @@ pub fn read_run(dir: &Path) -> Result<RunTables> {
     })
 }
 
-/// Writes a run directory as chunks finish.
-pub struct RunWriter {
-    /// None: keep the table in memory only (the Python API without `out`).
-    dir: Option<PathBuf>,
-    header: Vec<String>,
-    rows: BTreeMap<usize, Vec<String>>,
-    traces: BTreeMap<usize, Trace>,
-    want_traces: bool,
-    pub manifest: Manifest,
-    created: bool,
-    overwrite: bool,
-    started: std::time::Instant,
-}
-
-impl RunWriter {
-    /// Checks `dir` without creating it (that waits for [`RunWriter::create`],
-    /// so bad input never leaves a directory behind). For a resume, loads the
-    /// finished rows and checks the manifest's inputs equal `manifest.config`.
-    pub fn new(dir: Option<&Path>, existing: Existing, manifest: Manifest) -> Result<RunWriter> {
-        let header = header_of(&manifest.config);
-        let mut rows = BTreeMap::new();
-        let mut traces = BTreeMap::new();
-        let Some(dir) = dir else {
-            return Ok(RunWriter {
-                dir: None,
-                header,
-                rows,
-                traces: BTreeMap::new(),
-                want_traces: manifest.config.schedule.trace_every > 0,
-                manifest,
-                created: true,
-                overwrite: false,
-                started: std::time::Instant::now(),
-            });
-        };
-        match existing {
-            Existing::Refuse if dir.exists() => {
-                return Err(Error::RunExists(format!(
-                    "output directory '{}' already exists: choose another --out, add --force to overwrite it, or --resume it",
-                    dir.display()
-                )));
-            }
-            Existing::Resume => {
-                let old = read_manifest(dir)?;
-                if old.config != manifest.config {
-                    return Err(Error::ResumeMismatch(format!(
-                        "cannot resume '{}': its inputs ({}) differ from this command's ({}); rerun the original command with --resume, or use a new --out",
-                        dir.display(),
-                        describe(&old.config),
-                        describe(&manifest.config)
-                    )));
+/// The fields in which two configs differ, as `path: old -> new` (only
+/// those), for a resume that does not match.
+pub fn config_diff(old: &SweepConfig, new: &SweepConfig) -> Vec<String> {
+    fn walk(path: &str, a: &serde_json::Value, b: &serde_json::Value, out: &mut Vec<String>) {
+        use serde_json::Value::Object;
+        match (a, b) {
+            (Object(x), Object(y)) => {
+                let mut keys: Vec<&String> = x.keys().chain(y.keys()).collect();
+                keys.sort();
+                keys.dedup();
+                let null = serde_json::Value::Null;
+                for k in keys {
+                    let p = if path.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{path}.{k}")
+                    };
+                    walk(
+                        &p,
+                        x.get(k).unwrap_or(&null),
+                        y.get(k).unwrap_or(&null),
+                        out,
+                    );
                 }
-                if old.model.sha256 != manifest.model.sha256 {
-                    return Err(Error::ResumeMismatch(format!(
-                        "cannot resume '{}': the model file changed since the run started (SHA-256 differs); use a new --out",
-                        dir.display()
-                    )));
-                }
-                rows = read_rows(dir, &manifest.config)?;
-                // earlier cells' traces stay: a resumed run keeps them all
-                traces = read_traces(dir, &rows)?;
             }
+            _ if a != b => out.push(format!("{path}: {a} then, {b} now")),
             _ => {}
         }
-        if dir.exists() && !dir.is_dir() {
-            return Err(Error::Output(format!(
-                "--out '{}' is a file, not a directory: choose another path",
-                dir.display()
-            )));
-        }
-        let want_traces = manifest.config.schedule.trace_every > 0;
-        Ok(RunWriter {
-            dir: Some(dir.to_path_buf()),
-            header,
-            rows,
-            traces,
-            want_traces,
-            manifest,
-            created: false,
-            overwrite: existing == Existing::Overwrite,
-            started: std::time::Instant::now(),
-        })
     }
-
-    pub fn dir(&self) -> Option<&Path> {
-        self.dir.as_deref()
-    }
-
-    pub fn header(&self) -> &[String] {
-        &self.header
-    }
-
-    /// The summary table so far, in cell order, as written to summary.csv.
-    pub fn rows(&self) -> impl Iterator<Item = &Vec<String>> {
-        self.rows.values()
-    }
-
-    /// Traces kept so far: cell id and (time, z) samples.
-    pub fn traces(&self) -> impl Iterator<Item = &(String, Vec<(f64, f64)>)> {
-        self.traces.values()
-    }
-
-    /// Indices of the cells already finished (a resume skips them).
-    pub fn done(&self) -> impl Iterator<Item = usize> + '_ {
-        self.rows.keys().copied()
-    }
-
-    /// Creates the directory and writes the manifest, marked incomplete.
-    pub fn create(&mut self) -> Result<()> {
-        let Some(dir) = &self.dir else { return Ok(()) };
-        std::fs::create_dir_all(dir).map_err(|e| Error::io("create", dir, e))?;
-        if self.overwrite {
-            // an overwritten run must not keep files of the old one
-            for f in [SUMMARY, TRACES] {
-                let p = dir.join(f);
-                if p.exists() {
-                    std::fs::remove_file(&p).map_err(|e| Error::io("remove", &p, e))?;
-                }
-            }
-        }
-        self.created = true;
-        self.manifest.cells_done = self.rows.len();
-        self.write_manifest()
-    }
-
-    fn write_manifest(&self) -> Result<()> {
-        let Some(dir) = &self.dir else { return Ok(()) };
-        let text = serde_json::to_string_pretty(&self.manifest)
-            .map_err(|e| Error::Internal(format!("manifest: {e}")))?;
-        write_atomic(&dir.join(MANIFEST), (text + "\n").as_bytes())
-    }
-
-    /// Adds finished cells and rewrites the summary (and traces).
-    pub fn add(&mut self, results: &[CellResult]) -> Result<()> {
-        if !self.created {
-            self.create()?;
-        }
-        for r in results {
-            self.rows.insert(r.cell.index, row(&r.cell, &r.metrics));
-            if self.want_traces {
-                self.traces
-                    .insert(r.cell.index, (r.cell.id.clone(), r.trace.clone()));
-            }
-        }
-        self.manifest.cells_done = self.rows.len();
-        self.manifest.wall_seconds = self.started.elapsed().as_secs_f64();
-        let Some(dir) = &self.dir else { return Ok(()) };
-        // traces first: a row in summary.csv promises its trace is on disk
-        if self.want_traces {
-            let mut out = String::from("id,t,z\n");
-            for (id, tr) in self.traces.values() {
-                for (t, z) in tr {
-                    out.push_str(&format!("{id},{},{}\n", fmt_f64(*t), fmt_f64(*z)));
-                }
-            }
-            write_atomic(&dir.join(TRACES), out.as_bytes())?;
-        }
-        let rows: Vec<Vec<String>> = self.rows.values().cloned().collect();
-        write_atomic(&dir.join(SUMMARY), &csv_bytes(&self.header, &rows)?)?;
-        self.write_manifest()
-    }
-
-    /// Final manifest: complete or not.
-    pub fn finish(&mut self, complete: bool) -> Result<()> {
-        if !self.created {
-            self.create()?;
-        }
-        self.manifest.complete = complete && self.rows.len() == self.manifest.cells_total;
-        self.manifest.cells_done = self.rows.len();
-        self.manifest.wall_seconds = self.started.elapsed().as_secs_f64();
-        self.write_manifest()
-    }
-}
-
-/// A short account of a config for messages.
-pub fn describe(c: &SweepConfig) -> String {
-    let grid: Vec<String> = c
-        .grid
-        .axes
-        .iter()
-        .map(|a| {
-            let v: Vec<String> = a.values.iter().map(|v| fmt_f64(*v)).collect();
-            format!("{}={}", a.axis, v.join(","))
-        })
-        .collect();
-    format!(
-        "{} grid {} mode {} {} s",
-        c.model.display(),
-        if grid.is_empty() {
-            "none".into()
-        } else {
-            grid.join(" ")
-        },
-        c.mode.as_str(),
-        c.schedule.duration
-    )
+    let (Ok(a), Ok(b)) = (serde_json::to_value(old), serde_json::to_value(new)) else {
+        return vec!["the inputs".into()];
+    };
+    let mut out = Vec::new();
+    walk("", &a, &b, &mut out);
+    out
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::{Axis, Grid};
-    use crate::metrics::Status;
-
-    fn manifest(cfg: SweepConfig) -> Manifest {
-        Manifest {
-            pupper_version: "t".into(),
-            mujoco_version: "t".into(),
-            python: "t".into(),
-            cells_total: cfg.grid.len(),
-            config: cfg,
-            model: ModelRecord {
-                name: "m".into(),
-                source: "m".into(),
-                sha256: "0".into(),
-            },
-            cells_done: 0,
-            complete: false,
-            threads: 1,
-            started_unix: 0,
-            wall_seconds: 0.0,
-            command: vec![],
-        }
-    }
-
-    fn result(cell: Cell) -> CellResult {
-        CellResult {
-            cell,
-            metrics: Metrics {
-                final_z: 0.1,
-                last_1s_std_mm: f64::NAN,
-                push_dip_mm: 1.0 / 3.0,
-                settle_time_s: 0.5,
-                max_tilt_deg: 1.0,
-                peak_torque: 3.0,
-                saturation_frac: 0.0,
-                tracking_rms: 0.01,
-                status: Status::Ok,
-                event_time: f64::NAN,
-            },
-            trace: vec![],
-            frames: None,
-        }
-    }
 
     #[test]
     fn floats_round_trip_and_nan_is_empty() {
@@ -535,49 +314,19 @@ mod tests {
     }
 
     #[test]
-    fn write_refuse_resume() {
-        let tmp = tempfile::tempdir().unwrap();
-        let dir = tmp.path().join("run");
-        let cfg = SweepConfig {
-            grid: Grid::parse(&["kp=1,2"]).unwrap(),
-            ..SweepConfig::default()
-        };
-        let cells = cfg.grid.cells();
-        let mut w = RunWriter::new(Some(&dir), Existing::Refuse, manifest(cfg.clone())).unwrap();
-        assert!(!dir.exists(), "nothing is created before the run starts");
-        w.add(&[result(cells[1].clone())]).unwrap();
-        w.finish(false).unwrap();
-        let text = std::fs::read_to_string(dir.join(SUMMARY)).unwrap();
-        assert!(text.starts_with("index,id,name,kp,final_z,"));
-        assert!(
-            text.contains("\n1,kp2,,2,0.1,,0.3333333333333333,"),
-            "{text}"
+    fn a_resume_mismatch_names_only_what_differs() {
+        let a = SweepConfig::default();
+        let mut b = a.clone();
+        b.schedule.trace_every = 10;
+        b.defaults.kp = 30.0;
+        let d = config_diff(&a, &b);
+        assert_eq!(
+            d,
+            [
+                "defaults.kp: 5.0 then, 30.0 now",
+                "schedule.trace_every: 0 then, 10 now"
+            ]
         );
-        // no temp files left
-        let names: Vec<_> = std::fs::read_dir(&dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name())
-            .collect();
-        assert_eq!(names.len(), 2, "{names:?}");
-        assert!(!read_manifest(&dir).unwrap().complete);
-
-        // refuse an existing directory
-        let e = RunWriter::new(Some(&dir), Existing::Refuse, manifest(cfg.clone()))
-            .err()
-            .unwrap();
-        assert!(e.to_string().contains("already exists"));
-        // resume with other inputs is refused
-        let other = SweepConfig {
-            grid: Grid::parse(&["kp=1,3"]).unwrap(),
-            ..SweepConfig::default()
-        };
-        let e = RunWriter::new(Some(&dir), Existing::Resume, manifest(other))
-            .err()
-            .unwrap();
-        assert!(e.to_string().contains("differ"), "{e}");
-        // resume keeps the finished row
-        let w = RunWriter::new(Some(&dir), Existing::Resume, manifest(cfg)).unwrap();
-        assert_eq!(w.done().collect::<Vec<_>>(), vec![1]);
-        assert_eq!(cells[0].get(Axis::Kp), Some(1.0));
+        assert!(config_diff(&a, &a).is_empty());
     }
 }

@@ -62,6 +62,17 @@ fn z_axis() -> [f64; 3] {
     [0.0, 0.0, 1.0]
 }
 
+/// Most steps one cell may take (about an hour of MuJoCo time per cell).
+pub const MAX_STEPS: usize = 100_000_000;
+
+/// The steps of one cell: see [`Schedule::plan`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StepPlan {
+    pub steps: usize,
+    /// Steps `[first, last)` on which the push acts (empty without a push).
+    pub push: std::ops::Range<usize>,
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Schedule {
     /// Simulated seconds per cell.
@@ -154,35 +165,39 @@ impl Schedule {
         Ok(())
     }
 
-    /// Number of steps a `while time < duration` loop makes at `dt`.
-    pub fn steps(&self, dt: f64) -> usize {
+    /// The steps of one cell at `dt`: how many a `while time < duration`
+    /// loop makes, and those on which the push acts. Refused (before any
+    /// stepping) when a cell would need more than [`MAX_STEPS`] steps.
+    pub fn plan(&self, dt: f64) -> Result<StepPlan> {
+        let estimate = self.duration / dt;
+        let plannable = dt.is_finite() && dt > 0.0 && estimate <= MAX_STEPS as f64;
+        if !plannable {
+            return Err(Error::Config(format!(
+                "timestep {dt:e} s makes {estimate:.3e} steps per {} s cell, over the limit of {MAX_STEPS:.0e}: use a larger timestep or fewer --seconds",
+                self.duration
+            )));
+        }
+        // The clock is the double `t += dt`, as MuJoCo keeps it: bounded
+        // above, so this walk is short next to the stepping it plans.
+        let push = self.push.as_ref().map(|p| (p.start, p.start + p.duration));
+        let (mut first, mut last) = (None, 0);
         let mut t = 0.0f64;
         let mut n = 0usize;
         while t < self.duration {
+            if let Some((a, b)) = push
+                && a <= t
+                && t < b
+            {
+                first.get_or_insert(n);
+                last = n + 1;
+            }
             t += dt;
             n += 1;
         }
-        n
-    }
-
-    /// Steps `[first, last)` on which the push acts, or an empty range.
-    pub fn push_steps(&self, dt: f64) -> std::ops::Range<usize> {
-        let Some(p) = &self.push else { return 0..0 };
-        let end = p.start + p.duration;
-        let (mut first, mut last) = (None, 0);
-        let mut t = 0.0f64;
-        let n = self.steps(dt);
-        for k in 0..n {
-            if p.start <= t && t < end {
-                first.get_or_insert(k);
-                last = k + 1;
-            }
-            t += dt;
-        }
-        match first {
-            Some(f) => f..last,
-            None => 0..0,
-        }
+        Ok(StepPlan {
+            steps: n,
+            push: first.map_or(0..0, |f| f..last),
+        })
     }
 
     /// Number of samples in the statistics window at `dt`.
@@ -209,9 +224,9 @@ mod tests {
     #[test]
     fn chapter_push_acts_on_126_steps() {
         let s = Schedule::default();
-        assert_eq!(s.steps(0.002), 5000);
-        let r = s.push_steps(0.002);
-        assert_eq!(r, 1000..1126);
+        let plan = s.plan(0.002).unwrap();
+        assert_eq!(plan.steps, 5000);
+        assert_eq!(plan.push, 1000..1126);
         assert_eq!(s.window_samples(0.002), 500);
     }
 
@@ -221,7 +236,21 @@ mod tests {
             push: None,
             ..Schedule::default()
         };
-        assert!(s.push_steps(0.002).is_empty());
+        assert!(s.plan(0.002).unwrap().push.is_empty());
+    }
+
+    #[test]
+    fn tiny_timesteps_are_refused_not_walked() {
+        let s = Schedule::default();
+        let e = s.plan(1e-17).unwrap_err().to_string();
+        assert!(
+            e.contains("timestep 1e-17") && e.contains("larger timestep"),
+            "{e}"
+        );
+        assert!(s.plan(0.0).is_err() && s.plan(f64::NAN).is_err());
+        // the largest allowed walk still plans
+        let n = s.plan(10.0 / 1.0e6).unwrap().steps;
+        assert!(n.abs_diff(1_000_000) <= 1, "{n}"); // the accumulated clock may round once
     }
 
     #[test]

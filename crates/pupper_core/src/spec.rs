@@ -13,8 +13,8 @@ use crate::error::{Error, Result};
 use crate::experiment::{Defaults, RunOptions, SweepConfig};
 use crate::grid::{Axis, AxisValues, DEFAULT_MAX_CELLS, Grid, parse_values};
 use crate::model::ModelSource;
-use crate::output::Existing;
 use crate::physics::Mode;
+use crate::rundir::Existing;
 use crate::schedule::{InitialState, Push, Schedule, SineForce};
 
 /// Where the grid comes from.

@@ -44,7 +44,7 @@ proptest! {
         if s.validate().is_ok() {
             prop_assert!(s.duration > 0.0);
             // a valid schedule has a finite number of steps
-            prop_assert!(s.steps(0.5) as f64 >= s.duration / 0.5);
+            prop_assert!(s.plan(0.5).unwrap().steps as f64 >= s.duration / 0.5);
         }
     }
 }

@@ -12,8 +12,9 @@ use pupper_core::experiment::{self, CellResult, Hooks, RunOptions, SweepConfig};
 use pupper_core::grid::Cell;
 use pupper_core::metrics::Status;
 use pupper_core::model::{ModelInfo, ModelSource};
-use pupper_core::output::{self, Manifest, ModelRecord, RunWriter};
+use pupper_core::output::{self, Manifest, ModelRecord};
 use pupper_core::physics::{CellSetup, Mode};
+use pupper_core::rundir::RunWriter;
 use pupper_core::schedule::InitialState;
 use pupper_core::spec::{GridInput, Sweep, SweepSpec};
 
@@ -223,11 +224,21 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             .into_iter()
             .filter(|c| !done.contains(&c.index))
             .collect();
-        let dt = info.timestep;
-        let total: u64 = todo
-            .iter()
-            .map(|c| cfg.schedule.steps(cfg.setup(c).timestep.unwrap_or(dt)) as u64)
-            .sum();
+        // every timestep's plan is checked before anything is created
+        let mut steps_at: std::collections::BTreeMap<u64, u64> = Default::default();
+        let mut total = 0u64;
+        for c in &todo {
+            let dt = cfg.setup(c).timestep.unwrap_or(info.timestep);
+            let steps = match steps_at.get(&dt.to_bits()) {
+                Some(&s) => s,
+                None => {
+                    let s = cfg.schedule.plan(dt)?.steps as u64;
+                    steps_at.insert(dt.to_bits(), s);
+                    s
+                }
+            };
+            total += steps;
+        }
         ui.start(todo.len(), total);
         writer.create()?;
         let result = {

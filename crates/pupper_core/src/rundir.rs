@@ -1,0 +1,677 @@
+//! Writing a run directory so that nothing is lost or mixed up: one writer
+//! at a time (an advisory lock that dies with its process), directories
+//! created atomically, rows and traces appended as chunks finish (so a
+//! chunk costs its own rows, not a rewrite of the table), every failed write
+//! rolled back to the last consistent state, files flushed before a rename.
+//!
+//! On disk, at any moment between chunks: `manifest.json` counts exactly the
+//! rows of `summary.csv`, and every row's trace is in `traces.csv`. A kill
+//! may leave a truncated last line or a temporary file; the next writer (who
+//! holds the lock) drops the one and deletes the other.
+
+use std::collections::BTreeMap;
+use std::fs::{File, OpenOptions};
+use std::io::{Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::error::{Error, Result};
+use crate::experiment::CellResult;
+use crate::output::{
+    MANIFEST, Manifest, SUMMARY, TRACES, Trace, config_diff, csv_bytes, fmt_f64, header_of,
+    read_manifest, read_rows, read_traces, row,
+};
+
+/// The lock file every writer of a run directory holds.
+pub const LOCK: &str = ".pupper.lock";
+
+/// Seconds between flushes to disk while a run goes on (and at its end).
+const SYNC_EVERY_S: f64 = 1.0;
+
+/// How an `--out` directory is treated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Existing {
+    /// Refuse if it exists.
+    Refuse,
+    /// Overwrite pupper's files in it.
+    Overwrite,
+    /// Continue it: keep its finished rows.
+    Resume,
+    /// `out` is a name to start from: the first of `out`, `out-1`, `out-2`,
+    /// ... that does not exist is created (safe when many start at once).
+    Unique,
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory,
+/// flushed before the rename (and the directory after it), so a crash never
+/// leaves a short file under the final name. The temporary file is removed
+/// on every error.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+    let written = File::create(&tmp)
+        .and_then(|mut f| {
+            f.write_all(bytes)?;
+            f.sync_all()
+        })
+        .map_err(|e| Error::io("write", path, e))
+        .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io("rename into", path, e)));
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written?;
+    sync_dir(dir)
+}
+
+fn sync_dir(dir: &Path) -> Result<()> {
+    File::open(dir)
+        .and_then(|d| d.sync_all())
+        .map_err(|e| Error::io("flush", dir, e))
+}
+
+/// Takes the directory's lock, or says who holds it.
+fn lock(dir: &Path) -> Result<File> {
+    let path = dir.join(LOCK);
+    let mut f = OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .open(&path)
+        .map_err(|e| Error::io("open", &path, e))?;
+    match f.try_lock() {
+        Ok(()) => {}
+        Err(std::fs::TryLockError::WouldBlock) => {
+            let mut holder = String::new();
+            let _ = f.read_to_string(&mut holder);
+            let holder = holder.trim();
+            return Err(Error::RunBusy(format!(
+                "run directory '{}' is being written by another pupper ({}): wait for it to end, or choose another --out",
+                dir.display(),
+                if holder.is_empty() {
+                    "a process starting up".into()
+                } else {
+                    holder.to_string()
+                }
+            )));
+        }
+        Err(std::fs::TryLockError::Error(e)) => return Err(Error::io("lock", &path, e)),
+    }
+    let me = format!(
+        "pid {} on {}, since unix time {}",
+        std::process::id(),
+        hostname(),
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs())
+    );
+    f.set_len(0)
+        .and_then(|()| f.seek(SeekFrom::Start(0)))
+        .and_then(|_| f.write_all(me.as_bytes()))
+        .map_err(|e| Error::io("write", &path, e))?;
+    Ok(f)
+}
+
+fn hostname() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|h| h.trim().to_string())
+        .or_else(|_| std::env::var("HOSTNAME"))
+        .unwrap_or_else(|_| "this host".into())
+}
+
+/// Deletes temporary files a killed writer left (we hold the lock, so no
+/// live writer owns them).
+fn remove_stale_temps(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let name = name.to_string_lossy();
+        if name.starts_with('.') && name.contains(".tmp") {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
+/// An append-only file and the length it had at the last consistent point.
+struct Appender {
+    path: PathBuf,
+    file: File,
+    len: u64,
+}
+
+impl Appender {
+    fn open(path: PathBuf) -> Result<Appender> {
+        let file = OpenOptions::new()
+            .append(true)
+            .open(&path)
+            .map_err(|e| Error::io("open", &path, e))?;
+        let len = file
+            .metadata()
+            .map_err(|e| Error::io("read", &path, e))?
+            .len();
+        Ok(Appender { path, file, len })
+    }
+
+    fn append(&mut self, bytes: &[u8]) -> Result<()> {
+        self.file
+            .write_all(bytes)
+            .map_err(|e| Error::io("write", &self.path, e))
+    }
+
+    /// Back to the last consistent length (frees what a failed write took).
+    fn roll_back(&mut self) {
+        let _ = self.file.set_len(self.len);
+    }
+
+    fn commit(&mut self) -> Result<()> {
+        self.len = self
+            .file
+            .metadata()
+            .map_err(|e| Error::io("read", &self.path, e))?
+            .len();
+        Ok(())
+    }
+
+    fn sync(&self) -> Result<()> {
+        self.file
+            .sync_data()
+            .map_err(|e| Error::io("flush", &self.path, e))
+    }
+}
+
+/// Open files of a directory being written.
+struct Open {
+    _lock: File,
+    summary: Option<Appender>,
+    traces: Option<Appender>,
+    synced: Instant,
+}
+
+/// Writes a run directory as chunks finish.
+pub struct RunWriter {
+    /// None: keep the table in memory only (the Python API without `out`).
+    dir: Option<PathBuf>,
+    existing: Existing,
+    header: Vec<String>,
+    rows: BTreeMap<usize, Vec<String>>,
+    traces: BTreeMap<usize, Trace>,
+    want_traces: bool,
+    pub manifest: Manifest,
+    lock: Option<File>,
+    open: Option<Open>,
+    started: Instant,
+}
+
+impl RunWriter {
+    /// Checks `dir` without creating it (that waits for [`RunWriter::create`],
+    /// so bad input never leaves a directory behind). For a resume, takes
+    /// the lock, loads the finished rows and traces, and checks the run's
+    /// inputs equal `manifest.config`.
+    pub fn new(dir: Option<&Path>, existing: Existing, manifest: Manifest) -> Result<RunWriter> {
+        let mut w = RunWriter {
+            dir: dir.map(Path::to_path_buf),
+            existing,
+            header: header_of(&manifest.config),
+            rows: BTreeMap::new(),
+            traces: BTreeMap::new(),
+            want_traces: manifest.config.schedule.trace_every > 0,
+            manifest,
+            lock: None,
+            open: None,
+            started: Instant::now(),
+        };
+        let Some(dir) = dir else { return Ok(w) };
+        if dir.exists() && !dir.is_dir() {
+            return Err(Error::Output(format!(
+                "--out '{}' is a file, not a directory: choose another path",
+                dir.display()
+            )));
+        }
+        match existing {
+            Existing::Refuse if dir.exists() => {
+                return Err(Error::RunExists(format!(
+                    "output directory '{}' already exists: choose another --out, add --force to overwrite it, or --resume it",
+                    dir.display()
+                )));
+            }
+            Existing::Resume => {
+                let old = read_manifest(dir)?;
+                w.lock = Some(lock(dir)?);
+                // read under the lock: no writer is changing it now
+                let old = read_manifest(dir).unwrap_or(old);
+                let diff = config_diff(&old.config, &w.manifest.config);
+                if !diff.is_empty() {
+                    return Err(Error::ResumeMismatch(format!(
+                        "cannot resume '{}': this command differs from the run's in {}; rerun the original command with --resume (or --resume DIR alone), or use a new --out",
+                        dir.display(),
+                        diff.join(", ")
+                    )));
+                }
+                if old.model.sha256 != w.manifest.model.sha256 {
+                    return Err(Error::ResumeMismatch(format!(
+                        "cannot resume '{}': the model '{}' changed since the run started (SHA-256 {} then, {} now); use a new --out",
+                        dir.display(),
+                        old.model.source,
+                        short(&old.model.sha256),
+                        short(&w.manifest.model.sha256)
+                    )));
+                }
+                w.rows = read_rows(dir, &w.manifest.config)?;
+                if w.want_traces {
+                    w.traces = read_traces(dir, &w.rows)?;
+                }
+            }
+            Existing::Overwrite if dir.is_dir() => w.lock = Some(lock(dir)?),
+            _ => {}
+        }
+        Ok(w)
+    }
+
+    pub fn dir(&self) -> Option<&Path> {
+        self.dir.as_deref()
+    }
+
+    pub fn header(&self) -> &[String] {
+        &self.header
+    }
+
+    /// The summary table so far, in cell order, as written to summary.csv.
+    pub fn rows(&self) -> impl Iterator<Item = &Vec<String>> {
+        self.rows.values()
+    }
+
+    /// Traces kept so far (resumed ones included), in cell order.
+    pub fn traces(&self) -> impl Iterator<Item = &Trace> {
+        self.traces.values()
+    }
+
+    /// Indices of the cells already finished (a resume skips them).
+    pub fn done(&self) -> impl Iterator<Item = usize> + '_ {
+        self.rows.keys().copied()
+    }
+
+    /// Creates (or takes over) the directory under its lock, writes the
+    /// kept rows and traces afresh, and marks the manifest incomplete.
+    pub fn create(&mut self) -> Result<()> {
+        let Some(dir) = self.dir.clone() else {
+            return Ok(());
+        };
+        let dir = match self.existing {
+            Existing::Unique => create_unique(&dir)?,
+            Existing::Refuse => {
+                create_new(&dir)?;
+                dir
+            }
+            Existing::Overwrite | Existing::Resume => {
+                std::fs::create_dir_all(&dir).map_err(|e| Error::io("create", &dir, e))?;
+                dir
+            }
+        };
+        let lock = match self.lock.take() {
+            Some(l) => l,
+            None => lock(&dir)?,
+        };
+        remove_stale_temps(&dir);
+        if self.existing == Existing::Overwrite {
+            // an overwritten run must not keep files of the old one
+            let _ = std::fs::remove_file(dir.join(TRACES));
+        }
+        // a resume's files are rewritten from what was read: sorted, without
+        // a truncated last line or traces of cells that must run again
+        self.write_tables(&dir)?;
+        self.open = Some(Open {
+            _lock: lock,
+            summary: Some(Appender::open(dir.join(SUMMARY))?),
+            traces: match self.want_traces {
+                true => Some(Appender::open(dir.join(TRACES))?),
+                false => None,
+            },
+            synced: Instant::now(),
+        });
+        self.dir = Some(dir);
+        self.manifest.cells_done = self.rows.len();
+        self.write_manifest()
+    }
+
+    /// Writes summary.csv (and traces.csv) whole, in cell order.
+    fn write_tables(&self, dir: &Path) -> Result<()> {
+        if self.want_traces {
+            let mut out = String::from("id,t,z\n");
+            for tr in self.traces.values() {
+                trace_lines(&mut out, tr);
+            }
+            write_atomic(&dir.join(TRACES), out.as_bytes())?;
+        }
+        let rows: Vec<Vec<String>> = self.rows.values().cloned().collect();
+        write_atomic(&dir.join(SUMMARY), &csv_bytes(&self.header, &rows)?)
+    }
+
+    fn write_manifest(&self) -> Result<()> {
+        let Some(dir) = &self.dir else { return Ok(()) };
+        let text = serde_json::to_string_pretty(&self.manifest)
+            .map_err(|e| Error::Internal(format!("manifest: {e}")))?;
+        write_atomic(&dir.join(MANIFEST), (text + "\n").as_bytes())
+    }
+
+    /// Adds finished cells: their traces, then their rows, appended; then
+    /// the manifest. If any write fails, the files and the manifest go back
+    /// to how they were before this call and the error is returned.
+    pub fn add(&mut self, results: &[CellResult]) -> Result<()> {
+        if self.dir.is_some() && self.open.is_none() {
+            self.create()?;
+        }
+        let new_rows: Vec<Vec<String>> = results.iter().map(|r| row(&r.cell, &r.metrics)).collect();
+        if let Some(open) = &mut self.open {
+            let mut traces = String::new();
+            if self.want_traces {
+                for r in results {
+                    trace_lines(&mut traces, &(r.cell.id.clone(), r.trace.clone()));
+                }
+            }
+            let rows = csv_bytes(&[], &new_rows)?;
+            let cells_done = self.rows.len() + results.len();
+            let mut manifest = self.manifest.clone();
+            manifest.cells_done = cells_done;
+            manifest.wall_seconds = self.started.elapsed().as_secs_f64();
+            let sync = open.synced.elapsed().as_secs_f64() >= SYNC_EVERY_S;
+            let dir = self.dir.as_deref().unwrap_or(Path::new("."));
+            let written = (|| -> Result<()> {
+                if let Some(t) = &mut open.traces {
+                    t.append(traces.as_bytes())?;
+                }
+                if let Some(s) = &mut open.summary {
+                    s.append(&rows)?;
+                }
+                if sync {
+                    for a in [&open.traces, &open.summary].into_iter().flatten() {
+                        a.sync()?;
+                    }
+                }
+                let text = serde_json::to_string_pretty(&manifest)
+                    .map_err(|e| Error::Internal(format!("manifest: {e}")))?;
+                write_atomic(&dir.join(MANIFEST), (text + "\n").as_bytes())
+            })();
+            if let Err(e) = written {
+                for a in [&mut open.traces, &mut open.summary].into_iter().flatten() {
+                    a.roll_back();
+                }
+                return Err(e);
+            }
+            for a in [&mut open.traces, &mut open.summary].into_iter().flatten() {
+                a.commit()?;
+            }
+            if sync {
+                open.synced = Instant::now();
+            }
+        }
+        for (r, fields) in results.iter().zip(new_rows) {
+            self.rows.insert(r.cell.index, fields);
+            if self.want_traces {
+                self.traces
+                    .insert(r.cell.index, (r.cell.id.clone(), r.trace.clone()));
+            }
+        }
+        self.manifest.cells_done = self.rows.len();
+        self.manifest.wall_seconds = self.started.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Ends the run: the tables rewritten in cell order (so a finished run's
+    /// bytes do not depend on how it was interrupted and resumed), flushed,
+    /// and the final manifest. The lock is released.
+    pub fn finish(&mut self, complete: bool) -> Result<()> {
+        if self.dir.is_some() && self.open.is_none() {
+            self.create()?;
+        }
+        self.manifest.complete = complete && self.rows.len() == self.manifest.cells_total;
+        self.manifest.cells_done = self.rows.len();
+        self.manifest.wall_seconds = self.started.elapsed().as_secs_f64();
+        if let Some(dir) = self.dir.clone() {
+            self.write_tables(&dir)?;
+            self.write_manifest()?;
+        }
+        self.open = None;
+        Ok(())
+    }
+}
+
+fn trace_lines(out: &mut String, (id, samples): &Trace) {
+    for (t, z) in samples {
+        out.push_str(&format!("{id},{},{}\n", fmt_f64(*t), fmt_f64(*z)));
+    }
+}
+
+fn short(sha: &str) -> &str {
+    &sha[..sha.len().min(12)]
+}
+
+/// Creates `dir` (its parents as needed); it must not exist yet.
+fn create_new(dir: &Path) -> Result<()> {
+    if let Some(parent) = dir.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| Error::io("create", parent, e))?;
+    }
+    std::fs::create_dir(dir).map_err(|e| match e.kind() {
+        std::io::ErrorKind::AlreadyExists => Error::RunExists(format!(
+            "output directory '{}' already exists (another run just made it): choose another --out, add --force to overwrite it, or --resume it",
+            dir.display()
+        )),
+        _ => Error::io("create", dir, e),
+    })
+}
+
+/// Creates the first of `base`, `base-1`, `base-2`, ... that is free.
+fn create_unique(base: &Path) -> Result<PathBuf> {
+    for i in 0..10_000 {
+        let candidate = match i {
+            0 => base.to_path_buf(),
+            i => PathBuf::from(format!("{}-{i}", base.display())),
+        };
+        match create_new(&candidate) {
+            Ok(()) => return Ok(candidate),
+            Err(Error::RunExists(_)) => continue,
+            Err(e) => return Err(e),
+        }
+    }
+    Err(Error::Output(format!(
+        "no free run directory name next to '{}': give --out",
+        base.display()
+    )))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::experiment::SweepConfig;
+    use crate::grid::{Cell, Grid};
+    use crate::metrics::{Metrics, Status};
+    use crate::output::ModelRecord;
+
+    fn manifest(cfg: SweepConfig) -> Manifest {
+        Manifest {
+            pupper_version: "t".into(),
+            mujoco_version: "t".into(),
+            python: "t".into(),
+            cells_total: cfg.grid.len(),
+            config: cfg,
+            model: ModelRecord {
+                name: "m".into(),
+                source: "builtin".into(),
+                sha256: "0".repeat(64),
+            },
+            cells_done: 0,
+            complete: false,
+            threads: 1,
+            started_unix: 0,
+            wall_seconds: 0.0,
+            command: vec![],
+        }
+    }
+
+    fn result(cell: Cell) -> CellResult {
+        CellResult {
+            cell,
+            metrics: Metrics {
+                final_z: 0.1,
+                last_1s_std_mm: f64::NAN,
+                push_dip_mm: 1.0 / 3.0,
+                settle_time_s: 0.5,
+                max_tilt_deg: 1.0,
+                peak_torque: 3.0,
+                saturation_frac: 0.0,
+                tracking_rms: 0.01,
+                status: Status::Ok,
+                event_time: f64::NAN,
+            },
+            trace: vec![(0.002, 0.25)],
+            frames: None,
+        }
+    }
+
+    fn cfg(grid: &str, traces: bool) -> SweepConfig {
+        let mut c = SweepConfig {
+            grid: Grid::parse(&[grid]).unwrap(),
+            ..SweepConfig::default()
+        };
+        c.schedule.trace_every = if traces { 1 } else { 0 };
+        c
+    }
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn write_refuse_resume() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("run");
+        let c = cfg("kp=1,2", false);
+        let cells = c.grid.cells();
+        let mut w = RunWriter::new(Some(&dir), Existing::Refuse, manifest(c.clone())).unwrap();
+        assert!(!dir.exists(), "nothing is created before the run starts");
+        w.add(&[result(cells[1].clone())]).unwrap();
+        assert_eq!(read_manifest(&dir).unwrap().cells_done, 1);
+        w.finish(false).unwrap();
+        let text = std::fs::read_to_string(dir.join(SUMMARY)).unwrap();
+        assert!(text.starts_with("index,id,name,kp,final_z,"));
+        assert!(
+            text.contains("\n1,kp2,,2,0.1,,0.3333333333333333,"),
+            "{text}"
+        );
+        assert_eq!(names(&dir), [LOCK, MANIFEST, SUMMARY], "no temp files left");
+        assert!(!read_manifest(&dir).unwrap().complete);
+
+        let e = RunWriter::new(Some(&dir), Existing::Refuse, manifest(c.clone()))
+            .err()
+            .unwrap();
+        assert_eq!(e.code(), "run_exists");
+        let e = RunWriter::new(Some(&dir), Existing::Resume, manifest(cfg("kp=1,3", false)))
+            .err()
+            .unwrap();
+        assert_eq!(e.code(), "resume_mismatch");
+        assert!(e.to_string().contains("grid"), "{e}");
+        let w = RunWriter::new(Some(&dir), Existing::Resume, manifest(c)).unwrap();
+        assert_eq!(w.done().collect::<Vec<_>>(), vec![1]);
+    }
+
+    #[test]
+    fn a_second_writer_is_refused_while_the_first_holds_the_lock() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("run");
+        let c = cfg("kp=1,2", false);
+        let mut first = RunWriter::new(Some(&dir), Existing::Refuse, manifest(c.clone())).unwrap();
+        first.create().unwrap();
+        let e = RunWriter::new(Some(&dir), Existing::Overwrite, manifest(c.clone()))
+            .err()
+            .unwrap();
+        assert_eq!(e.code(), "run_busy");
+        assert!(
+            e.to_string()
+                .contains(&format!("pid {}", std::process::id())),
+            "{e}"
+        );
+        first.finish(false).unwrap();
+        drop(first);
+        // released with its writer
+        let mut again = RunWriter::new(Some(&dir), Existing::Overwrite, manifest(c)).unwrap();
+        again.create().unwrap();
+    }
+
+    #[test]
+    fn unique_names_never_collide() {
+        let tmp = tempfile::tempdir().unwrap();
+        let base = tmp.path().join("runs").join("stamp-kp");
+        let c = cfg("kp=1", false);
+        let dirs: Vec<PathBuf> = (0..3)
+            .map(|_| {
+                let mut w =
+                    RunWriter::new(Some(&base), Existing::Unique, manifest(c.clone())).unwrap();
+                w.create().unwrap();
+                w.dir().unwrap().to_path_buf()
+            })
+            .collect();
+        let shown: Vec<String> = dirs
+            .iter()
+            .map(|d| d.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(shown, ["stamp-kp", "stamp-kp-1", "stamp-kp-2"]);
+    }
+
+    #[test]
+    fn resume_keeps_traces_and_drops_a_truncated_line() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("run");
+        let c = cfg("kp=1,2,3", true);
+        let cells = c.grid.cells();
+        let mut w = RunWriter::new(Some(&dir), Existing::Refuse, manifest(c.clone())).unwrap();
+        w.add(&[result(cells[0].clone()), result(cells[1].clone())])
+            .unwrap();
+        drop(w); // killed: no finish
+        // a write cut short leaves half a row
+        let mut f = OpenOptions::new()
+            .append(true)
+            .open(dir.join(SUMMARY))
+            .unwrap();
+        f.write_all(b"2,kp3,,3,0.1").unwrap();
+        std::fs::write(dir.join(".manifest.json.tmp999"), b"{").unwrap();
+        let mut w = RunWriter::new(Some(&dir), Existing::Resume, manifest(c.clone())).unwrap();
+        assert_eq!(w.done().collect::<Vec<_>>(), vec![0, 1]);
+        assert_eq!(w.traces().count(), 2);
+        w.create().unwrap();
+        w.add(&[result(cells[2].clone())]).unwrap();
+        w.finish(true).unwrap();
+        assert!(read_manifest(&dir).unwrap().complete);
+        let traces = std::fs::read_to_string(dir.join(TRACES)).unwrap();
+        assert_eq!(
+            traces,
+            "id,t,z\nkp1,0.002,0.25\nkp2,0.002,0.25\nkp3,0.002,0.25\n"
+        );
+        assert_eq!(names(&dir), [LOCK, MANIFEST, SUMMARY, TRACES]);
+    }
+
+    #[test]
+    fn rows_of_another_grid_are_refused_with_their_line() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("run");
+        let c = cfg("kp=1,2", false);
+        let mut w = RunWriter::new(Some(&dir), Existing::Refuse, manifest(c.clone())).unwrap();
+        w.finish(false).unwrap();
+        drop(w);
+        let mut f = OpenOptions::new()
+            .append(true)
+            .open(dir.join(SUMMARY))
+            .unwrap();
+        f.write_all(b"129,kp9,,9,0.1,,,,,,,,ok,\n").unwrap();
+        let e = RunWriter::new(Some(&dir), Existing::Resume, manifest(c))
+            .err()
+            .unwrap();
+        assert!(e.to_string().contains("summary.csv:2: index '129'"), "{e}");
+    }
+}
