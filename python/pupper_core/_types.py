@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Literal, TypedDict
 
 if TYPE_CHECKING:
+    from typing_extensions import NotRequired
     import numpy as np
     from numpy.typing import NDArray
 
@@ -78,6 +79,8 @@ class StandReport(TypedDict):
     last_1s_std_mm: float
     max_tilt_deg: float
     status: Literal["ok", "fell", "diverged"]
+    notes: NotRequired[list[str]]
+    """What you should know, e.g. that the start fell back to the default pose."""
 
 
 class SimOptions(TypedDict, total=False):

@@ -289,6 +289,9 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
         }
         Command::Stand(a) => {
             let r = api::stand(&a.sim.spec()?)?;
+            for n in &r.notes {
+                eprintln!("note: {n}");
+            }
             if a.json {
                 println!("{}", print::json(&r)?);
             } else {
@@ -393,6 +396,9 @@ fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
         stop,
     };
     let outcome = api::run_sweep(&req, &mut ui)?;
+    for n in &outcome.notes {
+        eprintln!("note: {n}");
+    }
     let dir = outcome.out.clone().unwrap_or_default();
     if !outcome.complete {
         eprintln!(

@@ -140,6 +140,7 @@ pub(crate) mod tests {
             actuators,
             keyframes: vec![],
             sensors: vec![],
+            qpos0: vec![],
         }
     }
 

@@ -87,7 +87,10 @@ impl ModelSource {
                 "model file '{text}' cannot be read ({e}): check its permissions"
             ))
         })?;
-        Ok(ModelSource::Path(path))
+        // absolute, so a run can be resumed (and re-rendered) from anywhere
+        Ok(ModelSource::Path(
+            std::fs::canonicalize(&path).unwrap_or(path),
+        ))
     }
 
     /// The built-in model, if this names one.
@@ -191,9 +194,37 @@ pub struct ModelInfo {
     pub actuators: Vec<ActuatorInfo>,
     pub keyframes: Vec<KeyframeInfo>,
     pub sensors: Vec<SensorInfo>,
+    /// The default pose (MuJoCo's `qpos0`), where a model without keyframes starts.
+    #[serde(default)]
+    pub qpos0: Vec<f64>,
 }
 
 impl ModelInfo {
+    /// The keyframe cells start from (None: the default pose), and a note
+    /// when it is not the one asked for: a model without `home` starts from
+    /// its first keyframe, or from its default pose when it has none, as
+    /// the chapter's scripts do. Another missing name is an error.
+    pub fn start_keyframe(&self, name: &str) -> Result<(Option<usize>, Option<String>)> {
+        match self.keyframe(name) {
+            Ok((k, _)) => Ok((Some(k), None)),
+            Err(_) if name == "home" && !self.keyframes.is_empty() => Ok((
+                Some(0),
+                Some(format!(
+                    "model '{}' has no keyframe 'home': starting from its first keyframe '{}'",
+                    self.name, self.keyframes[0].name
+                )),
+            )),
+            Err(_) if name == "home" => Ok((
+                None,
+                Some(format!(
+                    "model '{}' has no keyframe: starting from its default pose (qpos0), which is also the joint target",
+                    self.name
+                )),
+            )),
+            Err(e) => Err(e),
+        }
+    }
+
     pub fn keyframe(&self, name: &str) -> Result<(usize, &KeyframeInfo)> {
         self.keyframes
             .iter()

@@ -135,6 +135,21 @@ fn remove_stale_temps(dir: &Path) {
     }
 }
 
+/// True when `dir` holds nothing a run would keep: no rows, only our lock,
+/// temporary files, and a summary with at most its header.
+fn only_ours(dir: &Path) -> bool {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return false;
+    };
+    entries.flatten().all(|e| {
+        let name = e.file_name().to_string_lossy().into_owned();
+        name == LOCK
+            || (name.starts_with('.') && name.contains(".tmp"))
+            || ((name == SUMMARY || name == TRACES)
+                && std::fs::read_to_string(e.path()).is_ok_and(|t| t.lines().count() <= 1))
+    })
+}
+
 /// An append-only file and the length it had at the last consistent point.
 struct Appender {
     path: PathBuf,
@@ -236,6 +251,11 @@ impl RunWriter {
                     "output directory '{}' already exists: choose another --out, add --force to overwrite it, or --resume it",
                     dir.display()
                 )));
+            }
+            // a run killed while creating its directory left no manifest
+            // and no rows: the full command with --resume starts it afresh
+            Existing::Resume if !dir.join(MANIFEST).exists() && only_ours(dir) => {
+                w.lock = Some(lock(dir)?);
             }
             Existing::Resume => {
                 let old = read_manifest(dir)?;

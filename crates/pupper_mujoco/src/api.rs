@@ -40,6 +40,9 @@ pub struct StandReport {
     pub last_1s_std_mm: f64,
     pub max_tilt_deg: f64,
     pub status: Status,
+    /// What the user should know (e.g. the start fell back to the default pose).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
 }
 
 /// Stands one cell of `spec` (its grid is ignored, no push) and reports.
@@ -53,10 +56,11 @@ pub fn stand(spec: &SweepSpec) -> Result<StandReport> {
     };
     let sweep = spec.build()?;
     let cfg = &sweep.config;
-    let results = bridge::with_model(&cfg.model, true, |model| {
-        check_start(model.info(), &cfg.schedule.initial)?;
+    let (results, note) = bridge::with_model(&cfg.model, true, |model| {
+        let note = check_start(model.info(), &cfg.schedule.initial)?;
         let cells = cfg.grid.cells();
-        experiment::run_cells(model, cfg, &cells, sweep.options, &mut experiment::NoHooks)
+        let r = experiment::run_cells(model, cfg, &cells, sweep.options, &mut experiment::NoHooks)?;
+        Ok((r, note))
     })?;
     let m = &results[0].metrics;
     Ok(StandReport {
@@ -69,6 +73,7 @@ pub fn stand(spec: &SweepSpec) -> Result<StandReport> {
         last_1s_std_mm: m.last_1s_std_mm,
         max_tilt_deg: m.max_tilt_deg,
         status: m.status,
+        notes: note.into_iter().collect(),
     })
 }
 
@@ -124,8 +129,9 @@ pub fn record_run(dir: &std::path::Path, indices: &[usize], fps: f64) -> Result<
     record(&cfg, &cells, fps)
 }
 
-/// The checks of where cells start that need the model.
-fn check_start(info: &ModelInfo, initial: &InitialState) -> Result<()> {
+/// The checks of where cells start that need the model; a note when the
+/// start is a fallback (no `home` keyframe).
+fn check_start(info: &ModelInfo, initial: &InitialState) -> Result<Option<String>> {
     match initial {
         InitialState::Pose(p) if p.len() != info.nu => Err(Error::Config(format!(
             "the pose has {} angles but model '{}' has {} actuated joints: give one angle per actuator, in actuator order",
@@ -133,8 +139,8 @@ fn check_start(info: &ModelInfo, initial: &InitialState) -> Result<()> {
             info.name,
             info.nu
         ))),
-        InitialState::Keyframe(k) => info.keyframe(k).map(|_| ()),
-        _ => Ok(()),
+        InitialState::Keyframe(k) => info.start_keyframe(k).map(|(_, note)| note),
+        _ => Ok(None),
     }
 }
 
@@ -160,6 +166,8 @@ pub struct SweepOutcome {
     pub complete: bool,
     pub wall_seconds: f64,
     pub mujoco_version: String,
+    /// What the user should know (e.g. the start fell back to the default pose).
+    pub notes: Vec<String>,
 }
 
 /// Hooks of the caller (progress, interrupt) plus the run writer.
@@ -196,7 +204,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
     let started = std::time::Instant::now();
     bridge::with_model(&cfg.model, true, |model| {
         let info = model.info();
-        check_start(info, &cfg.schedule.initial)?;
+        let note = check_start(info, &cfg.schedule.initial)?;
         let manifest = Manifest {
             pupper_version: pupper_core::VERSION.to_string(),
             mujoco_version: model.mujoco_version().to_string(),
@@ -241,6 +249,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
         }
         ui.start(todo.len(), total);
         writer.create()?;
+        let log = MujocoLog::watch();
         let result = {
             let mut hooks = WriterHooks {
                 ui: ui.hooks(),
@@ -248,6 +257,9 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             };
             experiment::run_cells(model, cfg, &todo, *options, &mut hooks)
         };
+        if let Some(dir) = writer.dir() {
+            log.move_into(dir);
+        }
         let complete = match result {
             Ok(_) => true,
             Err(Error::Interrupted(_)) => false,
@@ -268,8 +280,57 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             complete: writer.manifest.complete,
             wall_seconds: started.elapsed().as_secs_f64(),
             mujoco_version: writer.manifest.mujoco_version.clone(),
+            notes: note.into_iter().collect(),
         })
     })
+}
+
+/// MuJoCo writes its warnings (a diverging cell) to `MUJOCO_LOG.TXT` in the
+/// working directory; what a run adds there is moved into its run directory.
+struct MujocoLog {
+    path: PathBuf,
+    before: Option<u64>,
+}
+
+impl MujocoLog {
+    const NAME: &'static str = "MUJOCO_LOG.TXT";
+
+    fn watch() -> MujocoLog {
+        let path = PathBuf::from(Self::NAME);
+        let before = std::fs::metadata(&path).ok().map(|m| m.len());
+        MujocoLog { path, before }
+    }
+
+    /// Moves the lines this run added into `dir` (best effort: a log must
+    /// never fail a sweep).
+    fn move_into(self, dir: &std::path::Path) {
+        use std::io::{Read, Seek, SeekFrom, Write};
+        let start = self.before.unwrap_or(0);
+        let Ok(mut f) = std::fs::File::open(&self.path) else {
+            return;
+        };
+        if f.metadata().map_or(0, |m| m.len()) <= start {
+            return;
+        }
+        let mut added = Vec::new();
+        if f.seek(SeekFrom::Start(start)).is_err() || f.read_to_end(&mut added).is_err() {
+            return;
+        }
+        let appended = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(dir.join(Self::NAME))
+            .and_then(|mut out| out.write_all(&added));
+        if appended.is_ok() {
+            let _ = match self.before {
+                None => std::fs::remove_file(&self.path),
+                Some(n) => std::fs::OpenOptions::new()
+                    .write(true)
+                    .open(&self.path)
+                    .and_then(|f| f.set_len(n)),
+            };
+        }
+    }
 }
 
 /// A front end's view of a running sweep.

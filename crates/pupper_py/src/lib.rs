@@ -167,15 +167,17 @@ fn spec_from(py: Python<'_>, options: Option<&Bound<'_, PyDict>>) -> PyResult<Sw
         .extract()?;
     let mut de = serde_json::Deserializer::from_str(&text);
     serde_path_to_error::deserialize(&mut de).map_err(|e| {
-        PyTypeError::new_err(format!(
-            "{}: {}",
-            e.path(),
-            e.inner()
-                .to_string()
-                .split(" at line")
-                .next()
-                .unwrap_or_default()
-        ))
+        let what = e.inner().to_string();
+        let what = what.split(" at line").next().unwrap_or_default();
+        if what.contains("expected usize") {
+            // a negative count: name the keyword and what it takes
+            let got = what.split('`').nth(1).unwrap_or("it");
+            return pyo3::exceptions::PyValueError::new_err(format!(
+                "{} must be a whole number >= 0, not {got}",
+                e.path()
+            ));
+        }
+        PyTypeError::new_err(format!("{}: {what}", e.path()))
     })
 }
 
@@ -374,6 +376,14 @@ fn sweep(
         failed: None,
     };
     let outcome = api::run_sweep(&req, &mut ui).map_err(to_py)?;
+    for n in &outcome.notes {
+        PyErr::warn(
+            py,
+            &py.get_type::<pyo3::exceptions::PyUserWarning>(),
+            &std::ffi::CString::new(n.as_str()).unwrap_or_default(),
+            1,
+        )?;
+    }
     if let Some(e) = ui.failed {
         return Err(e);
     }

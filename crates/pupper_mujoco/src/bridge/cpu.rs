@@ -84,10 +84,20 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
         let prepare = |m: &Bound<'py, PyAny>| -> PyResult<Bound<'py, PyAny>> {
             let m = mj.copy.call1((m,))?;
             m.getattr("opt")?.setattr("timestep", dt)?;
+            // Whatever the file declares (a position servo, a motor), each
+            // actuator becomes a fixed-gain one with an affine bias (the PD
+            // of servo mode; zero bias in torque mode), no activation
+            // dynamics, clipped at the cell's torque limit.
+            let fill = |field: &str, v: i64| -> PyResult<()> {
+                m.getattr(field)?.call_method1("fill", (v,)).map(|_| ())
+            };
+            fill("actuator_gaintype", 0)?; // mjGAIN_FIXED
+            fill("actuator_biastype", 1)?; // mjBIAS_AFFINE
+            fill("actuator_dyntype", 0)?; // mjDYN_NONE
+            fill("actuator_forcelimited", 1)?;
             if mode == Mode::Torque {
                 // direct torque inputs must not be clamped to a position range
-                m.getattr("actuator_ctrllimited")?
-                    .call_method1("fill", (0,))?;
+                fill("actuator_ctrllimited", 0)?;
             }
             Ok(m)
         };
@@ -178,7 +188,7 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
         };
         // initial state and targets
         let (key, pose) = match initial {
-            InitialState::Keyframe(name) => (Some(info.keyframe(name)?.0), None),
+            InitialState::Keyframe(name) => (info.start_keyframe(name)?.0, None),
             InitialState::Pose(p) => {
                 if p.len() != info.nu {
                     return Err(Error::Config(format!(
@@ -206,7 +216,7 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
                     layout.joint_targets(&kf.qpos)
                 }
             }
-            (None, None) => vec![0.0; info.nu],
+            (None, None) => layout.joint_targets(&info.qpos0),
         };
         {
             let mut s = state.readwrite();

@@ -144,6 +144,11 @@ impl<'py> Mujoco<'py> {
             actuators,
             keyframes,
             sensors,
+            qpos0: model
+                .getattr("qpos0")
+                .and_then(|q| q.call_method0("tolist"))
+                .and_then(|q| q.extract())
+                .internal()?,
         })
     }
 }
