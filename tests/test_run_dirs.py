@@ -331,7 +331,7 @@ def _dog(tmp_path: Path) -> Path:
     robot = (REPO / "models" / "pupper_v3" / "pupper_v3.xml").read_text()
     robot = re.sub(r"<keyframe>.*?</keyframe>", "", robot, flags=re.S)
     robot = re.sub(r'<general class="pupper" name="(\w+)" joint="(\w+)"/>',
-                   r'<motor name="\1" joint="\2" ctrlrange="-3 3"/>', robot)
+                   r'<motor name="\1" joint="\2" ctrlrange="-2 2"/>', robot)
     assert robot.count("<motor") == 12 and "<key" not in robot
     (tmp_path / "dog.xml").write_text(robot)
     scene = (REPO / "models" / "pupper_v3" / "scene.xml").read_text().replace("pupper_v3.xml", "dog.xml")
@@ -349,6 +349,10 @@ def test_a_model_without_keyframe_stands_and_sweeps(run, tmp_path):
             "-o", "run", "-q", check=0)
     _, rows = read_csv(tmp_path / "run" / "summary.csv")
     assert [r["status"] for r in rows] == ["ok", "ok"]
+    # torque limits are the model's own (its motors' control range), not Pupper's 3 N·m
+    m = json.loads((tmp_path / "run" / "manifest.json").read_text())
+    assert m["torque_limits"] == [2.0] * 12 and m["config"]["defaults"]["max_torque"] is None
+    assert all(float(r["peak_torque"]) <= 2.0 for r in rows), rows
     # servo mode drives motor actuators as PD servos too: stiffer gains stand taller
     p = run("sweep", "--model", model, "--grid", "kp=2,30", "--seconds", "2", "-o", "servo", "-q", check=0)
     _, rows = read_csv(tmp_path / "servo" / "summary.csv")

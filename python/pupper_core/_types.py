@@ -91,7 +91,7 @@ class SimOptions(TypedDict, total=False):
     seconds: float
     kp: float
     kd: float
-    max_torque: float
+    max_torque: float | None
     keyframe: str
     pose: Sequence[float] | None
 
@@ -101,7 +101,7 @@ class RecordedSetup(TypedDict):
 
     kp: float
     kd: float
-    max_torque: float
+    max_torque: float | None
     push_force: list[float]
     """World-frame push force (N) while the push acts."""
     friction: float | None

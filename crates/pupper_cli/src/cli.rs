@@ -122,9 +122,10 @@ struct SimArgs {
     /// Derivative gain (N·m·s/rad), for cells whose grid has no kd axis.
     #[arg(long, default_value_t = SweepSpec::default().kd, allow_negative_numbers = true)]
     kd: f64,
-    /// Torque limit (N·m) of every actuator, in both modes (Pupper v3's motors: 3).
-    #[arg(long, default_value_t = SweepSpec::default().max_torque, value_name = "NM", allow_negative_numbers = true)]
-    max_torque: f64,
+    /// Torque limit (N·m) of every actuator, in both modes [default: each actuator's own
+    /// force range, else its control range; Pupper v3's motors: 3]
+    #[arg(long, value_name = "NM", allow_negative_numbers = true)]
+    max_torque: Option<f64>,
     /// Keyframe to reset to; its ctrl (or joint qpos) gives the joint targets.
     #[arg(long, default_value_t = SweepSpec::default().keyframe, value_name = "NAME", conflicts_with = "pose")]
     keyframe: String,

@@ -21,7 +21,9 @@ use crate::schedule::Schedule;
 pub struct Defaults {
     pub kp: f64,
     pub kd: f64,
-    pub max_torque: f64,
+    /// None: each actuator's own limit (the model's force or control range).
+    #[serde(default)]
+    pub max_torque: Option<f64>,
 }
 
 impl Default for Defaults {
@@ -29,7 +31,7 @@ impl Default for Defaults {
         Defaults {
             kp: 5.0,
             kd: 0.1,
-            max_torque: 3.0,
+            max_torque: None,
         }
     }
 }
@@ -103,10 +105,11 @@ impl SweepConfig {
                     .into(),
             ));
         }
-        if !(d.max_torque.is_finite() && d.max_torque > 0.0) {
+        if let Some(t) = d.max_torque
+            && !(t.is_finite() && t > 0.0)
+        {
             return Err(Error::Config(format!(
-                "max torque {} is not positive: give --max-torque a value > 0",
-                d.max_torque
+                "max torque {t} is not positive: give --max-torque a value > 0"
             )));
         }
         Ok(())
@@ -126,7 +129,7 @@ impl SweepConfig {
         CellSetup {
             kp: get(Axis::Kp, self.defaults.kp),
             kd: get(Axis::Kd, self.defaults.kd),
-            max_torque: get(Axis::MaxTorque, self.defaults.max_torque),
+            max_torque: cell.get(Axis::MaxTorque).or(self.defaults.max_torque),
             push_force,
             friction: cell.get(Axis::Friction),
             timestep: cell.get(Axis::Timestep),
@@ -305,6 +308,10 @@ fn run_chunk(
     hooks: &mut dyn Hooks,
 ) -> Result<Vec<CellResult>> {
     let setups: Vec<CellSetup> = cells.iter().map(|c| cfg.setup(c)).collect();
+    let limits: Vec<Vec<f64>> = setups
+        .iter()
+        .map(|s| s.torque_limits(physics.info()))
+        .collect::<Result<_>>()?;
     let mut batch = physics.start(&setups, cfg.mode, &cfg.schedule.initial, opts.threads)?;
     let layout = physics.layout().clone();
     let targets = batch.targets().to_vec();
@@ -384,9 +391,8 @@ fn run_chunk(
                 };
                 batch.advance(&alive, nstep, force, &mut |pos, step, qpos, act| {
                     let sim = alive[pos];
-                    let lim = setups[sim].max_torque;
                     let (mut peak, mut nsat) = (0.0f64, 0usize);
-                    for &f in act {
+                    for (&f, &lim) in act.iter().zip(&limits[sim]) {
                         peak = peak.max(f.abs());
                         // the actuator clamps at its force range
                         if f.abs() >= lim * (1.0 - 1e-12) {
@@ -408,6 +414,7 @@ fn run_chunk(
                     &forces,
                     &mut |pos, qpos, qvel, ctrl| {
                         let s = &setups[alive[pos]];
+                        let lim = &limits[alive[pos]];
                         let mut scratch = scratch.borrow_mut();
                         let sc = &mut scratch[pos];
                         sc.peak = 0.0;
@@ -419,7 +426,7 @@ fn run_chunk(
                                 targets[a],
                                 qpos[layout.act_qpos[a]],
                                 qvel[layout.act_dof[a]],
-                                s.max_torque,
+                                lim[a],
                             );
                             ctrl[a] = tau;
                             sc.peak = sc.peak.max(tau.abs());

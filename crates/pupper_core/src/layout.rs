@@ -123,6 +123,8 @@ pub(crate) mod tests {
                 gainprm: [5.0, 0.0, 0.0],
                 biasprm: [0.0, -5.0, -0.1],
                 forcerange: Some([-3.0, 3.0]),
+                ctrlrange: None,
+                gear: 1.0,
             })
             .collect();
         ModelInfo {
@@ -199,6 +201,22 @@ pub(crate) mod tests {
         info.joints[1].kind = "ball".into();
         let e = Layout::floating(&info).unwrap_err().to_string();
         assert!(e.contains("does not drive a hinge or slide joint"), "{e}");
+    }
+
+    #[test]
+    fn torque_limits_come_from_force_then_control_ranges() {
+        let mut info = quadruped_info(1);
+        assert_eq!(info.torque_limits().unwrap(), vec![3.0; 3]);
+        info.actuators[0].forcerange = None;
+        info.actuators[0].ctrlrange = Some([-2.0, 2.5]);
+        info.actuators[1].forcerange = Some([-4.0, 1.0]);
+        assert_eq!(info.torque_limits().unwrap(), vec![2.5, 4.0, 3.0]);
+        info.actuators[2].forcerange = None;
+        let e = info.torque_limits().unwrap_err().to_string();
+        assert!(
+            e.contains("actuator 'a0'") && e.contains("--max-torque"),
+            "{e}"
+        );
     }
 
     #[test]

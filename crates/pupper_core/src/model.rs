@@ -154,6 +154,16 @@ pub struct ActuatorInfo {
     pub gainprm: [f64; 3],
     pub biasprm: [f64; 3],
     pub forcerange: Option<[f64; 2]>,
+    /// Control range, if limited.
+    #[serde(default)]
+    pub ctrlrange: Option<[f64; 2]>,
+    /// First gear entry (1 for Pupper).
+    #[serde(default = "one")]
+    pub gear: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 impl ActuatorInfo {
@@ -200,6 +210,28 @@ pub struct ModelInfo {
 }
 
 impl ModelInfo {
+    /// Each actuator's own torque limit, the default of `--max-torque`: its
+    /// force range, else its control range (the force a unit-gain actuator
+    /// makes at full control; times the gear at the joint). Pupper v3: 3 N·m.
+    pub fn torque_limits(&self) -> Result<Vec<f64>> {
+        self.actuators
+            .iter()
+            .map(|a| {
+                let bound = |r: [f64; 2]| r[0].abs().max(r[1].abs());
+                a.forcerange
+                    .map(bound)
+                    .or(a.ctrlrange.map(bound))
+                    .filter(|l| l.is_finite() && *l > 0.0)
+                    .ok_or_else(|| {
+                        Error::Model(format!(
+                            "actuator '{}' of model '{}' has no force or control range to take a torque limit from: give --max-torque",
+                            a.name, self.name
+                        ))
+                    })
+            })
+            .collect()
+    }
+
     /// The keyframe cells start from (None: the default pose), and a note
     /// when it is not the one asked for: a model without `home` starts from
     /// its first keyframe, or from its default pose when it has none, as

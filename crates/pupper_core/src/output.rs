@@ -90,6 +90,10 @@ pub struct Manifest {
     pub python: String,
     pub config: SweepConfig,
     pub model: ModelRecord,
+    /// Each actuator's torque limit (N·m) for cells without a max_torque
+    /// value: --max-torque, else the model's own limits.
+    #[serde(default)]
+    pub torque_limits: Vec<f64>,
     pub cells_total: usize,
     pub cells_done: usize,
     pub complete: bool,

@@ -34,7 +34,8 @@ impl Mode {
 pub struct CellSetup {
     pub kp: f64,
     pub kd: f64,
-    pub max_torque: f64,
+    /// One torque limit (N·m) for every actuator; None: each actuator's own.
+    pub max_torque: Option<f64>,
     /// Push force (N) along the push direction's z, i.e. the push's world z.
     pub push_force: [f64; 3],
     /// Sliding friction of every colliding geom; None keeps the model's.
@@ -43,6 +44,16 @@ pub struct CellSetup {
     pub timestep: Option<f64>,
     pub leg_scale: f64,
     pub torso_mass_scale: f64,
+}
+
+impl CellSetup {
+    /// The torque limit of each actuator in this cell.
+    pub fn torque_limits(&self, info: &ModelInfo) -> Result<Vec<f64>> {
+        match self.max_torque {
+            Some(t) => Ok(vec![t; info.nu]),
+            None => info.torque_limits(),
+        }
+    }
 }
 
 /// The external base force over one advance call.

@@ -521,6 +521,7 @@ mod tests {
                 source: "builtin".into(),
                 sha256: "0".repeat(64),
             },
+            torque_limits: vec![],
             cells_done: 0,
             complete: false,
             threads: 1,

@@ -55,7 +55,8 @@ pub struct SweepSpec {
     /// Gains and torque limit for cells whose grid has no such axis.
     pub kp: f64,
     pub kd: f64,
-    pub max_torque: f64,
+    /// None: each actuator's own limit (Pupper v3: 3 N·m).
+    pub max_torque: Option<f64>,
     /// The timed push on the base.
     pub push: bool,
     pub push_force: f64,
@@ -91,7 +92,7 @@ impl Default for SweepSpec {
             seconds: 10.0,
             kp: 5.0,
             kd: 0.1,
-            max_torque: 3.0,
+            max_torque: None,
             push: true,
             push_force: -25.0,
             push_at: 2.0,
@@ -305,7 +306,7 @@ mod tests {
         );
         assert!(
             e(SweepSpec {
-                max_torque: 0.0,
+                max_torque: Some(0.0),
                 ..d()
             })
             .contains("--max-torque")

@@ -205,6 +205,10 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
     bridge::with_model(&cfg.model, true, |model| {
         let info = model.info();
         let note = check_start(info, &cfg.schedule.initial)?;
+        let torque_limits = match cfg.defaults.max_torque {
+            Some(t) => vec![t; info.nu],
+            None => info.torque_limits()?,
+        };
         let manifest = Manifest {
             pupper_version: pupper_core::VERSION.to_string(),
             mujoco_version: model.mujoco_version().to_string(),
@@ -215,6 +219,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                 source: info.source.clone(),
                 sha256: info.sha256.clone(),
             },
+            torque_limits,
             cells_total: cells.len(),
             cells_done: 0,
             complete: false,

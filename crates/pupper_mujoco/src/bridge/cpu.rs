@@ -124,14 +124,15 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
             let mut r = range.readwrite();
             let (mut g, mut b, mut r) = (g.as_array_mut(), b.as_array_mut(), r.as_array_mut());
             for (i, c) in cells.iter().enumerate() {
+                let limits = c.torque_limits(info)?;
                 for a in 0..info.nu {
                     let (gp, bp) = actuator_params(mode, c);
                     for j in 0..gp.len().min(g.shape()[2]) {
                         g[[i, a, j]] = gp[j];
                         b[[i, a, j]] = bp[j];
                     }
-                    r[[i, a, 0]] = -c.max_torque;
-                    r[[i, a, 1]] = c.max_torque;
+                    r[[i, a, 0]] = -limits[a];
+                    r[[i, a, 1]] = limits[a];
                 }
             }
             if let Some(f) = friction {
@@ -150,7 +151,8 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
             let models = PyList::empty(py);
             for c in cells {
                 let m = prepare(&owner.variant(c.leg_scale, c.torso_mass_scale)?).internal()?;
-                set_model_params(&m, mode, c, &colliding).internal()?;
+                let limits = c.torque_limits(info)?;
+                set_model_params(&m, mode, c, &limits, &colliding).internal()?;
                 models.append(m).internal()?;
             }
             batch.call_method1("set_models", (models,)).internal()?;
@@ -340,6 +342,7 @@ fn set_model_params(
     m: &Bound<'_, PyAny>,
     mode: Mode,
     c: &CellSetup,
+    limits: &[f64],
     colliding: &[usize],
 ) -> PyResult<()> {
     let (gp, bp) = actuator_params(mode, c);
@@ -363,8 +366,8 @@ fn set_model_params(
             g[[a, j]] = 0.0;
             b[[a, j]] = 0.0;
         }
-        r[[a, 0]] = -c.max_torque;
-        r[[a, 1]] = c.max_torque;
+        r[[a, 0]] = -limits[a];
+        r[[a, 1]] = limits[a];
     }
     if let Some(mu) = c.friction {
         let f = m.getattr("geom_friction")?.cast_into::<PyArray2<f64>>()?;

@@ -75,11 +75,13 @@ impl<'py> Mujoco<'py> {
                 body: jbody[i] as usize,
             });
         }
-        let (trntype, trnid, flim) = (
+        let (trntype, trnid, flim, clim) = (
             ints("actuator_trntype")?,
             floats2("actuator_trnid")?,
             ints("actuator_forcelimited")?,
+            ints("actuator_ctrllimited")?,
         );
+        let (crange, gear) = (floats2("actuator_ctrlrange")?, floats2("actuator_gear")?);
         let (gain, bias, frange) = (
             floats2("actuator_gainprm")?,
             floats2("actuator_biasprm")?,
@@ -95,6 +97,8 @@ impl<'py> Mujoco<'py> {
                 gainprm: [gain[i][0], gain[i][1], gain[i][2]],
                 biasprm: [bias[i][0], bias[i][1], bias[i][2]],
                 forcerange: (flim[i] != 0).then(|| [frange[i][0], frange[i][1]]),
+                ctrlrange: (clim[i] != 0).then(|| [crange[i][0], crange[i][1]]),
+                gear: gear[i][0],
             });
         }
         let nkey = int("nkey")?;
