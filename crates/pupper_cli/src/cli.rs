@@ -218,7 +218,8 @@ struct SweepArgs {
     /// Batch threads; 0 uses all cores. Never changes the numbers.
     #[arg(long, short = 'j', default_value_t = SweepSpec::default().threads, value_name = "N")]
     threads: usize,
-    /// Cells per batch, to bound memory on large grids. Never changes the numbers.
+    /// Most cells per batch (batches hold about 5 s of work, so a stop loses
+    /// little; fewer cells bound memory). Never changes the numbers.
     #[arg(long, default_value_t = SweepSpec::default().chunk_cells, value_name = "N")]
     chunk_cells: usize,
     /// Refuse grids with more cells than this.
