@@ -177,3 +177,30 @@ def test_progress_callable():
     dones = [d for d, _ in calls]
     assert dones == sorted(dones)
     assert dones[-1] == total
+
+
+def test_best_by_groups_follows_the_rule_and_the_cli(run, tmp_path):
+    """best(by=...) against the rule computed here by hand, and the CLI's
+    --best-by lines and best.csv against best(by=...)."""
+    import csv
+
+    grid = ["kp=2,30,120", "kd=0.05,2"]
+    run("sweep", *sum((["--grid", g] for g in grid), []), "--seconds", "2", "--mode", "torque",
+        "--best-by", "kd", "-o", tmp_path / "run", "-q", check=0)
+    res = pc.load_run(tmp_path / "run")
+    groups = res.best("last_1s_std_mm", by=["kd"])
+    assert [g["kd"] for g in groups] == [0.05, 2.0]
+    for g in groups:
+        rows = [i for i in range(len(res)) if res["kd"][i] == g["kd"]]
+        eligible = [i for i in rows if res["status"][i] == "ok" and np.isfinite(res["last_1s_std_mm"][i])
+                    and res["saturation_frac"][i] < 0.05]
+        assert (g["cells"], g["eligible"]) == (len(rows), len(eligible))
+        want = min(eligible, key=lambda i: (res["last_1s_std_mm"][i], i)) if eligible else None
+        assert g["id"] == (res["id"][want] if want is not None else None)
+    with open(tmp_path / "run" / "best.csv", newline="") as f:
+        written = list(csv.DictReader(f))
+    assert [r["id"] or None for r in written] == [g["id"] for g in groups]
+    assert res.best("last_1s_std_mm")["id"] == min(
+        (g for g in groups if g["id"]), key=lambda g: g["last_1s_std_mm"])["id"]
+    with pytest.raises(pc.ConfigError, match="cannot group by 'leg_scale'"):
+        res.best(by=["leg_scale"])

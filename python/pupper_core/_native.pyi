@@ -9,7 +9,7 @@ from os import PathLike
 from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
-from typing import Any, Literal, Unpack
+from typing import Any, Literal, Unpack, overload
 
 from pupper_core._types import (
     JointInfo,
@@ -108,9 +108,17 @@ class SweepResult:
         """A column; KeyError names the columns there are."""
     def row(self, i: int) -> dict[str, Any]:
         """Row `i` as a dict: index an int, text as str, numbers as float."""
-    def best(self, metric: str = "last_1s_std_mm", *, minimize: bool = True) -> dict[str, Any]:
-        """The healthy cell (status ok, finite metric) with the lowest metric
-        (highest with `minimize=False`); ties go to the first in cell order."""
+    @overload
+    def best(self, metric: str = "last_1s_std_mm", *, by: None = None, minimize: bool = True,
+             max_saturation: float = 0.05) -> dict[str, Any]: ...
+    @overload
+    def best(self, metric: str = "last_1s_std_mm", *, by: Sequence[str], minimize: bool = True,
+             max_saturation: float = 0.05) -> list[dict[str, Any]]:
+        """The best cell, by pupper's rule: among cells whose status is ok,
+        whose metric is a number and whose saturation_frac is under
+        `max_saturation`, the lowest metric (highest with `minimize=False`);
+        ties go to the first cell in grid order. With `by`, the best of each
+        group of those axes' values (with `cells` and `eligible` counts)."""
     def to_pandas(self) -> Any:
         """The table as a pandas DataFrame (pandas must be installed)."""
 

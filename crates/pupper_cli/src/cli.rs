@@ -5,11 +5,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
+use pupper_core::best;
 use pupper_core::experiment::{Hooks, SweepConfig};
 use pupper_core::model::ModelSource;
 use pupper_core::output;
 use pupper_core::physics::Mode;
-use pupper_core::rundir::Existing;
+use pupper_core::rundir::{self, Existing};
 use pupper_core::spec::{self, GridInput, SweepSpec};
 use pupper_core::{Error, Result};
 use pupper_mujoco::api::{self, SweepRequest, SweepUi};
@@ -231,6 +232,18 @@ struct SweepArgs {
     /// Render the effects GIF and final-frame PNG of the cells (up to 6) into DIR/plots.
     #[arg(long)]
     render: bool,
+    /// Pick the best cell of each group of these axes (e.g. kd, or leg_scale,torso_mass_scale):
+    /// printed a line per group and written to DIR/best.csv. Rule: among cells whose status
+    /// is ok, whose metric is a number and whose saturation_frac is under --max-saturation,
+    /// the lowest --best-metric wins; ties go to the first cell in grid order.
+    #[arg(long, value_name = "AXIS[,AXIS]", value_delimiter = ',')]
+    best_by: Option<Vec<String>>,
+    /// The metric --best-by ranks by (lower is better).
+    #[arg(long, default_value = "last_1s_std_mm", value_name = "METRIC")]
+    best_metric: String,
+    /// Cells at the torque limit in this share of actuator-steps or more are never "best".
+    #[arg(long, default_value_t = pupper_core::best::MAX_SATURATION, value_name = "FRACTION")]
+    max_saturation: f64,
     /// Print the rows as JSON instead of a table.
     #[arg(long)]
     json: bool,
@@ -391,6 +404,14 @@ fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
             s
         }
     };
+    // the ranking rule is checked against the grid before anything runs
+    let rule = a.best_by.as_ref().map(|by| best::Rule {
+        max_saturation: a.max_saturation,
+        ..best::Rule::new(&a.best_metric, by)
+    });
+    if let Some(rule) = &rule {
+        best::best(&output::header_of(&sweep.config), &[], rule)?;
+    }
     let req = SweepRequest { sweep, command };
     let mut ui = Progress {
         bar: None,
@@ -416,6 +437,13 @@ fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
         println!("{}", print::json(&print::rows_json(&outcome))?);
     } else {
         print!("{}", print::sweep(&outcome));
+    }
+    if let Some(rule) = &rule {
+        let groups = best::best(&outcome.header, &outcome.rows, rule)?;
+        let (h, rows) = best::table(&outcome.header, &outcome.rows, rule, &groups);
+        rundir::write_atomic(&dir.join(output::BEST), &output::csv_bytes(&h, &rows)?)?;
+        print!("{}", print::best(&outcome, rule, &groups));
+        eprintln!("wrote {}", dir.join(output::BEST).display());
     }
     let dir_s = dir.display().to_string();
     if a.plot {

@@ -237,3 +237,41 @@ pub fn rows_json(o: &SweepOutcome) -> serde_json::Value {
         "cells": rows,
     })
 }
+
+/// One line per group of `--best-by`.
+pub fn best(
+    o: &SweepOutcome,
+    rule: &pupper_core::best::Rule,
+    groups: &[pupper_core::best::Group],
+) -> String {
+    let col = |name: &str| o.header.iter().position(|h| h == name);
+    let metric = col(&rule.metric);
+    let mut s = format!("\nbest {} by {}:\n", rule.metric, rule.by.join(", "));
+    for g in groups {
+        let key: Vec<String> = g.key.iter().map(|(k, v)| format!("{k}={v}")).collect();
+        let key = if key.is_empty() {
+            "all".to_string()
+        } else {
+            key.join(" ")
+        };
+        match (g.best, metric) {
+            (Some(i), Some(m)) => {
+                let r = &o.rows[i];
+                let v: f64 = r[m].parse().unwrap_or(f64::NAN);
+                let _ = writeln!(
+                    s,
+                    "  {key:<24} {:<28} {} {v:.4}  ({} of {} cells eligible)",
+                    r[1], rule.metric, g.eligible, g.cells
+                );
+            }
+            _ => {
+                let _ = writeln!(
+                    s,
+                    "  {key:<24} no eligible cell: all {} fell, diverged, saturated or have no {}",
+                    g.cells, rule.metric
+                );
+            }
+        }
+    }
+    s
+}

@@ -17,6 +17,7 @@ use crate::metrics::{METRIC_NAMES, Metrics};
 pub const SUMMARY: &str = "summary.csv";
 pub const MANIFEST: &str = "manifest.json";
 pub const TRACES: &str = "traces.csv";
+pub const BEST: &str = "best.csv";
 
 /// A float as the shortest text that reads back to the same bits; NaN empty.
 pub fn fmt_f64(v: f64) -> String {
@@ -60,7 +61,7 @@ pub fn row(cell: &Cell, m: &Metrics) -> Vec<String> {
 }
 
 /// CSV text of `rows` after a `header` row (none when empty).
-pub(crate) fn csv_bytes(header: &[String], rows: &[Vec<String>]) -> Result<Vec<u8>> {
+pub fn csv_bytes(header: &[String], rows: &[Vec<String>]) -> Result<Vec<u8>> {
     let mut w = csv::WriterBuilder::new()
         .terminator(csv::Terminator::Any(b'\n'))
         .from_writer(Vec::new());

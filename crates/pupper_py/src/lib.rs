@@ -102,7 +102,7 @@ const DUAL_ERRORS: [(&str, &str, &str, &str); 4] = [
 
 /// The Python exception of a Rust error: the family's class (or its
 /// `OSError` twin), with the stable `kind` code as an attribute.
-fn to_py(e: Error) -> PyErr {
+pub(crate) fn to_py(e: Error) -> PyErr {
     let msg = e.to_string();
     let dual = match e.code() {
         "model_not_found" => Some("ModelNotFoundError"),

@@ -10,6 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::ConfigError;
+use pupper_core::best;
 use pupper_core::metrics::METRIC_NAMES;
 
 /// Columns of text in summary.csv.
@@ -189,53 +190,55 @@ impl SweepResult {
         Ok(d)
     }
 
-    /// The healthy cell (status ok, finite metric) with the lowest metric
-    /// (highest with `minimize=False`); ties go to the first in cell order.
-    #[pyo3(signature = (metric = "last_1s_std_mm", *, minimize = true))]
+    /// The best cell, by pupper's rule: among cells whose status is ok,
+    /// whose metric is a number and whose saturation_frac is under
+    /// `max_saturation`, the lowest metric (highest with `minimize=False`);
+    /// ties go to the first cell in grid order. With `by` (axis names), the
+    /// best of each group of those axes' values, as a list of dicts that
+    /// also hold `cells` and `eligible` (a group with no eligible cell has
+    /// only its axis values, `cells`, `eligible` and `id` None).
+    #[pyo3(signature = (metric = "last_1s_std_mm", *, by = None, minimize = true, max_saturation = best::MAX_SATURATION))]
     fn best<'py>(
         &self,
         py: Python<'py>,
         metric: &str,
+        by: Option<Vec<String>>,
         minimize: bool,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        let numeric: Vec<&str> = METRIC_NAMES
-            .iter()
-            .copied()
-            .filter(|m| !TEXT.contains(m))
-            .collect();
-        let Some(col) = self
-            .header
-            .iter()
-            .position(|h| h == metric)
-            .filter(|_| numeric.contains(&metric))
-        else {
-            return Err(ConfigError::new_err(format!(
-                "unknown metric '{metric}': use one of {}",
-                numeric.join(", ")
-            )));
+        max_saturation: f64,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let grouped = by.is_some();
+        let rule = best::Rule {
+            minimize,
+            max_saturation,
+            ..best::Rule::new(metric, &by.unwrap_or_default())
         };
-        let status = self.header.iter().position(|h| h == "status");
-        let mut best: Option<(usize, f64)> = None;
-        for (i, r) in self.rows.iter().enumerate() {
-            let v = number(&r[col]);
-            let ok = status.is_some_and(|s| r[s] == "ok");
-            if !ok || !v.is_finite() {
-                continue;
-            }
-            let better = match best {
-                None => true,
-                Some((_, b)) => (minimize && v < b) || (!minimize && v > b),
+        let groups = best::best(&self.header, &self.rows, &rule).map_err(crate::to_py)?;
+        if !grouped {
+            return match groups.first().and_then(|g| g.best) {
+                Some(i) => Ok(self.row(py, i as isize)?.into_any()),
+                None => Err(ConfigError::new_err(format!(
+                    "no cell is eligible for best {metric}: every cell fell, diverged, saturated (saturation_frac >= {max_saturation}) or has no value"
+                ))),
             };
-            if better {
-                best = Some((i, v));
+        }
+        let out = PyList::empty(py);
+        for g in &groups {
+            let d = match g.best {
+                Some(i) => self.row(py, i as isize)?,
+                None => {
+                    let d = PyDict::new(py);
+                    d.set_item("id", py.None())?;
+                    d
+                }
+            };
+            for (k, v) in &g.key {
+                d.set_item(k, number(v))?;
             }
+            d.set_item("cells", g.cells)?;
+            d.set_item("eligible", g.eligible)?;
+            out.append(d)?;
         }
-        match best {
-            Some((i, _)) => self.row(py, i as isize),
-            None => Err(ConfigError::new_err(format!(
-                "no healthy cell has a finite {metric}: every cell fell, diverged or has no value"
-            ))),
-        }
+        Ok(out.into_any())
     }
 
     /// The table as a pandas DataFrame (pandas must be installed).

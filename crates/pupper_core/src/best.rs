@@ -1,0 +1,238 @@
+//! The best cell of each group of a sweep's table, by one documented rule:
+//!
+//! 1. A cell is eligible when its status is `ok` (it neither fell nor
+//!    diverged), the metric is a number, and its `saturation_frac` (the
+//!    share of actuator-steps at the torque limit) is below the threshold.
+//! 2. Among the eligible cells of a group, the lowest metric wins (the
+//!    highest with `minimize = false`).
+//! 3. Ties go to the cell that comes first in grid order.
+//!
+//! Groups are the distinct values of the `by` columns, in order of first
+//! appearance; without `by` the whole table is one group.
+
+use crate::error::{Error, Result};
+use crate::metrics::METRIC_NAMES;
+
+/// The default saturation threshold: cells whose actuators sit at their
+/// torque limit in 5 % or more of the steps are not trusted as "best".
+pub const MAX_SATURATION: f64 = 0.05;
+
+/// How to pick.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rule {
+    pub metric: String,
+    pub by: Vec<String>,
+    pub max_saturation: f64,
+    pub minimize: bool,
+}
+
+impl Rule {
+    pub fn new(metric: &str, by: &[String]) -> Rule {
+        Rule {
+            metric: metric.to_string(),
+            by: by.to_vec(),
+            max_saturation: MAX_SATURATION,
+            minimize: true,
+        }
+    }
+}
+
+/// One group and its winner.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Group {
+    /// (column, value as in summary.csv) of the `by` columns.
+    pub key: Vec<(String, String)>,
+    /// Row index (into the table given) of the best cell; None when no cell
+    /// of the group is eligible.
+    pub best: Option<usize>,
+    /// Cells in the group, and how many were eligible.
+    pub cells: usize,
+    pub eligible: usize,
+}
+
+fn column(header: &[String], name: &str) -> Option<usize> {
+    header.iter().position(|h| h == name)
+}
+
+/// The best cell of each group of `rows` (summary.csv's rows as text).
+pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<Group>> {
+    let numeric: Vec<&str> = METRIC_NAMES
+        .iter()
+        .copied()
+        .filter(|m| *m != "status")
+        .collect();
+    let metric = column(header, &rule.metric)
+        .filter(|_| numeric.contains(&rule.metric.as_str()))
+        .ok_or_else(|| {
+            Error::Config(format!(
+                "unknown metric '{}': use one of {}",
+                rule.metric,
+                numeric.join(", ")
+            ))
+        })?;
+    let first_metric = column(header, METRIC_NAMES[0]).unwrap_or(header.len());
+    let axes = &header[3.min(first_metric)..first_metric];
+    let by = rule
+        .by
+        .iter()
+        .map(|b| {
+            axes.iter()
+                .position(|a| a == b)
+                .map(|i| i + 3)
+                .ok_or_else(|| {
+                    Error::Config(format!(
+                        "cannot group by '{b}': it is not an axis of this grid; use one of {}",
+                        if axes.is_empty() {
+                            "(none: the grid has no axes)".to_string()
+                        } else {
+                            axes.join(", ")
+                        }
+                    ))
+                })
+        })
+        .collect::<Result<Vec<usize>>>()?;
+    if !(rule.max_saturation.is_finite() && rule.max_saturation > 0.0) {
+        return Err(Error::Config(format!(
+            "saturation threshold {} is not a positive fraction: give --max-saturation a value in (0, 1]",
+            rule.max_saturation
+        )));
+    }
+    let status = column(header, "status");
+    let saturation = column(header, "saturation_frac");
+    let mut groups: Vec<(Vec<String>, Group, f64)> = Vec::new();
+    for (i, r) in rows.iter().enumerate() {
+        let key: Vec<String> = by.iter().map(|&c| r[c].clone()).collect();
+        let at = match groups.iter().position(|(k, _, _)| *k == key) {
+            Some(at) => at,
+            None => {
+                let g = Group {
+                    key: rule.by.iter().cloned().zip(key.iter().cloned()).collect(),
+                    best: None,
+                    cells: 0,
+                    eligible: 0,
+                };
+                groups.push((key, g, f64::NAN));
+                groups.len() - 1
+            }
+        };
+        let (_, g, best_value) = &mut groups[at];
+        g.cells += 1;
+        let v: f64 = r[metric].parse().unwrap_or(f64::NAN);
+        let sat: f64 = saturation.map_or(0.0, |c| r[c].parse().unwrap_or(f64::NAN));
+        let ok = status.is_some_and(|c| r[c] == "ok");
+        if !(ok && v.is_finite() && sat < rule.max_saturation) {
+            continue;
+        }
+        g.eligible += 1;
+        let better = match g.best {
+            None => true,
+            Some(_) if rule.minimize => v < *best_value,
+            Some(_) => v > *best_value,
+        };
+        if better {
+            g.best = Some(i);
+            *best_value = v;
+        }
+    }
+    Ok(groups.into_iter().map(|(_, g, _)| g).collect())
+}
+
+/// `best.csv`: per group, its `by` values, how many cells it has and how
+/// many were eligible, then the best cell's summary row (empty when none).
+pub fn table(
+    header: &[String],
+    rows: &[Vec<String>],
+    rule: &Rule,
+    groups: &[Group],
+) -> (Vec<String>, Vec<Vec<String>>) {
+    let mut h: Vec<String> = rule.by.clone();
+    h.extend(["cells", "eligible"].map(String::from));
+    h.extend(header.iter().cloned());
+    let out = groups
+        .iter()
+        .map(|g| {
+            let mut r: Vec<String> = g.key.iter().map(|(_, v)| v.clone()).collect();
+            r.push(g.cells.to_string());
+            r.push(g.eligible.to_string());
+            match g.best {
+                Some(i) => r.extend(rows[i].iter().cloned()),
+                None => r.extend(header.iter().map(|_| String::new())),
+            }
+            r
+        })
+        .collect();
+    (h, out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::output::header;
+
+    fn table(rows: &[(&str, &str, &str, &str, &str)]) -> (Vec<String>, Vec<Vec<String>>) {
+        // (kp, kd, std, saturation, status)
+        let h = header(&["kp".to_string(), "kd".to_string()]);
+        let rows = rows
+            .iter()
+            .enumerate()
+            .map(|(i, (kp, kd, std, sat, status))| {
+                let mut r = vec![i.to_string(), format!("c{i}"), String::new()];
+                r.push(kp.to_string());
+                r.push(kd.to_string());
+                for m in METRIC_NAMES {
+                    r.push(match m {
+                        "last_1s_std_mm" => std.to_string(),
+                        "saturation_frac" => sat.to_string(),
+                        "status" => status.to_string(),
+                        _ => "0.1".to_string(),
+                    });
+                }
+                r
+            })
+            .collect();
+        (h, rows)
+    }
+
+    #[test]
+    fn best_of_each_group_with_ties_nans_and_a_fallen_group() {
+        let (h, rows) = table(&[
+            ("10", "1", "0.5", "0", "ok"),
+            ("30", "1", "0.2", "0", "ok"),
+            ("60", "1", "0.2", "0", "ok"), // ties with kp 30: the first wins
+            ("120", "1", "0.01", "0.2", "ok"), // saturated: not eligible
+            ("10", "2", "", "0", "ok"),    // NaN: not eligible
+            ("30", "2", "0.001", "0", "fell"), // fell: not eligible
+            ("60", "2", "0.3", "0", "ok"),
+            ("10", "5", "0.1", "0", "diverged"),
+            ("30", "5", "0.1", "0", "fell"),
+        ]);
+        let g = best(&h, &rows, &Rule::new("last_1s_std_mm", &["kd".into()])).unwrap();
+        assert_eq!(g.len(), 3);
+        assert_eq!(g[0].key, vec![("kd".to_string(), "1".to_string())]);
+        assert_eq!((g[0].best, g[0].cells, g[0].eligible), (Some(1), 4, 3));
+        assert_eq!((g[1].best, g[1].eligible), (Some(6), 1));
+        assert_eq!((g[2].best, g[2].cells, g[2].eligible), (None, 2, 0));
+        // one group; a looser threshold lets the saturated cell win
+        let all = best(&h, &rows, &Rule::new("last_1s_std_mm", &[])).unwrap();
+        assert_eq!(all[0].best, Some(1));
+        let loose = Rule {
+            max_saturation: 0.5,
+            ..Rule::new("last_1s_std_mm", &[])
+        };
+        assert_eq!(best(&h, &rows, &loose).unwrap()[0].best, Some(3));
+        let highest = Rule {
+            minimize: false,
+            ..Rule::new("last_1s_std_mm", &["kd".into()])
+        };
+        assert_eq!(best(&h, &rows, &highest).unwrap()[0].best, Some(0));
+    }
+
+    #[test]
+    fn bad_metric_or_column_is_named() {
+        let (h, rows) = table(&[("10", "1", "0.5", "0", "ok")]);
+        let e = best(&h, &rows, &Rule::new("status", &[])).unwrap_err();
+        assert!(e.to_string().contains("unknown metric 'status'"), "{e}");
+        let e = best(&h, &rows, &Rule::new("final_z", &["leg_scale".into()])).unwrap_err();
+        assert!(e.to_string().contains("use one of kp, kd"), "{e}");
+    }
+}
