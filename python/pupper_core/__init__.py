@@ -69,9 +69,11 @@ __all__ = [
 METRICS: tuple[str, ...] = tuple(_native.METRICS)
 
 
-def info(model: str | os.PathLike[str] = "pupper_v3") -> ModelInfo:
-    """Sizes, mass, joints, actuators (ctrl order), keyframes and sensors of a model."""
-    return _native.info(os.fspath(model))
+def info(model: str | os.PathLike[str] = "pupper_v3", variant: Variant = "original") -> ModelInfo:
+    """Sizes, mass, joints, actuators (ctrl order), keyframes, sensors and
+    legs (hip, knee, foot, measured on the compiled body) of a model, or of
+    one of its named variants ("long-leg", "heavy")."""
+    return _native.info(os.fspath(model), variant)
 
 
 #: Defaults of every sweep keyword, as the Rust core's SweepSpec holds them
@@ -79,6 +81,7 @@ def info(model: str | os.PathLike[str] = "pupper_v3") -> ModelInfo:
 _D: dict[str, Any] = _native.sweep_defaults()
 
 Mode = Literal["servo", "torque"]
+Variant = Literal["original", "long-leg", "heavy"]
 
 
 def _with_spec_signature(options: type, *, after: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
@@ -132,7 +135,7 @@ def _options(arguments: Mapping[str, Any]) -> dict[str, Any]:
             continue
         if name == "model":
             value = os.fspath(value)
-        elif name in ("pose", "sine") and value is not None:
+        elif name in ("pose", "sine") and value is not None and not isinstance(value, str):
             value = [float(x) for x in value]
         out[name] = value
     return out

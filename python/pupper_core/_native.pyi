@@ -122,7 +122,7 @@ class SweepResult:
     def to_pandas(self) -> Any:
         """The table as a pandas DataFrame (pandas must be installed)."""
 
-def info(model: str = ...) -> ModelInfo:
+def info(model: str = ..., variant: str = ...) -> ModelInfo:
     """What `pupper info --json` prints, as a dict."""
 
 def sweep_defaults() -> dict[str, Any]:

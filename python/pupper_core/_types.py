@@ -64,6 +64,8 @@ class ModelInfo(TypedDict):
     """In ctrl order."""
     keyframes: list[KeyframeInfo]
     sensors: list[SensorInfo]
+    qpos0: list[float]
+    legs: list[LegInfo]
 
 
 class StandReport(TypedDict):
@@ -83,17 +85,35 @@ class StandReport(TypedDict):
     """What you should know, e.g. that the start fell back to the default pose."""
 
 
+class LegInfo(TypedDict):
+    """One leg at the default pose, world frame (m)."""
+
+    name: str
+    joints: list[int]
+    """Indices into `joints`: abduction, hip flexion, knee."""
+    hip: list[float]
+    knee: list[float]
+    foot: list[float]
+    hip_axis: list[float]
+    knee_axis: list[float]
+    hip_to_foot: float
+    foot_radius: float
+
+
 class SimOptions(TypedDict, total=False):
     """Keywords of every simulating call (`stand`, `sweep`)."""
 
     model: str
+    variant: Literal["original", "long-leg", "heavy"]
     mode: Literal["servo", "torque"]
     seconds: float
     kp: float
     kd: float
     max_torque: float | None
     keyframe: str
-    pose: Sequence[float] | None
+    pose: Sequence[float] | Literal["auto"] | None
+    """Start and target joint angles (rad, actuator order), or "auto": a stand
+    pose searched on each cell's own body."""
 
 
 class RecordedSetup(TypedDict):

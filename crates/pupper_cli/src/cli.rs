@@ -44,12 +44,27 @@ enum Command {
     Info {
         #[command(flatten)]
         model: ModelArg,
+        /// A named body: original, long-leg (legs 1.5x), heavy (torso mass 2x).
+        #[arg(long, default_value_t = SweepSpec::default().variant, value_name = "NAME")]
+        variant: String,
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
     },
     /// Reset to a keyframe (or a pose), stand with PD gains and no push; report final base height, last-second steadiness and tilt.
     Stand(StandArgs),
+    /// Find a stand pose for a body: abduction 0, hip and knee on a grid inside the joint ranges,
+    /// feet 0.14 m (x leg scale, up to 1.5) below the hips, measured on the compiled model.
+    Pose {
+        #[command(flatten)]
+        model: ModelArg,
+        /// A named body: original, long-leg (legs 1.5x), heavy (torso mass 2x).
+        #[arg(long, default_value_t = SweepSpec::default().variant, value_name = "NAME")]
+        variant: String,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
     /// Run a grid of settings as one batched simulation; write summary.csv and manifest.json into a run directory.
     Sweep(Box<SweepArgs>),
     /// Show which Python, prefix and mujoco pupper found, and how to fix it if it found none.
@@ -111,6 +126,10 @@ impl From<Mode> for ModeArg {
 struct SimArgs {
     #[command(flatten)]
     model: ModelArg,
+    /// A named body for cells without leg_scale / torso_mass_scale axes: original,
+    /// long-leg (thighs and calves 1.5x), heavy (torso mass 2x).
+    #[arg(long, default_value_t = SweepSpec::default().variant, value_name = "NAME")]
+    variant: String,
     /// Who computes the PD torques.
     #[arg(long, value_enum, default_value_t = ModeArg::from(SweepSpec::default().mode))]
     mode: ModeArg,
@@ -130,8 +149,10 @@ struct SimArgs {
     /// Keyframe to reset to; its ctrl (or joint qpos) gives the joint targets.
     #[arg(long, default_value_t = SweepSpec::default().keyframe, value_name = "NAME", conflicts_with = "pose")]
     keyframe: String,
-    /// Start and target joint angles (rad), one per actuator in ctrl order, comma-separated.
-    #[arg(long, value_name = "Q1,Q2,...", allow_hyphen_values = true)]
+    /// Start and target joint angles (rad), one per actuator in ctrl order, comma-separated;
+    /// or `auto`: a stand pose searched on each cell's own body (see `pupper pose`), the base
+    /// just above the floor.
+    #[arg(long, value_name = "Q1,Q2,...|auto", allow_hyphen_values = true)]
     pose: Option<String>,
 }
 
@@ -140,6 +161,7 @@ impl SimArgs {
     fn spec(&self) -> Result<SweepSpec> {
         Ok(SweepSpec {
             model: self.model.model.clone(),
+            variant: self.variant.clone(),
             mode: self.mode.into(),
             seconds: self.seconds,
             kp: self.kp,
@@ -294,12 +316,28 @@ struct RenderArgs {
 
 pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
     match cli.command {
-        Command::Info { model, json } => {
-            let info = api::info(&model.source()?)?;
+        Command::Info {
+            model,
+            variant,
+            json,
+        } => {
+            let info = api::info(&model.source()?, pupper_core::variant::variant(&variant)?)?;
             if json {
                 println!("{}", print::json(&info)?);
             } else {
                 print!("{}", print::info(&info));
+            }
+        }
+        Command::Pose {
+            model,
+            variant,
+            json,
+        } => {
+            let p = api::pose(&model.source()?, pupper_core::variant::variant(&variant)?)?;
+            if json {
+                println!("{}", print::json(&p)?);
+            } else {
+                print!("{}", print::pose(&p));
             }
         }
         Command::Stand(a) => {
@@ -337,6 +375,7 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
                     "width": a.width,
                     "height": a.height,
                     "model": spec.model,
+                    "variant": spec.variant,
                     "mode": spec.mode,
                     "seconds": spec.seconds,
                     "kp": spec.kp,

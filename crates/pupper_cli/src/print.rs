@@ -275,3 +275,27 @@ pub fn best(
     }
     s
 }
+
+pub fn pose(p: &pupper_core::pose::StandPose) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "stand pose: hip {:.3} rad, knee {:.3} rad (first leg's convention), feet {:.3} m below the hips",
+        p.hfe, p.kfe, -p.target_z
+    );
+    let _ = writeln!(
+        s,
+        "base height {:.4} m (lowest foot just above the floor)",
+        p.base_z
+    );
+    for (name, x, z) in &p.feet {
+        let _ = writeln!(
+            s,
+            "  {name:<16} foot x {:+.4} m  z {:+.4} m from the hip",
+            x, z
+        );
+    }
+    let t: Vec<String> = p.targets.iter().map(|v| format!("{v:.4}")).collect();
+    let _ = writeln!(s, "targets (actuator order): {}", t.join(","));
+    s
+}

@@ -24,6 +24,15 @@ pub struct Defaults {
     /// None: each actuator's own limit (the model's force or control range).
     #[serde(default)]
     pub max_torque: Option<f64>,
+    /// The body (a named variant's scales).
+    #[serde(default = "one")]
+    pub leg_scale: f64,
+    #[serde(default = "one")]
+    pub torso_mass_scale: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 impl Default for Defaults {
@@ -32,6 +41,8 @@ impl Default for Defaults {
             kp: 5.0,
             kd: 0.1,
             max_torque: None,
+            leg_scale: 1.0,
+            torso_mass_scale: 1.0,
         }
     }
 }
@@ -133,8 +144,8 @@ impl SweepConfig {
             push_force,
             friction: cell.get(Axis::Friction),
             timestep: cell.get(Axis::Timestep),
-            leg_scale: get(Axis::LegScale, 1.0),
-            torso_mass_scale: get(Axis::TorsoMassScale, 1.0),
+            leg_scale: get(Axis::LegScale, self.defaults.leg_scale),
+            torso_mass_scale: get(Axis::TorsoMassScale, self.defaults.torso_mass_scale),
         }
     }
 }
@@ -268,7 +279,8 @@ impl Pace {
 /// Per-cell accumulators of a chunk.
 struct ChunkState<'a> {
     layout: &'a Layout,
-    targets: &'a [f64],
+    /// Joint targets per simulation.
+    targets: &'a [Vec<f64>],
     recorders: Vec<Recorder>,
     frames: Vec<Option<FrameRecorder>>,
 }
@@ -283,7 +295,7 @@ impl ChunkState<'_> {
         let track: f64 = layout
             .act_qpos
             .iter()
-            .zip(self.targets)
+            .zip(&self.targets[sim])
             .map(|(&i, &q)| (q - qpos[i]) * (q - qpos[i]))
             .sum();
         let nu = layout.nu;
@@ -314,7 +326,9 @@ fn run_chunk(
         .collect::<Result<_>>()?;
     let mut batch = physics.start(&setups, cfg.mode, &cfg.schedule.initial, opts.threads)?;
     let layout = physics.layout().clone();
-    let targets = batch.targets().to_vec();
+    let targets: Vec<Vec<f64>> = (0..cells.len())
+        .map(|s| batch.targets(s).to_vec())
+        .collect();
     let schedule = &cfg.schedule;
     let plan = schedule.plan(dt)?;
     let (nsteps, push) = (plan.steps, plan.push);
@@ -423,7 +437,7 @@ fn run_chunk(
                             let (tau, sat) = pd::torque(
                                 s.kp,
                                 s.kd,
-                                targets[a],
+                                targets[alive[pos]][a],
                                 qpos[layout.act_qpos[a]],
                                 qvel[layout.act_dof[a]],
                                 lim[a],

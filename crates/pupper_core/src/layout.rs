@@ -143,6 +143,7 @@ pub(crate) mod tests {
             keyframes: vec![],
             sensors: vec![],
             qpos0: vec![],
+            legs: vec![],
         }
     }
 

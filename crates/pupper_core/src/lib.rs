@@ -17,11 +17,13 @@ pub mod model;
 pub mod output;
 pub mod pd;
 pub mod physics;
+pub mod pose;
 pub mod quat;
 pub mod rundir;
 pub mod schedule;
 pub mod spec;
 pub mod stats;
+pub mod variant;
 
 pub use error::{Error, ErrorKind, Result};
 

@@ -133,6 +133,25 @@ impl ModelSource {
     }
 }
 
+/// One leg's geometry at the default pose, measured on the compiled model
+/// (world frame, m): where its hip flexion and knee joints sit and where its
+/// foot is, with the joints' world axes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LegInfo {
+    /// The leg's first body.
+    pub name: String,
+    /// Indices into `joints`: abduction, hip flexion, knee.
+    pub joints: [usize; 3],
+    pub hip: [f64; 3],
+    pub knee: [f64; 3],
+    pub foot: [f64; 3],
+    pub hip_axis: [f64; 3],
+    pub knee_axis: [f64; 3],
+    pub hip_to_foot: f64,
+    /// First size of the foot geom (a sphere's radius).
+    pub foot_radius: f64,
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JointInfo {
     pub name: String,
@@ -207,6 +226,10 @@ pub struct ModelInfo {
     /// The default pose (MuJoCo's `qpos0`), where a model without keyframes starts.
     #[serde(default)]
     pub qpos0: Vec<f64>,
+    /// Each leg (a chain of three or more hinges below the base ending in a
+    /// colliding foot), measured at the default pose.
+    #[serde(default)]
+    pub legs: Vec<LegInfo>,
 }
 
 impl ModelInfo {

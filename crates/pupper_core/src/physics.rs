@@ -89,8 +89,8 @@ pub trait SimBatch {
     fn is_empty(&self) -> bool {
         self.len() == 0
     }
-    /// The joint targets, in ctrl order.
-    fn targets(&self) -> &[f64];
+    /// Simulation `sim`'s joint targets, in ctrl order.
+    fn targets(&self, sim: usize) -> &[f64];
     /// The current qpos of simulation `sim`.
     fn qpos(&self, sim: usize) -> Result<Vec<f64>>;
     /// Open-loop advance of simulations `ids` (sorted) by `nstep` steps,

@@ -22,6 +22,9 @@ pub enum InitialState {
     /// Joint angles in actuator order (rad), used as both start and target;
     /// the base starts where the first keyframe (or the model default) puts it.
     Pose(Vec<f64>),
+    /// A stand pose searched on each cell's own body (see `pose`), with the
+    /// base at the height that puts the feet just above the floor.
+    Auto,
 }
 
 /// A force on a body, in world coordinates, over a time window.

@@ -16,6 +16,7 @@ use crate::model::ModelSource;
 use crate::physics::Mode;
 use crate::rundir::Existing;
 use crate::schedule::{InitialState, Push, Schedule, SineForce};
+use crate::variant::variant;
 
 /// Where the grid comes from.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -49,6 +50,9 @@ pub struct SweepSpec {
     pub model: String,
     #[serde(skip)]
     pub grid: GridInput,
+    /// A named body (original, long-leg, heavy) for cells whose grid has no
+    /// leg_scale / torso_mass_scale axis.
+    pub variant: String,
     pub mode: Mode,
     /// Simulated seconds per cell.
     pub seconds: f64,
@@ -66,7 +70,7 @@ pub struct SweepSpec {
     pub sine: Option<[f64; 2]>,
     /// Start from this keyframe, or from `pose` when given.
     pub keyframe: String,
-    pub pose: Option<Vec<f64>>,
+    pub pose: Option<PoseInput>,
     /// Keep base-z traces, every `trace_every`-th step.
     pub trace: bool,
     pub trace_every: usize,
@@ -88,6 +92,7 @@ impl Default for SweepSpec {
         SweepSpec {
             model: "pupper_v3".into(),
             grid: GridInput::None,
+            variant: "original".into(),
             mode: Mode::Servo,
             seconds: 10.0,
             kp: 5.0,
@@ -165,7 +170,8 @@ impl SweepSpec {
         let schedule = Schedule {
             duration: self.seconds,
             initial: match &self.pose {
-                Some(p) => InitialState::Pose(p.clone()),
+                Some(PoseInput::Auto(_)) => InitialState::Auto,
+                Some(PoseInput::Angles(p)) => InitialState::Pose(p.clone()),
                 None => InitialState::Keyframe(self.keyframe.clone()),
             },
             push: self.push.then(|| Push {
@@ -187,10 +193,15 @@ impl SweepSpec {
             grid,
             schedule,
             mode: self.mode,
-            defaults: Defaults {
-                kp: self.kp,
-                kd: self.kd,
-                max_torque: self.max_torque,
+            defaults: {
+                let body = variant(&self.variant)?;
+                Defaults {
+                    kp: self.kp,
+                    kd: self.kd,
+                    max_torque: self.max_torque,
+                    leg_scale: body.leg_scale,
+                    torso_mass_scale: body.torso_mass_scale,
+                }
             },
         };
         config.validate()?;
@@ -243,8 +254,26 @@ pub fn parse_mode(text: &str) -> Result<Mode> {
     }
 }
 
-/// Parses `--pose Q1,Q2,...` (radians).
-pub fn parse_pose(text: &str) -> Result<Vec<f64>> {
+/// `--pose`: `auto`, or joint angles.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum PoseInput {
+    Auto(AutoPose),
+    Angles(Vec<f64>),
+}
+
+/// The word `auto`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AutoPose {
+    Auto,
+}
+
+/// Parses `--pose auto` or `--pose Q1,Q2,...` (radians, actuator order).
+pub fn parse_pose(text: &str) -> Result<PoseInput> {
+    if text.trim() == "auto" {
+        return Ok(PoseInput::Auto(AutoPose::Auto));
+    }
     text.split(',')
         .map(|t| {
             t.trim()
@@ -258,7 +287,8 @@ pub fn parse_pose(text: &str) -> Result<Vec<f64>> {
                     ))
                 })
         })
-        .collect()
+        .collect::<Result<Vec<f64>>>()
+        .map(PoseInput::Angles)
 }
 
 /// Parses `--sine AMPLITUDE,FREQUENCY`.
@@ -368,7 +398,11 @@ mod tests {
     fn text_parsers() {
         assert_eq!(parse_sine("2, 1.2").unwrap(), [2.0, 1.2]);
         assert!(parse_sine("2").is_err());
-        assert_eq!(parse_pose("0,0.5,-1").unwrap(), vec![0.0, 0.5, -1.0]);
+        assert_eq!(
+            parse_pose("0,0.5,-1").unwrap(),
+            PoseInput::Angles(vec![0.0, 0.5, -1.0])
+        );
+        assert_eq!(parse_pose("auto").unwrap(), PoseInput::Auto(AutoPose::Auto));
         assert!(parse_pose("0,x").unwrap_err().to_string().contains("'x'"));
         assert_eq!(parse_mode("torque").unwrap(), Mode::Torque);
         assert!(parse_mode("pd").is_err());

@@ -14,13 +14,30 @@ use pupper_core::metrics::Status;
 use pupper_core::model::{ModelInfo, ModelSource};
 use pupper_core::output::{self, Manifest, ModelRecord};
 use pupper_core::physics::{CellSetup, Mode};
+use pupper_core::pose::StandPose;
 use pupper_core::rundir::RunWriter;
 use pupper_core::schedule::InitialState;
 use pupper_core::spec::{GridInput, Sweep, SweepSpec};
+use pupper_core::variant::Variant;
 
 /// What `pupper info` prints.
-pub fn info(source: &ModelSource) -> Result<ModelInfo> {
-    bridge::with_model(source, false, |m| Ok(m.info().clone()))
+pub fn info(source: &ModelSource, variant: &Variant) -> Result<ModelInfo> {
+    let scaled = variant.leg_scale != 1.0 || variant.torso_mass_scale != 1.0;
+    bridge::with_model(source, scaled, |m| {
+        if !scaled {
+            return Ok(m.info().clone());
+        }
+        let body = m.variant(variant.leg_scale, variant.torso_mass_scale)?;
+        let mut info = m.mj.info(source, &body)?;
+        info.name = format!("{} ({})", info.name, variant.name);
+        Ok(info)
+    })
+}
+
+/// `pupper pose`: the stand pose of a model's (variant's) compiled body.
+pub fn pose(source: &ModelSource, variant: &Variant) -> Result<StandPose> {
+    let info = info(source, variant)?;
+    pupper_core::pose::stand_pose(&info, variant.leg_scale)
 }
 
 /// The compiled `MjModel` of a model source, for Python callers.
@@ -140,6 +157,8 @@ fn check_start(info: &ModelInfo, initial: &InitialState) -> Result<Option<String
             info.nu
         ))),
         InitialState::Keyframe(k) => info.start_keyframe(k).map(|(_, note)| note),
+        // a body pupper cannot pose is refused before anything is written
+        InitialState::Auto => pupper_core::pose::stand_pose(info, 1.0).map(|_| None),
         _ => Ok(None),
     }
 }

@@ -28,7 +28,7 @@ fn builtin(name: &str) -> ModelSource {
 #[test]
 fn builtin_models_have_the_expected_sizes() {
     init();
-    let f = api::info(&builtin("pupper_v3")).unwrap();
+    let f = api::info(&builtin("pupper_v3"), &pupper_core::variant::VARIANTS[0]).unwrap();
     assert_eq!((f.nq, f.nv, f.nu, f.nbody), (19, 18, 12, 14));
     assert_eq!(f.joints[0].kind, "free");
     assert_eq!(f.actuators[0].name, "leg_front_r_1");
@@ -39,7 +39,11 @@ fn builtin_models_have_the_expected_sizes() {
     assert_eq!(f.keyframes[0].qpos[2], 0.28);
     assert_eq!(f.sensors.len(), 7);
     assert!((f.total_mass - 3.17).abs() < 1e-9, "{}", f.total_mass);
-    let x = api::info(&builtin("pupper_v3_fixed")).unwrap();
+    let x = api::info(
+        &builtin("pupper_v3_fixed"),
+        &pupper_core::variant::VARIANTS[0],
+    )
+    .unwrap();
     assert_eq!((x.nq, x.nv, x.nu, x.nbody), (12, 12, 12, 14));
 }
 
@@ -133,7 +137,8 @@ fn a_broken_model_is_a_model_error() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("broken.xml");
     std::fs::write(&p, "<mujoco><worldbody><body></mujoco>").unwrap();
-    let e = api::info(&ModelSource::parse(p.to_str().unwrap()).unwrap()).unwrap_err();
+    let source = ModelSource::parse(p.to_str().unwrap()).unwrap();
+    let e = api::info(&source, &pupper_core::variant::VARIANTS[0]).unwrap_err();
     assert_eq!(e.kind(), pupper_core::ErrorKind::Model, "{e}");
     assert!(!e.to_string().contains('\n'), "one line: {e}");
 }

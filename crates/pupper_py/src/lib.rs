@@ -268,10 +268,11 @@ fn out_from(out: Option<&Bound<'_, PyAny>>) -> PyResult<Option<PathBuf>> {
 
 /// Model info (what `pupper info --json` prints), as a dict.
 #[pyfunction]
-#[pyo3(signature = (model=PathBuf::from("pupper_v3")))]
-fn info<'py>(py: Python<'py>, model: PathBuf) -> PyResult<Bound<'py, PyAny>> {
+#[pyo3(signature = (model=PathBuf::from("pupper_v3"), variant="original"))]
+fn info<'py>(py: Python<'py>, model: PathBuf, variant: &str) -> PyResult<Bound<'py, PyAny>> {
     let source = ModelSource::parse(&model.to_string_lossy()).map_err(to_py)?;
-    to_dict(py, &api::info(&source).map_err(to_py)?)
+    let body = pupper_core::variant::variant(variant).map_err(to_py)?;
+    to_dict(py, &api::info(&source, body).map_err(to_py)?)
 }
 
 /// Stand report (what `pupper stand --json` prints), as a dict. Keyword

@@ -57,7 +57,8 @@ pub struct MujocoBatch<'a, 'py> {
     /// Warning counts after the last call, per simulation.
     warned: Vec<i64>,
     off: Offsets,
-    targets: Vec<f64>,
+    /// Joint targets per simulation, in ctrl order.
+    targets: Vec<Vec<f64>>,
     nsim: usize,
     /// Row of the base body in xfrc_applied.
     force_body: usize,
@@ -191,6 +192,8 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
         // initial state and targets
         let (key, pose) = match initial {
             InitialState::Keyframe(name) => (info.start_keyframe(name)?.0, None),
+            // base x, y and orientation as the first keyframe (or qpos0) has them
+            InitialState::Auto => (info.keyframes.first().map(|_| 0), None),
             InitialState::Pose(p) => {
                 if p.len() != info.nu {
                     return Err(Error::Config(format!(
@@ -208,37 +211,51 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
             .internal()?;
         kw.set_item("stage", 0).internal()?;
         batch.call_method("reset", (), Some(&kw)).internal()?;
-        let targets = match (&pose, key) {
-            (Some(p), _) => p.clone(),
-            (None, Some(k)) => {
+        // each simulation's start: joint angles (also its targets), base height
+        let starts: Vec<(Vec<f64>, Option<f64>)> = match (initial, &pose, key) {
+            (InitialState::Auto, _, _) => cells
+                .iter()
+                .map(|c| {
+                    let p = owner.stand_pose(c.leg_scale, c.torso_mass_scale)?;
+                    Ok((p.targets, Some(p.base_z)))
+                })
+                .collect::<Result<_>>()?,
+            (_, Some(p), _) => vec![(p.clone(), None); n],
+            (_, None, Some(k)) => {
                 let kf = &info.keyframes[k];
-                if kf.ctrl.len() == info.nu {
+                let t = if kf.ctrl.len() == info.nu {
                     kf.ctrl.clone()
                 } else {
                     layout.joint_targets(&kf.qpos)
-                }
+                };
+                vec![(t, None); n]
             }
-            (None, None) => layout.joint_targets(&info.qpos0),
+            (_, None, None) => vec![(layout.joint_targets(&info.qpos0), None); n],
         };
+        let set_joints = pose.is_some() || *initial == InitialState::Auto;
         {
             let mut s = state.readwrite();
             let rows = s
                 .as_slice_mut()
                 .map_err(|e| Error::Internal(e.to_string()))?;
-            for i in 0..n {
+            for (i, (targets, base_z)) in starts.iter().enumerate() {
                 let row = &mut rows[i * off.nstate..(i + 1) * off.nstate];
-                if let Some(p) = &pose {
-                    for (a, &q) in p.iter().enumerate() {
+                if set_joints {
+                    for (a, &q) in targets.iter().enumerate() {
                         row[off.qpos + layout.act_qpos[a]] = q;
                     }
                 }
+                if let Some(z) = base_z {
+                    row[off.qpos + layout.base.z()] = *z;
+                }
                 let ctrl = &mut row[off.ctrl..off.ctrl + info.nu];
                 match mode {
-                    Mode::Servo => ctrl.copy_from_slice(&targets),
+                    Mode::Servo => ctrl.copy_from_slice(targets),
                     Mode::Torque => ctrl.fill(0.0),
                 }
             }
         }
+        let targets: Vec<Vec<f64>> = starts.into_iter().map(|(t, _)| t).collect();
         let warned = vec![0; n];
         let mut me = MujocoBatch {
             owner,
@@ -385,8 +402,8 @@ impl SimBatch for MujocoBatch<'_, '_> {
         self.nsim
     }
 
-    fn targets(&self) -> &[f64] {
-        &self.targets
+    fn targets(&self, sim: usize) -> &[f64] {
+        &self.targets[sim]
     }
 
     fn qpos(&self, sim: usize) -> Result<Vec<f64>> {

@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 use super::python::{Mujoco, PyResultExt};
 use pupper_core::error::Result;
 use pupper_core::model::{
-    ActuatorInfo, JointInfo, KeyframeInfo, ModelInfo, ModelSource, SensorInfo,
+    ActuatorInfo, JointInfo, KeyframeInfo, LegInfo, ModelInfo, ModelSource, SensorInfo,
 };
 
 impl<'py> Mujoco<'py> {
@@ -133,6 +133,7 @@ impl<'py> Mujoco<'py> {
             Ok(n) if !n.is_empty() => n,
             _ => source.display(),
         };
+        let legs = self.legs(model, &bodies, &jtype).internal()?;
         Ok(ModelInfo {
             name,
             source: source.display(),
@@ -153,6 +154,89 @@ impl<'py> Mujoco<'py> {
                 .and_then(|q| q.call_method0("tolist"))
                 .and_then(|q| q.extract())
                 .internal()?,
+            legs,
         })
+    }
+
+    /// The legs of a model at its default pose: below the base (body 1),
+    /// each child chain with three or more hinges and a colliding geom in
+    /// its last body. Positions come from `mj_kinematics`, so they are those
+    /// of the compiled (possibly scaled) body.
+    fn legs(
+        &self,
+        model: &Bound<'py, PyAny>,
+        bodies: &[String],
+        jtype: &[i64],
+    ) -> PyResult<Vec<LegInfo>> {
+        let get =
+            |n: &str| -> PyResult<Bound<'py, PyAny>> { model.getattr(n)?.call_method0("tolist") };
+        let parent: Vec<usize> = get("body_parentid")?.extract()?;
+        let jbody: Vec<usize> = get("jnt_bodyid")?.extract()?;
+        let (gbody, ctype, caff): (Vec<usize>, Vec<i64>, Vec<i64>) = (
+            get("geom_bodyid")?.extract()?,
+            get("geom_contype")?.extract()?,
+            get("geom_conaffinity")?.extract()?,
+        );
+        let data = self.module.getattr("MjData")?.call1((model,))?;
+        self.module
+            .getattr("mj_kinematics")?
+            .call1((model, &data))?;
+        let rows = |n: &str| -> PyResult<Vec<[f64; 3]>> {
+            data.getattr(n)?.call_method0("tolist")?.extract()
+        };
+        let (anchor, axis, gpos) = (rows("xanchor")?, rows("xaxis")?, rows("geom_xpos")?);
+        let gsize: Vec<[f64; 3]> = get("geom_size")?.extract()?;
+        let nbody = parent.len();
+        let children =
+            |b: usize| -> Vec<usize> { (1..nbody).filter(|&c| parent[c] == b).collect() };
+        let mut legs = Vec::new();
+        for first in children(1) {
+            let mut hinges: Vec<usize> = Vec::new();
+            let mut b = first;
+            loop {
+                // mjJNT_HINGE is 3
+                hinges.extend((0..jbody.len()).filter(|&j| jbody[j] == b && jtype[j] == 3));
+                match children(b)[..] {
+                    [only] => b = only,
+                    _ => break,
+                }
+            }
+            let foot = (0..gbody.len()).find(|&g| gbody[g] == b && (ctype[g] != 0 || caff[g] != 0));
+            let (Some(foot_geom), true) = (foot, hinges.len() >= 3) else {
+                continue;
+            };
+            // By their axes, not their order: abduction turns about the
+            // body's forward (x) axis, hip flexion and knee about its side (y).
+            let Some(haa) = hinges
+                .iter()
+                .copied()
+                .max_by(|&a, &c| axis[a][0].abs().total_cmp(&axis[c][0].abs()))
+            else {
+                continue;
+            };
+            let pitch: Vec<usize> = hinges
+                .iter()
+                .copied()
+                .filter(|&j| j != haa && axis[j][1].abs() > 0.9)
+                .collect();
+            let [hfe, kfe, ..] = pitch[..] else { continue };
+            let (hip, knee, foot) = (anchor[hfe], anchor[kfe], gpos[foot_geom]);
+            let d: f64 = (0..3)
+                .map(|i| (foot[i] - hip[i]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            legs.push(LegInfo {
+                name: bodies[first].clone(),
+                joints: [haa, hfe, kfe],
+                hip,
+                knee,
+                foot,
+                hip_axis: axis[hfe],
+                knee_axis: axis[kfe],
+                hip_to_foot: d,
+                foot_radius: gsize[foot_geom][0],
+            });
+        }
+        Ok(legs)
     }
 }

@@ -10,6 +10,7 @@ use super::python::{Mujoco, PyResultExt, python_message};
 use pupper_core::error::{Error, Result};
 use pupper_core::layout::Layout;
 use pupper_core::model::{Builtin, ModelInfo, ModelSource};
+use pupper_core::pose::StandPose;
 
 impl<'py> Mujoco<'py> {
     /// Parses the model's MJCF into an `MjSpec`.
@@ -137,6 +138,13 @@ impl<'py> LoadedModel<'py> {
     /// The `MjModel` object, for Python callers (rendering, viewers).
     pub fn model(&self) -> &Bound<'py, PyAny> {
         &self.model
+    }
+
+    /// The stand pose of a body variant, searched on its compiled geometry.
+    pub fn stand_pose(&self, leg_scale: f64, torso_mass_scale: f64) -> Result<StandPose> {
+        let body = self.variant(leg_scale, torso_mass_scale)?;
+        let info = self.mj.info(&self.source, &body)?;
+        pupper_core::pose::stand_pose(&info, leg_scale)
     }
 
     /// A model with scaled legs and torso, compiled from an edited spec.

@@ -1,0 +1,306 @@
+//! A stand pose for any leg geometry: the chapter's planar two-link grid
+//! search, run on the hip, knee and foot positions measured on the compiled
+//! body (so a long-leg variant gets its own pose).
+//!
+//! Abduction stays at 0; hip flexion (HFE) and knee (KFE) are searched on a
+//! grid inside every leg's joint range, rotating the leg's measured thigh
+//! and calf vectors about the joints' real axes. The score is the chapter's:
+//! `(z - target)^2 + 0.25 x^2 + 0.002 (HFE - 0.70)^2`, with the foot at
+//! `(x, z)` from the hip and `target = -0.14 clamp(leg_scale, 1, 1.5)` m.
+//! Angles are searched in the first leg's convention (Pupper: the right
+//! legs', as the chapter's table is written) and mirrored onto each leg by
+//! the direction of its own joint axes.
+
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+use crate::model::{LegInfo, ModelInfo};
+
+/// Grid spacing of the search (rad).
+const STEP: f64 = 0.005;
+/// Gap left between the lowest foot and the floor at the start (m).
+const CLEARANCE: f64 = 0.002;
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StandPose {
+    /// Joint targets in actuator order (also the start pose).
+    pub targets: Vec<f64>,
+    /// Base height that puts the lowest foot `CLEARANCE` above z = 0 (m).
+    pub base_z: f64,
+    /// HFE and KFE in the first leg's convention (rad).
+    pub hfe: f64,
+    pub kfe: f64,
+    /// Foot height below the hip that was aimed at (m, negative).
+    pub target_z: f64,
+    /// Each leg's foot position relative to its hip at the pose: (x, z) m.
+    pub feet: Vec<(String, f64, f64)>,
+}
+
+type V3 = [f64; 3];
+
+fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// `v` rotated by `angle` about the unit axis `u` (Rodrigues).
+fn rotate(v: V3, u: V3, angle: f64) -> V3 {
+    let (s, c) = angle.sin_cos();
+    let cross = [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ];
+    let k = dot(u, v) * (1.0 - c);
+    [
+        v[0] * c + cross[0] * s + u[0] * k,
+        v[1] * c + cross[1] * s + u[1] * k,
+        v[2] * c + cross[2] * s + u[2] * k,
+    ]
+}
+
+/// The foot relative to the hip with HFE `h` and KFE `k` on this leg's joints.
+fn foot(leg: &LegInfo, h: f64, k: f64) -> V3 {
+    let thigh = sub(leg.knee, leg.hip);
+    let calf = sub(leg.foot, leg.knee);
+    // the knee joint turns with the thigh: rotate the calf about the knee
+    // axis first, then both about the hip axis
+    let calf = rotate(calf, leg.knee_axis, k);
+    rotate(add(thigh, calf), leg.hip_axis, h)
+}
+
+/// +1 or -1: whether `leg`'s joint turns the same way as the reference's.
+fn sense(axis: V3, reference: V3) -> f64 {
+    if dot(axis, reference) >= 0.0 {
+        1.0
+    } else {
+        -1.0
+    }
+}
+
+/// A range in the reference convention, given a joint's range and sense.
+fn in_reference(range: Option<[f64; 2]>, s: f64) -> [f64; 2] {
+    let [lo, hi] = range.unwrap_or([-std::f64::consts::PI, std::f64::consts::PI]);
+    if s > 0.0 { [lo, hi] } else { [-hi, -lo] }
+}
+
+/// The stand pose of a compiled body; `leg_scale` sets the target height.
+pub fn stand_pose(info: &ModelInfo, leg_scale: f64) -> Result<StandPose> {
+    let Some(first) = info.legs.first() else {
+        return Err(Error::Model(format!(
+            "model '{}' has no legs pupper can pose (a chain of abduction, hip and knee hinges under the base ending in a colliding foot): give --pose angles instead of auto",
+            info.name
+        )));
+    };
+    let (ref_hip, ref_knee) = (first.hip_axis, first.knee_axis);
+    let mut hr = [f64::NEG_INFINITY, f64::INFINITY];
+    let mut kr = hr;
+    for leg in &info.legs {
+        let h = in_reference(
+            info.joints[leg.joints[1]].range,
+            sense(leg.hip_axis, ref_hip),
+        );
+        let k = in_reference(
+            info.joints[leg.joints[2]].range,
+            sense(leg.knee_axis, ref_knee),
+        );
+        hr = [hr[0].max(h[0]), hr[1].min(h[1])];
+        kr = [kr[0].max(k[0]), kr[1].min(k[1])];
+    }
+    if !(hr[0] <= hr[1] && kr[0] <= kr[1]) {
+        return Err(Error::Model(format!(
+            "the legs of model '{}' share no hip or knee angle inside all their joint ranges: give --pose angles instead of auto",
+            info.name
+        )));
+    }
+    let target_z = -0.14 * leg_scale.clamp(1.0, 1.5);
+    let steps = |r: [f64; 2]| ((r[1] - r[0]) / STEP).floor() as usize + 1;
+    let (nh, nk) = (steps(hr), steps(kr));
+    let mut best = (f64::INFINITY, 0.0, 0.0);
+    for i in 0..nh {
+        let h = hr[0] + i as f64 * STEP;
+        for j in 0..nk {
+            let k = kr[0] + j as f64 * STEP;
+            let p = foot(first, h, k);
+            let score = (p[2] - target_z).powi(2) + 0.25 * p[0] * p[0] + 0.002 * (h - 0.70).powi(2);
+            if score < best.0 {
+                best = (score, h, k);
+            }
+        }
+    }
+    let (_, hfe, kfe) = best;
+    let mut targets: Vec<f64> = info
+        .actuators
+        .iter()
+        .map(|a| a.joint.map_or(0.0, |j| qpos0_of(info, j)))
+        .collect();
+    let mut feet = Vec::with_capacity(info.legs.len());
+    let mut lowest = f64::INFINITY;
+    for leg in &info.legs {
+        let (sh, sk) = (sense(leg.hip_axis, ref_hip), sense(leg.knee_axis, ref_knee));
+        for (a, act) in info.actuators.iter().enumerate() {
+            match act.joint {
+                Some(j) if j == leg.joints[0] => targets[a] = 0.0,
+                Some(j) if j == leg.joints[1] => targets[a] = sh * hfe,
+                Some(j) if j == leg.joints[2] => targets[a] = sk * kfe,
+                _ => {}
+            }
+        }
+        let p = foot(leg, sh * hfe, sk * kfe);
+        lowest = lowest.min(leg.hip[2] + p[2] - leg.foot_radius);
+        feet.push((leg.name.clone(), p[0], p[2]));
+    }
+    let base_z0 = info
+        .joints
+        .iter()
+        .find(|j| j.kind == "free")
+        .map_or(0.0, |j| {
+            info.qpos0.get(j.qpos_adr + 2).copied().unwrap_or(0.0)
+        });
+    Ok(StandPose {
+        targets,
+        base_z: base_z0 + CLEARANCE - lowest,
+        hfe,
+        kfe,
+        target_z,
+        feet,
+    })
+}
+
+fn qpos0_of(info: &ModelInfo, joint: usize) -> f64 {
+    info.qpos0
+        .get(info.joints[joint].qpos_adr)
+        .copied()
+        .unwrap_or(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{ActuatorInfo, JointInfo};
+
+    /// Two mirrored legs: thigh 0.1 m straight down, calf 0.1 m straight
+    /// down, right leg axes -y, left +y; hip 0.2 m above the base origin.
+    fn biped() -> ModelInfo {
+        let mut joints = vec![JointInfo {
+            name: "root".into(),
+            kind: "free".into(),
+            qpos_adr: 0,
+            dof_adr: 0,
+            range: None,
+            body: 1,
+        }];
+        let mut actuators = Vec::new();
+        let mut legs = Vec::new();
+        for (side, y) in [("r", -1.0), ("l", 1.0)] {
+            let base = joints.len();
+            for (n, range) in [
+                ("haa", [-1.0, 1.0]),
+                ("hfe", [-3.0, 3.0]),
+                ("kfe", [-3.0, 3.0]),
+            ] {
+                let adr = 7 + joints.len() - 1;
+                joints.push(JointInfo {
+                    name: format!("{n}_{side}"),
+                    kind: "hinge".into(),
+                    qpos_adr: adr,
+                    dof_adr: adr - 1,
+                    range: Some(range),
+                    body: joints.len() + 1,
+                });
+                actuators.push(ActuatorInfo {
+                    name: format!("{n}_{side}"),
+                    joint: Some(joints.len() - 1),
+                    gainprm: [1.0, 0.0, 0.0],
+                    biasprm: [0.0; 3],
+                    forcerange: Some([-3.0, 3.0]),
+                    ctrlrange: None,
+                    gear: 1.0,
+                });
+            }
+            legs.push(LegInfo {
+                name: format!("leg_{side}"),
+                joints: [base, base + 1, base + 2],
+                hip: [0.0, 0.1 * y, 0.3],
+                knee: [0.0, 0.1 * y, 0.2],
+                foot: [0.0, 0.1 * y, 0.1],
+                hip_axis: [0.0, y, 0.0],
+                knee_axis: [0.0, y, 0.0],
+                hip_to_foot: 0.2,
+                foot_radius: 0.01,
+            });
+        }
+        let mut qpos0 = vec![0.0; 13];
+        qpos0[2] = 0.1;
+        ModelInfo {
+            name: "biped".into(),
+            source: "test".into(),
+            sha256: String::new(),
+            nq: 13,
+            nv: 12,
+            nu: actuators.len(),
+            nbody: 8,
+            timestep: 0.002,
+            total_mass: 1.0,
+            bodies: vec![],
+            joints,
+            actuators,
+            keyframes: vec![],
+            sensors: vec![],
+            qpos0,
+            legs,
+        }
+    }
+
+    #[test]
+    fn feet_reach_the_target_and_left_mirrors_right() {
+        let info = biped();
+        let p = stand_pose(&info, 1.0).unwrap();
+        assert_eq!(p.target_z, -0.14);
+        for (_, x, z) in &p.feet {
+            assert!((z - -0.14).abs() < 0.005, "{z}");
+            assert!(x.abs() < 0.01, "{x}");
+        }
+        // right (axes -y) and left (+y) get opposite angles, abduction 0
+        assert_eq!(p.targets[0], 0.0);
+        assert_eq!(p.targets[1], -p.targets[4]);
+        assert_eq!(p.targets[2], -p.targets[5]);
+        assert!(p.kfe.abs() > 0.5, "the knee bends: {p:?}");
+        // lowest foot 2 mm above the floor: hip at 0.3 - 0.1 + base_z
+        let foot_bottom = 0.3 - 0.1 + p.base_z - 0.14 - 0.01;
+        assert!((foot_bottom - CLEARANCE).abs() < 0.006, "{foot_bottom}");
+    }
+
+    #[test]
+    fn longer_legs_aim_lower_up_to_one_and_a_half() {
+        let info = biped();
+        assert!((stand_pose(&info, 1.5).unwrap().target_z - -0.21).abs() < 1e-12);
+        assert!((stand_pose(&info, 3.0).unwrap().target_z - -0.21).abs() < 1e-12);
+        assert!((stand_pose(&info, 0.5).unwrap().target_z - -0.14).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_model_without_legs_is_named() {
+        let mut info = biped();
+        info.legs.clear();
+        let e = stand_pose(&info, 1.0).unwrap_err().to_string();
+        assert!(e.contains("no legs") && e.contains("--pose"), "{e}");
+    }
+
+    #[test]
+    fn rotation_about_an_axis() {
+        let v = rotate(
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            std::f64::consts::FRAC_PI_2,
+        );
+        assert!((v[0]).abs() < 1e-12 && (v[2] + 1.0).abs() < 1e-12, "{v:?}");
+    }
+}
