@@ -32,6 +32,7 @@ wheel: setup
 
 bench: setup
 	$(PY) benches/bench_sweep.py
+	$(PY) benches/bench_lab.py
 
 lint:
 	cargo fmt --all -- --check

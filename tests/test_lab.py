@@ -78,3 +78,66 @@ def test_auto_pose_makes_every_body_stand(run, tmp_path):
     assert z[("1.5", "1")] > z[("1", "1")] + 0.04
     rep = pc.stand(variant="long-leg", pose="auto", mode="torque", kp=60, kd=1, seconds=3)
     assert rep["status"] == "ok" and rep["final_z"] == pytest.approx(z[("1.5", "1")], abs=0.01)
+
+
+@pytest.fixture(scope="module")
+def lab_run(pupper_bin, tmp_path_factory):
+    import subprocess
+
+    from conftest import clean_env
+
+    d = tmp_path_factory.mktemp("lab")
+    p = subprocess.run([str(pupper_bin), "lab", "-o", str(d / "run"), "-q"], cwd=d,
+                       env=clean_env(MUJOCO_GL="egl"), capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    return d / "run", p
+
+
+def test_lab_prints_a_line_per_body_and_writes_its_artifacts(lab_run):
+    out, p = lab_run
+    lines = p.stdout.strip().splitlines()
+    assert [ln.split()[0] for ln in lines] == ["original", "long-leg", "heavy"], p.stdout
+    for ln in lines:
+        std = float(ln.split("z_std=")[1].split()[0])
+        assert std < 0.1, ln
+        assert "Kp=" in ln and "Kd=" in ln and " z=" in ln
+    _, rows = read_csv(out / "summary.csv")
+    assert len(rows) == 48 and {r["variant"] for r in rows} == {"original", "long-leg", "heavy"}
+    best = read_csv(out / "best.csv")[1]
+    assert [b["variant"] for b in best] == ["original", "long-leg", "heavy"]
+    plots = {f.name for f in (out / "plots").iterdir()}
+    assert {"lab_heatmaps.png", "lab_best_base_z.png"} <= plots, plots
+    from PIL import Image
+
+    for name in ("lab_heatmaps.png", "lab_best_base_z.png"):
+        with Image.open(out / "plots" / name) as im:
+            assert im.width > 600 and np.asarray(im.convert("L")).std() > 5
+    # all bodies in one batch run
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["batches"] == 1 and m["complete"] is True
+
+
+def test_lab_renders_the_bodies_at_their_best_gains(lab_run):
+    if pc.render.gl_available() is not None:
+        pytest.skip("no OpenGL here")
+    out, _ = lab_run
+    frames = read_csv(out / "plots" / "lab_best.csv")[1]
+    best = read_csv(out / "best.csv")[1]
+    assert sorted({f["id"] for f in frames}) == sorted(b["id"] for b in best)
+    assert (out / "plots" / "lab_best.png").exists()
+
+
+def test_stiffer_gains_beat_a_soft_cell(run, tmp_path):
+    run("lab", "--variants", "original", "--grid", "kp=5,10,30,60,120", "--grid", "kd=0.5,1,2,5",
+        "-o", tmp_path / "run", "-q", check=0)
+    res = pc.load_run(tmp_path / "run")
+    best = res.best("last_1s_std_mm", by=["variant"])[0]
+    assert best["kp"] >= 30, best
+    soft = [i for i in range(len(res)) if res["kp"][i] == 5 and res["kd"][i] == 1][0]
+    assert not (res["last_1s_std_mm"][soft] <= best["last_1s_std_mm"]), (res.row(soft), best)
+
+
+def test_lab_bad_input_is_one_line_and_no_directory(run, tmp_path):
+    p = run("lab", "--variants", "original,tall", "-o", tmp_path / "x", check=2)
+    assert p.stderr.count("\n") == 1 and "'tall'" in p.stderr
+    assert not (tmp_path / "x").exists()

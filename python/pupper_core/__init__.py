@@ -59,6 +59,7 @@ __all__ = [
     "StandReport",
     "SweepResult",
     "info",
+    "lab",
     "load_run",
     "stand",
     "sweep",
@@ -184,6 +185,42 @@ def sweep(
     """
     callback = _progress_printer() if progress is True else (progress or None)
     return _native.sweep(grid, preset=preset, out=out, progress=callback, **_options(options))
+
+
+def lab(
+    variants: Sequence[Variant] | None = None,
+    grid: Sequence[str] | None = None,
+    *,
+    out: str | os.PathLike[str] | None = None,
+    render: bool = False,
+    progress: bool | Callable[[int, int], None] = True,
+    **options: Any,
+) -> SweepResult:
+    """The chapter's lab, as `pupper lab` runs it: every body (default
+    original, long-leg, heavy) from a stand pose searched on its own body,
+    Kp 10,30,60,120 x Kd 0.5,1,2,5 (or `grid`, CLI strings) in torque mode
+    under a 2 N, 1.2 Hz vertical sine force, 6 s, no push, in one batch.
+
+    `res.best("last_1s_std_mm", by=["variant"])` gives each body's steadiest
+    gains. With `out`, the run directory also gets best.csv, the lab's
+    figures and (where OpenGL works) the bodies drawn at their best gains;
+    `render=True` adds the GIF. Other keywords: seconds, sine, model,
+    force, resume, threads, max_saturation (defaults as `pupper lab --help`).
+    """
+    callback = _progress_printer() if progress is True else (progress or None)
+    res = _native.lab(list(variants) if variants is not None else None,
+                      list(grid) if grid is not None else None,
+                      out=out, progress=callback, **options)
+    if res.out is not None:
+        from pupper_core import plots, render as draw
+
+        plots.write_lab_plots(res.out)
+        try:
+            draw.write_lab_effects(res.out, gif=render)
+        except draw.RenderUnavailable:
+            if render:
+                raise
+    return res
 
 
 def load_run(run_dir: str | os.PathLike[str]) -> SweepResult:

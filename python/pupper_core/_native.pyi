@@ -141,6 +141,22 @@ def sweep(
 ) -> SweepResult:
     """Runs a sweep; its table as a `SweepResult`."""
 
+def lab(
+    variants: Sequence[str] | None = ...,
+    grid: Sequence[str] | None = ...,
+    *,
+    seconds: float = ...,
+    sine: Sequence[float] = ...,
+    model: str = ...,
+    out: str | PathLike[str] | None = ...,
+    force: bool = ...,
+    resume: bool = ...,
+    threads: int = ...,
+    max_saturation: float = ...,
+    progress: Callable[[int, int], object] | None = ...,
+) -> SweepResult:
+    """The chapter's lab; best.csv in `out`. Plots and rendering are the wrapper's."""
+
 def load_run(run_dir: str) -> SweepResult:
     """A run directory read back, its rows checked against its manifest."""
 

@@ -136,7 +136,7 @@ class Recording(TypedDict):
     index: int
     id: str
     name: str
-    values: dict[str, float]
+    values: dict[str, float | str]
     """The cell's grid values by axis name."""
     setup: RecordedSetup
     status: Literal["ok", "fell", "diverged"]

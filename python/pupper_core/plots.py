@@ -34,6 +34,8 @@ Traces = Mapping[str, tuple[np.ndarray, np.ndarray]]
 
 #: Columns of summary.csv that are text, not numbers.
 TEXT_COLUMNS = ("id", "name", "status")
+#: Axis columns holding names: plotted by their position in the grid.
+NAMED_AXES = ("variant",)
 #: The first metric column of summary.csv: the grid axes come before it.
 FIRST_METRIC = "final_z"
 #: Human labels with units.
@@ -638,7 +640,8 @@ def read_run(run_dir: str | os.PathLike) -> tuple[dict[str, Any], dict[str, Any]
     """Reads ``summary.csv``, ``manifest.json`` and (if present) ``traces.csv``.
 
     Returns ``(table, manifest, traces)``: numeric columns as float arrays
-    (empty field = NaN; ``index`` int64, as in ``SweepResult.table``),
+    (empty field = NaN; ``index`` int64, as in ``SweepResult.table``; a
+    ``variant`` column as 0, 1, ... in order of appearance),
     ``id``/``name``/``status`` as lists of str; traces
     id -> (t, z) arrays in file order ({} when there is no traces.csv).
     """
@@ -659,6 +662,9 @@ def read_run(run_dir: str | os.PathLike) -> tuple[dict[str, Any], dict[str, Any]
             table[name] = col
         elif name == "index":  # as in SweepResult.table
             table[name] = np.array([int(v) for v in col], dtype=np.int64)
+        elif name in NAMED_AXES:  # a body's name: its position in the grid's list
+            names = list(dict.fromkeys(col))
+            table[name] = np.array([float(names.index(v)) for v in col], dtype=float)
         else:
             table[name] = np.array([float(v) if v.strip() else np.nan for v in col], dtype=float)
     manifest: dict[str, Any] = {}
@@ -720,7 +726,10 @@ def describe(manifest: Mapping[str, Any], n_cells: int | None = None) -> str:
         parts.append(f"{float(sched['duration']):g} s simulated")
     defaults = cfg.get("defaults") or {}
     if defaults:
-        parts.append("defaults " + ", ".join(f"{SHORT.get(k, k)} {_fmt(v)}" for k, v in defaults.items()))
+        # only what was set: no torque limit means the model's own, scales of 1 the model's body
+        shown = {k: v for k, v in defaults.items()
+                 if v is not None and not (k in ("leg_scale", "torso_mass_scale") and v == 1)}
+        parts.append("defaults " + ", ".join(f"{SHORT.get(k, k)} {_fmt(v)}" for k, v in shown.items()))
     if n_cells is not None:
         parts.append(f"{n_cells} cells")
     return " · ".join(parts)
@@ -814,4 +823,76 @@ def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
         else:
             fig = bars(table, metric, title="")
             finish(fig, f"bars_{metric}.png", label_of(metric) + "  (red outline = lowest)")
+    return written
+
+
+def lab_heatmaps(
+    bodies: Sequence[str],
+    kp: Sequence[float],
+    kd: Sequence[float],
+    values: Mapping[str, np.ndarray],
+    best: Mapping[str, tuple[float, float] | None],
+    metric: str = "last_1s_std_mm",
+) -> "Figure":
+    """One Kp × Kd heatmap per body on one shared (log) colour scale, the
+    body's best cell starred. ``values[body]`` is a (len(kd), len(kp)) array,
+    NaN where the cell fell, diverged or saturated."""
+    from matplotlib.colors import LogNorm
+
+    with _style():
+        fig = _new_figure((4.2 * len(bodies) + 1.2, 4.2))
+        axes = fig.subplots(1, len(bodies), squeeze=False)[0]
+        finite = np.concatenate([v[np.isfinite(v) & (v > 0)] for v in values.values()] or [np.array([1.0])])
+        lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (1e-3, 1.0)
+        norm = LogNorm(vmin=lo, vmax=max(hi, lo * 1.0001))
+        image = None
+        for ax, body in zip(axes, bodies):
+            v = np.ma.masked_invalid(values[body])
+            image = ax.imshow(v, origin="lower", cmap="viridis", norm=norm, aspect="auto")
+            ax.set_xticks(range(len(kp)), [f"{x:g}" for x in kp])
+            ax.set_yticks(range(len(kd)), [f"{x:g}" for x in kd])
+            ax.set_xlabel("Kp (N·m/rad)")
+            ax.set_title(body)
+            b = best.get(body)
+            if b is not None:
+                ax.plot([list(kp).index(b[0])], [list(kd).index(b[1])], marker="*", color="white",
+                        markersize=16, markeredgecolor="black")
+        axes[0].set_ylabel("Kd (N·m·s/rad)")
+        if image is not None:
+            fig.colorbar(image, ax=list(axes), label=f"{LABELS.get(metric, metric)} (log)")
+        return fig
+
+
+def write_lab_plots(run_dir: str | os.PathLike) -> list[Path]:
+    """`pupper lab`'s figures in ``<run_dir>/plots/``: ``lab_heatmaps.png``
+    (Kp × Kd per body, shared colour scale, best starred; blank where a
+    cell fell or diverged) and ``lab_best_base_z.png`` (each body's
+    base height at its best gains). Reads summary.csv, best.csv, traces.csv."""
+    d = Path(run_dir)
+    with open(d / "summary.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    with open(d / "best.csv", newline="") as f:
+        best_rows = list(csv.DictReader(f))
+    _, manifest, traces = read_run(d)
+    bodies = list(dict.fromkeys(r["variant"] for r in rows))
+    kp = sorted({float(r["kp"]) for r in rows})
+    kd = sorted({float(r["kd"]) for r in rows})
+    values: dict[str, np.ndarray] = {b: np.full((len(kd), len(kp)), np.nan) for b in bodies}
+    for r in rows:
+        if r["status"] == "ok" and r["last_1s_std_mm"]:
+            values[r["variant"]][kd.index(float(r["kd"])), kp.index(float(r["kp"]))] = float(r["last_1s_std_mm"])
+    best: dict[str, tuple[float, float] | None] = {}
+    for b in best_rows:
+        best[b["variant"]] = (float(b["kp"]), float(b["kd"])) if b["id"] else None
+    out = d / "plots"
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    fig = lab_heatmaps(bodies, kp, kd, values, best)
+    fig.suptitle(f"Last-second base-z std per body\n{describe(manifest, len(rows))}", fontsize=11)
+    written.append(_save(fig, out / "lab_heatmaps.png"))
+    chosen = {b["id"]: f"{b['variant']}: Kp {float(b['kp']):g}, Kd {float(b['kd']):g}" for b in best_rows if b["id"]}
+    picked = {cid: traces[cid] for cid in chosen if cid in traces}
+    if picked:
+        fig = base_z(picked, push=None, labels=chosen, title="Base height at each body's best gains")
+        written.append(_save(fig, out / "lab_best_base_z.png"))
     return written

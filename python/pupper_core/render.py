@@ -575,7 +575,8 @@ def _labels(rec: "Recording") -> tuple[str, str]:
     """A panel's title (the cell's name) and its parameter line."""
     setup = rec["setup"]
     params = f"Kp {setup['kp']:g}  Kd {setup['kd']:g}"
-    extras = [f"{axis} {value:g}" for axis, value in rec["values"].items() if axis not in ("kp", "kd")]
+    extras = [value if isinstance(value, str) else f"{axis} {value:g}"
+              for axis, value in rec["values"].items() if axis not in ("kp", "kd")]
     if extras:
         params += "  " + "  ".join(extras)
     return rec["name"], params
@@ -597,12 +598,14 @@ def write_effects(
     stem: str = "gain_sweep_effects",
     camera: str | int | None = "tracking_cam",
     shadows: bool = True,
-) -> tuple[Path, Path, Path]:
+    gif: bool = True,
+) -> tuple[Path, Path | None, Path]:
     """Draws recordings side by side: ``<stem>.png`` (final frames),
-    ``<stem>.gif`` (synchronized panels at the recordings' frame rate) and
-    ``<stem>.csv`` (id, frame, time, base z and push of every frame drawn).
+    ``<stem>.gif`` (synchronized panels at the recordings' frame rate;
+    ``gif=False`` skips it) and ``<stem>.csv`` (id, frame, time, base z and
+    push of every frame drawn).
 
-    Returns ``(png_path, gif_path, csv_path)``.
+    Returns ``(png_path, gif_path or None, csv_path)``.
     """
     import csv
 
@@ -628,7 +631,7 @@ def write_effects(
         pushing = bool(rec["pushing"][k]) and not final
         return _panel(dr.frames[k], title, params, t, pushing, _push_text(rec), status, fonts, header_h)
 
-    nframes = min(len(d.frames) for d in drawn)
+    nframes = min(len(d.frames) for d in drawn) if gif else 0
     gif_frames = [_compose([panel(i, k, False) for i in range(len(drawn))]) for k in range(nframes)]
     finals = [panel(i, len(d.frames) - 1, True) for i, d in enumerate(drawn)]
     out = Path(out_dir)
@@ -638,7 +641,8 @@ def write_effects(
     csv_path = out / f"{stem}.csv"
     _atomic_save(_compose(finals), png_path, "PNG")
     fps = _fps_of(recordings[0])
-    _atomic_save(_shared_palette(gif_frames), gif_path, "GIF", duration=int(round(1000 / fps)), loop=0)
+    if gif:
+        _atomic_save(_shared_palette(gif_frames), gif_path, "GIF", duration=int(round(1000 / fps)), loop=0)
 
     def table(tmp: Path) -> None:
         with open(tmp, "w", newline="") as f:
@@ -649,7 +653,7 @@ def write_effects(
                     w.writerow([rec["id"], k, repr(float(rec["times"][k])), repr(z), int(bool(rec["pushing"][k]))])
 
     _atomic_write(csv_path, table)
-    return png_path, gif_path, csv_path
+    return png_path, (gif_path if gif else None), csv_path
 
 
 def render_png(
@@ -705,7 +709,24 @@ def write_run_effects(run_dir: str | os.PathLike[str], max_cells: int = 6, fps: 
                 picks[-1] = best
                 picks.sort()
     recs = record_run(run, [int(rows[i]["index"]) for i in picks], fps=fps)
-    return list(write_effects(recs, run / "plots", shadows=False))
+    return [p for p in write_effects(recs, run / "plots", shadows=False) if p is not None]
+
+
+def write_lab_effects(run_dir: str | os.PathLike[str], gif: bool = False, fps: float = 15) -> list[Path]:
+    """`pupper lab`: each body at its best gains (best.csv), re-simulated by
+    the sweep's runner and drawn side by side on its own body:
+    ``plots/lab_best.png`` (final frames), with ``gif=True`` also
+    ``plots/lab_best.gif``, and the frame table ``plots/lab_best.csv``."""
+    import csv
+
+    run = Path(run_dir)
+    with open(run / "best.csv", newline="") as f:
+        picks = [int(r["index"]) for r in csv.DictReader(f) if r["index"]]
+    if not picks:
+        raise ValueError(f"{run}/best.csv has no body that stood: nothing to render")
+    recs = record_run(run, picks, fps=fps)
+    paths = write_effects(recs, run / "plots", stem="lab_best", shadows=False, gif=gif)
+    return [p for p in paths if p is not None]
 
 
 def view(model: ModelLike) -> None:

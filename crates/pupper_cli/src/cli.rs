@@ -10,7 +10,7 @@ use pupper_core::experiment::{Hooks, SweepConfig};
 use pupper_core::model::ModelSource;
 use pupper_core::output;
 use pupper_core::physics::Mode;
-use pupper_core::rundir::{self, Existing};
+use pupper_core::rundir::Existing;
 use pupper_core::spec::{self, GridInput, SweepSpec};
 use pupper_core::{Error, Result};
 use pupper_mujoco::api::{self, SweepRequest, SweepUi};
@@ -67,6 +67,10 @@ enum Command {
     },
     /// Run a grid of settings as one batched simulation; write summary.csv and manifest.json into a run directory.
     Sweep(Box<SweepArgs>),
+    /// The chapter's lab: every body variant from its own stand pose, a Kp x Kd grid in torque
+    /// mode under a 2 N, 1.2 Hz vertical sine force, 6 s, no push, all in one batch; the
+    /// steadiest gains per body (best.csv), heatmaps, base-z curves and the bodies rendered.
+    Lab(Box<LabArgs>),
     /// Show which Python, prefix and mujoco pupper found, and how to fix it if it found none.
     Doctor {
         #[arg(long)]
@@ -172,6 +176,56 @@ impl SimArgs {
             ..SweepSpec::default()
         })
     }
+}
+
+#[derive(Args, Debug)]
+struct LabArgs {
+    #[command(flatten)]
+    model: ModelArg,
+    /// The bodies, comma-separated: original, long-leg (legs 1.5x), heavy (torso mass 2x).
+    #[arg(long, value_delimiter = ',', default_values_t = pupper_core::lab::VARIANTS.map(String::from), value_name = "NAME,...")]
+    variants: Vec<String>,
+    /// A grid axis over the bodies, AXIS=VALUES; repeat for more
+    /// [default: kp=10,30,60,120 and kd=0.5,1,2,5].
+    #[arg(
+        long = "grid",
+        short = 'g',
+        value_name = "AXIS=VALUES",
+        allow_hyphen_values = true
+    )]
+    grid: Vec<String>,
+    /// Simulated seconds per cell.
+    #[arg(long, default_value_t = pupper_core::lab::SECONDS, value_name = "S")]
+    seconds: f64,
+    /// The vertical disturbance AMPLITUDE*sin(2π·FREQUENCY·t) (N, Hz).
+    #[arg(
+        long,
+        default_value = "2,1.2",
+        value_name = "AMP,HZ",
+        allow_hyphen_values = true
+    )]
+    sine: String,
+    /// Cells at the torque limit in this share of actuator-steps or more are never "best".
+    #[arg(long, default_value_t = pupper_core::best::MAX_SATURATION, value_name = "FRACTION")]
+    max_saturation: f64,
+    /// Run directory (default runs/<time>-lab).
+    #[arg(long, short = 'o', value_name = "DIR", conflicts_with = "resume")]
+    out: Option<PathBuf>,
+    /// Continue an interrupted lab in DIR (alone: with the manifest's inputs).
+    #[arg(long, value_name = "DIR")]
+    resume: Option<PathBuf>,
+    /// Batch threads; 0 uses all cores. Never changes the numbers.
+    #[arg(long, short = 'j', default_value_t = SweepSpec::default().threads, value_name = "N")]
+    threads: usize,
+    /// Also write the GIF of the bodies at their best gains.
+    #[arg(long)]
+    render: bool,
+    /// Print the rows as JSON instead of a line per body.
+    #[arg(long)]
+    json: bool,
+    /// No progress bar.
+    #[arg(long, short = 'q')]
+    quiet: bool,
 }
 
 #[derive(Args, Debug)]
@@ -352,6 +406,7 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
             }
         }
         Command::Sweep(a) => return sweep(*a, stop),
+        Command::Lab(a) => return lab(*a, stop),
         Command::Doctor { json } => {
             let r = bridge::doctor()?;
             if json {
@@ -411,16 +466,83 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
     Ok(0)
 }
 
+/// A sweep as the CLI runs it (`sweep` and `lab` differ only in how they
+/// fill it): the spec, where it goes, and what to show after.
+struct Job {
+    spec: SweepSpec,
+    out: Option<PathBuf>,
+    resume: Option<PathBuf>,
+    /// `--resume DIR` without grid flags: the manifest's inputs.
+    resume_alone: bool,
+    preset: Option<String>,
+    quiet: bool,
+    json: bool,
+    plot: bool,
+    render: bool,
+    rule: Option<best::Rule>,
+    lab: bool,
+}
+
 fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
+    let rule = a.best_by.as_ref().map(|by| best::Rule {
+        max_saturation: a.max_saturation,
+        ..best::Rule::new(&a.best_metric, by)
+    });
+    run_job(
+        Job {
+            spec: a.spec()?,
+            resume_alone: a.grid.is_empty() && a.preset.is_none(),
+            out: a.out,
+            resume: a.resume,
+            preset: a.preset,
+            quiet: a.quiet,
+            json: a.json,
+            plot: a.plot,
+            render: a.render,
+            rule,
+            lab: false,
+        },
+        stop,
+    )
+}
+
+fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
+    let sine = spec::parse_sine(&a.sine)?;
+    let spec = SweepSpec {
+        model: a.model.model.clone(),
+        threads: a.threads,
+        ..pupper_core::lab::spec(&a.variants, &a.grid, a.seconds, sine)
+    };
+    run_job(
+        Job {
+            spec,
+            resume_alone: a.grid.is_empty(),
+            out: a.out,
+            resume: a.resume,
+            preset: Some("lab".into()),
+            quiet: a.quiet,
+            json: a.json,
+            plot: true,
+            render: a.render,
+            rule: Some(best::Rule {
+                max_saturation: a.max_saturation,
+                ..best::Rule::new("last_1s_std_mm", &["variant".to_string()])
+            }),
+            lab: true,
+        },
+        stop,
+    )
+}
+
+fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
     let command: Vec<String> = std::env::args().collect();
     let sweep = match &a.resume {
         // `--resume DIR` alone: the manifest's inputs
-        Some(dir) if a.grid.is_empty() && a.preset.is_none() => {
-            let spec = a.spec()?;
+        Some(dir) if a.resume_alone => {
             let mut s = SweepSpec {
                 out: Some(dir.clone()),
                 resume: true,
-                ..spec
+                ..a.spec.clone()
             }
             .build()?;
             s.config = output::read_manifest(dir)?.config;
@@ -429,11 +551,15 @@ fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
         Some(dir) => SweepSpec {
             out: Some(dir.clone()),
             resume: true,
-            ..a.spec()?
+            ..a.spec.clone()
         }
         .build()?,
         None => {
-            let mut s = a.spec()?.build()?;
+            let mut s = SweepSpec {
+                force: a.spec.force,
+                ..a.spec.clone()
+            }
+            .build()?;
             s.out = a.out.clone();
             if s.out.is_none() {
                 // created when the run starts, the first free name in one step
@@ -444,11 +570,7 @@ fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
         }
     };
     // the ranking rule is checked against the grid before anything runs
-    let rule = a.best_by.as_ref().map(|by| best::Rule {
-        max_saturation: a.max_saturation,
-        ..best::Rule::new(&a.best_metric, by)
-    });
-    if let Some(rule) = &rule {
+    if let Some(rule) = &a.rule {
         best::best(&output::header_of(&sweep.config), &[], rule)?;
     }
     let req = SweepRequest { sweep, command };
@@ -464,38 +586,58 @@ fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
     let dir = outcome.out.clone().unwrap_or_default();
     if !outcome.complete {
         eprintln!(
-            "interrupted: kept {} of {} cells in {}; continue with: pupper sweep --resume {}",
+            "interrupted: kept {} of {} cells in {}; continue with: pupper {} --resume {}",
             outcome.rows.len(),
             outcome.cells_total,
             dir.display(),
+            if a.lab { "lab" } else { "sweep" },
             dir.display()
         );
         return Ok(130);
     }
     if a.json {
         println!("{}", print::json(&print::rows_json(&outcome))?);
-    } else {
+    } else if !a.lab {
         print!("{}", print::sweep(&outcome));
     }
-    if let Some(rule) = &rule {
-        let groups = best::best(&outcome.header, &outcome.rows, rule)?;
-        let (h, rows) = best::table(&outcome.header, &outcome.rows, rule, &groups);
-        rundir::write_atomic(&dir.join(output::BEST), &output::csv_bytes(&h, &rows)?)?;
-        print!("{}", print::best(&outcome, rule, &groups));
+    if let Some(rule) = &a.rule {
+        let groups = api::write_best(&outcome, rule)?;
+        if a.lab && !a.json {
+            print!("{}", print::lab(&outcome, &groups));
+        } else if !a.json {
+            print!("{}", print::best(&outcome, rule, &groups));
+        }
         eprintln!("wrote {}", dir.join(output::BEST).display());
     }
     let dir_s = dir.display().to_string();
     if a.plot {
+        let helper = if a.lab {
+            "write_lab_plots"
+        } else {
+            "write_run_plots"
+        };
         for p in bridge::call_helper(
             "pupper_core.plots",
-            "write_run_plots",
+            helper,
             std::slice::from_ref(&dir_s),
             &serde_json::json!({}),
         )? {
             eprintln!("wrote {p}");
         }
     }
-    if a.render {
+    if a.lab {
+        // the bodies at their best gains, side by side: a PNG, and a GIF with --render
+        match bridge::call_helper(
+            "pupper_core.render",
+            "write_lab_effects",
+            &[dir_s],
+            &serde_json::json!({ "gif": a.render }),
+        ) {
+            Ok(paths) => paths.iter().for_each(|p| eprintln!("wrote {p}")),
+            Err(Error::Display(why)) if !a.render => eprintln!("note: no rendering here ({why})"),
+            Err(e) => return Err(e),
+        }
+    } else if a.render {
         for p in bridge::call_helper(
             "pupper_core.render",
             "write_run_effects",

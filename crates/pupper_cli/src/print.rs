@@ -299,3 +299,37 @@ pub fn pose(p: &pupper_core::pose::StandPose) -> String {
     let _ = writeln!(s, "targets (actuator order): {}", t.join(","));
     s
 }
+
+/// `pupper lab`: a line per body, its steadiest gains.
+pub fn lab(o: &SweepOutcome, groups: &[pupper_core::best::Group]) -> String {
+    let col = |name: &str| o.header.iter().position(|h| h == name);
+    let (kp, kd, std, z) = (col("kp"), col("kd"), col("last_1s_std_mm"), col("final_z"));
+    let num = |r: &[String], c: Option<usize>| -> f64 {
+        c.and_then(|c| r[c].parse().ok()).unwrap_or(f64::NAN)
+    };
+    let mut s = String::new();
+    for g in groups {
+        let body = g.key.first().map_or("all", |(_, v)| v.as_str());
+        match g.best {
+            Some(i) => {
+                let r = &o.rows[i];
+                let _ = writeln!(
+                    s,
+                    "{body:<9} Kp={:<5} Kd={:<4} z_std={:.2} mm  z={:.3} m",
+                    format!("{}", num(r, kp)),
+                    format!("{}", num(r, kd)),
+                    num(r, std),
+                    num(r, z)
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    s,
+                    "{body:<9} no gains kept it standing (all {} cells fell, diverged or saturated)",
+                    g.cells
+                );
+            }
+        }
+    }
+    s
+}

@@ -7,6 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::variant::VARIANTS;
 
 /// A named experiment parameter that a grid can vary.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -28,10 +29,13 @@ pub enum Axis {
     LegScale,
     /// Scale of the torso mass and inertia.
     TorsoMassScale,
+    /// A named body (original, long-leg, heavy); values are indices into
+    /// [`crate::variant::VARIANTS`], shown by name.
+    Variant,
 }
 
 impl Axis {
-    pub const ALL: [Axis; 8] = [
+    pub const ALL: [Axis; 9] = [
         Axis::Kp,
         Axis::Kd,
         Axis::PushForce,
@@ -40,6 +44,7 @@ impl Axis {
         Axis::Timestep,
         Axis::LegScale,
         Axis::TorsoMassScale,
+        Axis::Variant,
     ];
 
     pub fn name(self) -> &'static str {
@@ -52,6 +57,18 @@ impl Axis {
             Axis::Timestep => "timestep",
             Axis::LegScale => "leg_scale",
             Axis::TorsoMassScale => "torso_mass_scale",
+            Axis::Variant => "variant",
+        }
+    }
+
+    /// A value as summary.csv and cell ids show it: a variant by its name,
+    /// a number as its shortest round-trip text.
+    pub fn text(self, v: f64) -> String {
+        match self {
+            Axis::Variant => VARIANTS
+                .get(v as usize)
+                .map_or_else(|| format!("{v}"), |b| b.name.to_string()),
+            _ => crate::output::fmt_f64(v),
         }
     }
 
@@ -66,6 +83,7 @@ impl Axis {
             Axis::Timestep => "dt",
             Axis::LegScale => "leg",
             Axis::TorsoMassScale => "torso",
+            Axis::Variant => "",
         }
     }
 
@@ -190,6 +208,25 @@ fn parse_number(axis: Axis, text: &str) -> Result<f64> {
 /// Parses the right-hand side of `AXIS=VALUES`.
 pub fn parse_values(axis: Axis, text: &str) -> Result<Vec<f64>> {
     let text = text.trim();
+    if axis == Axis::Variant {
+        return text
+            .split(',')
+            .map(|name| {
+                let name = name.trim();
+                VARIANTS
+                    .iter()
+                    .position(|b| b.name == name)
+                    .map(|i| i as f64)
+                    .ok_or_else(|| {
+                        let names: Vec<&str> = VARIANTS.iter().map(|b| b.name).collect();
+                        Error::Grid(format!(
+                            "grid axis 'variant' has an unknown body '{name}': use names from {}",
+                            names.join(", ")
+                        ))
+                    })
+            })
+            .collect();
+    }
     if text.is_empty() {
         return Err(Error::Grid(format!(
             "grid axis '{axis}' has no values: give a list (1,2,3) or a range (start:stop:count)"
@@ -428,7 +465,7 @@ pub fn cell_id(values: &[(Axis, f64)]) -> String {
     }
     values
         .iter()
-        .map(|(a, v)| format!("{}{}", a.tag(), v))
+        .map(|(a, v)| format!("{}{}", a.tag(), a.text(*v)))
         .collect::<Vec<_>>()
         .join("_")
 }

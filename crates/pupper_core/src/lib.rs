@@ -11,6 +11,7 @@ pub mod error;
 pub mod experiment;
 pub mod frames;
 pub mod grid;
+pub mod lab;
 pub mod layout;
 pub mod metrics;
 pub mod model;

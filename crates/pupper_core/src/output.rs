@@ -50,7 +50,7 @@ pub fn header_of(config: &SweepConfig) -> Vec<String> {
 /// One summary row as text fields.
 pub fn row(cell: &Cell, m: &Metrics) -> Vec<String> {
     let mut r = vec![cell.index.to_string(), cell.id.clone(), cell.name.clone()];
-    r.extend(cell.values.iter().map(|(_, v)| fmt_f64(*v)));
+    r.extend(cell.values.iter().map(|(a, v)| a.text(*v)));
     for name in METRIC_NAMES {
         r.push(match name {
             "status" => m.status.as_str().to_string(),
@@ -97,6 +97,9 @@ pub struct Manifest {
     pub torque_limits: Vec<f64>,
     pub cells_total: usize,
     pub cells_done: usize,
+    /// Batches (one MuJoCo batch run each) whose cells are in this directory.
+    #[serde(default)]
+    pub batches: usize,
     pub complete: bool,
     pub threads: usize,
     pub started_unix: u64,
@@ -192,7 +195,7 @@ pub(crate) fn read_rows(dir: &Path, config: &SweepConfig) -> Result<BTreeMap<usi
                     ),
                 )
             })?;
-        let values: Vec<String> = cell.values.iter().map(|(_, v)| fmt_f64(*v)).collect();
+        let values: Vec<String> = cell.values.iter().map(|(a, v)| a.text(*v)).collect();
         if fields[1] != cell.id || fields[3..3 + values.len()] != values[..] {
             return Err(broken(
                 n,

@@ -395,6 +395,7 @@ impl RunWriter {
             let cells_done = self.rows.len() + results.len();
             let mut manifest = self.manifest.clone();
             manifest.cells_done = cells_done;
+            manifest.batches += 1;
             manifest.wall_seconds = self.started.elapsed().as_secs_f64();
             let sync = open.synced.elapsed().as_secs_f64() >= SYNC_EVERY_S;
             let dir = self.dir.as_deref().unwrap_or(Path::new("."));
@@ -435,6 +436,7 @@ impl RunWriter {
             }
         }
         self.manifest.cells_done = self.rows.len();
+        self.manifest.batches += 1;
         self.manifest.wall_seconds = self.started.elapsed().as_secs_f64();
         Ok(())
     }
@@ -523,6 +525,7 @@ mod tests {
             },
             torque_limits: vec![],
             cells_done: 0,
+            batches: 0,
             complete: false,
             threads: 1,
             started_unix: 0,

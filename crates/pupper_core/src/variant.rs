@@ -35,6 +35,13 @@ pub const VARIANTS: [Variant; 3] = [
     },
 ];
 
+/// Leg and torso scales of a body.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scales {
+    pub leg_scale: f64,
+    pub torso_mass_scale: f64,
+}
+
 /// A variant by name.
 pub fn variant(name: &str) -> Result<&'static Variant> {
     VARIANTS.iter().find(|v| v.name == name).ok_or_else(|| {

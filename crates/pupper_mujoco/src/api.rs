@@ -7,6 +7,7 @@ use pyo3::prelude::*;
 use serde::Serialize;
 
 use crate::bridge;
+use pupper_core::best;
 use pupper_core::error::{Error, Result};
 use pupper_core::experiment::{self, CellResult, Hooks, RunOptions, SweepConfig};
 use pupper_core::grid::Cell;
@@ -241,6 +242,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             torque_limits,
             cells_total: cells.len(),
             cells_done: 0,
+            batches: 0,
             complete: false,
             threads: options.threads,
             started_unix: std::time::SystemTime::now()
@@ -355,6 +357,17 @@ impl MujocoLog {
             };
         }
     }
+}
+
+/// The best cell of each group by `rule`, written to `best.csv` when the
+/// sweep has a run directory.
+pub fn write_best(outcome: &SweepOutcome, rule: &best::Rule) -> Result<Vec<best::Group>> {
+    let groups = best::best(&outcome.header, &outcome.rows, rule)?;
+    if let Some(dir) = &outcome.out {
+        let (h, rows) = best::table(&outcome.header, &outcome.rows, rule, &groups);
+        pupper_core::rundir::write_atomic(&dir.join(output::BEST), &output::csv_bytes(&h, &rows)?)?;
+    }
+    Ok(groups)
 }
 
 /// A front end's view of a running sweep.

@@ -15,6 +15,7 @@ use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyTypeError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use pupper_core::best;
 use pupper_core::error::{Error, ErrorKind};
 use pupper_core::experiment::Hooks;
 use pupper_core::model::ModelSource;
@@ -206,6 +207,9 @@ fn grid_from(grid: Option<&Bound<'_, PyAny>>, preset: Option<String>) -> PyResul
             let name: String = name.str()?.to_string();
             let input = if let Ok(text) = values.extract::<String>() {
                 AxisInput::Text(text)
+            } else if let Ok(names) = values.extract::<Vec<String>>() {
+                // names (the variant axis), parsed as the CLI parses them
+                AxisInput::Text(names.join(","))
             } else if let Ok(v) = values.extract::<f64>() {
                 AxisInput::Values(vec![v])
             } else {
@@ -363,9 +367,24 @@ fn sweep(
         out: out_from(out)?,
         ..spec_from(py, options)?
     };
+    run_spec(py, spec, progress, "python: pupper_core.sweep", None)
+}
+
+/// Runs a spec with Python progress and Ctrl-C; writes best.csv by `rule`.
+fn run_spec(
+    py: Python<'_>,
+    spec: SweepSpec,
+    progress: Option<Bound<'_, PyAny>>,
+    command: &str,
+    rule: Option<&best::Rule>,
+) -> PyResult<result::SweepResult> {
+    let sweep = spec.build().map_err(to_py)?;
+    if let Some(rule) = rule {
+        best::best(&output::header_of(&sweep.config), &[], rule).map_err(to_py)?;
+    }
     let req = SweepRequest {
-        sweep: spec.build().map_err(to_py)?,
-        command: vec!["python: pupper_core.sweep".into()],
+        sweep,
+        command: vec![command.into()],
     };
     let mut ui = PyUi {
         py,
@@ -397,6 +416,9 @@ fn sweep(
             "sweep interrupted; finished cells are kept (resume=True continues a run directory)",
         ));
     }
+    if let Some(rule) = rule {
+        api::write_best(&outcome, rule).map_err(to_py)?;
+    }
     result::SweepResult::new(
         py,
         result::Parts {
@@ -409,6 +431,44 @@ fn sweep(
             config: &req.sweep.config,
         },
     )
+}
+
+/// The chapter's lab (what `pupper lab` runs): every body from its own
+/// stand pose, the grid in torque mode under the sine force, no push;
+/// best.csv (the best gains per body) in `out`. Plots and rendering are the
+/// Python wrapper's.
+#[pyfunction]
+#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::lab::SECONDS, sine=pupper_core::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn lab(
+    py: Python<'_>,
+    variants: Option<Vec<String>>,
+    grid: Option<Vec<String>>,
+    seconds: f64,
+    sine: [f64; 2],
+    model: String,
+    out: Option<&Bound<'_, PyAny>>,
+    force: bool,
+    resume: bool,
+    threads: usize,
+    max_saturation: f64,
+    progress: Option<Bound<'_, PyAny>>,
+) -> PyResult<result::SweepResult> {
+    let variants =
+        variants.unwrap_or_else(|| pupper_core::lab::VARIANTS.map(String::from).to_vec());
+    let spec = SweepSpec {
+        model,
+        out: out_from(out)?,
+        force,
+        resume,
+        threads,
+        ..pupper_core::lab::spec(&variants, &grid.unwrap_or_default(), seconds, sine)
+    };
+    let rule = best::Rule {
+        max_saturation,
+        ..best::Rule::new("last_1s_std_mm", &["variant".to_string()])
+    };
+    run_spec(py, spec, progress, "python: pupper_core.lab", Some(&rule))
 }
 
 /// A run directory read back: its rows checked against its manifest.
@@ -439,7 +499,11 @@ fn recording_dict<'py>(py: Python<'py>, r: Recording, fps: f64) -> PyResult<Boun
     d.set_item("name", &cell.name)?;
     let values = PyDict::new(py);
     for (axis, v) in &cell.values {
-        values.set_item(axis.name(), v)?;
+        if *axis == pupper_core::grid::Axis::Variant {
+            values.set_item(axis.name(), axis.text(*v))?;
+        } else {
+            values.set_item(axis.name(), v)?;
+        }
     }
     d.set_item("values", values)?;
     let s = &r.setup;
@@ -575,6 +639,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sweep, m)?)?;
     m.add_function(wrap_pyfunction!(read_manifest, m)?)?;
     m.add_function(wrap_pyfunction!(load_run, m)?)?;
+    m.add_function(wrap_pyfunction!(lab, m)?)?;
     m.add_class::<result::SweepResult>()?;
     m.add_function(wrap_pyfunction!(record, m)?)?;
     m.add_function(wrap_pyfunction!(record_run, m)?)?;

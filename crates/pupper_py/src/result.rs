@@ -14,7 +14,7 @@ use pupper_core::best;
 use pupper_core::metrics::METRIC_NAMES;
 
 /// Columns of text in summary.csv.
-const TEXT: [&str; 3] = ["id", "name", "status"];
+const TEXT: [&str; 4] = ["id", "name", "status", "variant"];
 
 /// Per-cell metrics of a sweep: the rows of its summary.csv, as numpy columns.
 ///
@@ -232,7 +232,11 @@ impl SweepResult {
                 }
             };
             for (k, v) in &g.key {
-                d.set_item(k, number(v))?;
+                if TEXT.contains(&k.as_str()) {
+                    d.set_item(k, v)?;
+                } else {
+                    d.set_item(k, number(v))?;
+                }
             }
             d.set_item("cells", g.cells)?;
             d.set_item("eligible", g.eligible)?;
