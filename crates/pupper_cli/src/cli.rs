@@ -40,31 +40,14 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Show a model: sizes, mass, joints with their qpos/qvel addresses, actuators in ctrl order, keyframes, sensors.
-    Info {
-        #[command(flatten)]
-        model: ModelArg,
-        /// A named body: original, long-leg (legs 1.5x), heavy (torso mass 2x).
-        #[arg(long, default_value_t = SweepSpec::default().variant, value_name = "NAME")]
-        variant: String,
-        /// Print JSON instead of text.
-        #[arg(long)]
-        json: bool,
-    },
+    /// Show a model (or one of its bodies): sizes, mass, joints with their qpos/qvel addresses,
+    /// actuators in ctrl order, keyframes, sensors, and each leg measured on the compiled body.
+    Info(BodyArgs),
     /// Reset to a keyframe (or a pose), stand with PD gains and no push; report final base height, last-second steadiness and tilt.
     Stand(StandArgs),
     /// Find a stand pose for a body: abduction 0, hip and knee on a grid inside the joint ranges,
     /// feet 0.14 m (x leg scale, up to 1.5) below the hips, measured on the compiled model.
-    Pose {
-        #[command(flatten)]
-        model: ModelArg,
-        /// A named body: original, long-leg (legs 1.5x), heavy (torso mass 2x).
-        #[arg(long, default_value_t = SweepSpec::default().variant, value_name = "NAME")]
-        variant: String,
-        /// Print JSON instead of text.
-        #[arg(long)]
-        json: bool,
-    },
+    Pose(BodyArgs),
     /// Run a grid of settings as one batched simulation; write summary.csv and manifest.json into a run directory.
     Sweep(Box<SweepArgs>),
     /// The chapter's lab: every body variant from its own stand pose, a Kp x Kd grid in torque
@@ -83,6 +66,39 @@ enum Command {
         #[command(flatten)]
         model: ModelArg,
     },
+}
+
+/// A model, one of its bodies, and how to print what is found.
+#[derive(Args, Debug)]
+struct BodyArgs {
+    #[command(flatten)]
+    model: ModelArg,
+    /// A named body: original, long-leg (legs 1.5x), heavy (torso mass 2x).
+    #[arg(long, default_value_t = SweepSpec::default().variant, value_name = "NAME")]
+    variant: String,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+impl BodyArgs {
+    /// Runs `find` on the body and prints its answer as text or JSON.
+    fn show<T: serde::Serialize>(
+        &self,
+        find: impl FnOnce(&ModelSource, &pupper_core::variant::Variant) -> Result<T>,
+        text: impl FnOnce(&T) -> String,
+    ) -> Result<()> {
+        let found = find(
+            &self.model.source()?,
+            pupper_core::variant::variant(&self.variant)?,
+        )?;
+        if self.json {
+            println!("{}", print::json(&found)?);
+        } else {
+            print!("{}", text(&found));
+        }
+        Ok(())
+    }
 }
 
 #[derive(Args, Debug)]
@@ -370,30 +386,8 @@ struct RenderArgs {
 
 pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
     match cli.command {
-        Command::Info {
-            model,
-            variant,
-            json,
-        } => {
-            let info = api::info(&model.source()?, pupper_core::variant::variant(&variant)?)?;
-            if json {
-                println!("{}", print::json(&info)?);
-            } else {
-                print!("{}", print::info(&info));
-            }
-        }
-        Command::Pose {
-            model,
-            variant,
-            json,
-        } => {
-            let p = api::pose(&model.source()?, pupper_core::variant::variant(&variant)?)?;
-            if json {
-                println!("{}", print::json(&p)?);
-            } else {
-                print!("{}", print::pose(&p));
-            }
-        }
+        Command::Info(a) => a.show(api::info, print::info)?,
+        Command::Pose(a) => a.show(api::pose, print::pose)?,
         Command::Stand(a) => {
             let r = api::stand(&a.sim.spec()?)?;
             for n in &r.notes {

@@ -73,6 +73,24 @@ pub fn info(m: &ModelInfo) -> String {
     for x in &m.sensors {
         let _ = writeln!(s, "  {:<18} {:<14} dim {}", x.name, x.kind, x.dim);
     }
+    if !m.legs.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nlegs at the default pose (world m; hip = hip-flexion joint)"
+        );
+        let p = |v: [f64; 3]| format!("({:+.4}, {:+.4}, {:+.4})", v[0], v[1], v[2]);
+        for l in &m.legs {
+            let _ = writeln!(
+                s,
+                "  {:<16} hip-to-foot {:.4}  hip {}  knee {}  foot {}",
+                l.name,
+                l.hip_to_foot,
+                p(l.hip),
+                p(l.knee),
+                p(l.foot)
+            );
+        }
+    }
     s
 }
 
