@@ -258,7 +258,8 @@ struct StandArgs {
     after_help = "Grid values: a list 10,30,60 | a linear range start:stop:count (10:120:12) | \
 a log range start:stop:count:log (1:100:5:log).
 Axes: kp, kd, push_force (N, world z), max_torque (N·m), friction (feet and floor), timestep (s),
-leg_scale, torso_mass_scale. Cells are the product of the axes, the last axis varying fastest.
+leg_scale, torso_mass_scale, variant (body names: original, long-leg, heavy; numeric scale axes
+multiply a body's scales). Cells are the product of the axes, the last axis varying fastest.
 Metrics per cell: final_z (m), last_1s_std_mm, push_dip_mm (mean z 0.5 s before the push minus
 the minimum from push start to push end + 1.5 s), settle_time_s (after the push, until base z stays
 within ±1 mm of its pre-push mean), max_tilt_deg, peak_torque (N·m), saturation_frac,
