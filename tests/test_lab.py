@@ -141,3 +141,28 @@ def test_lab_bad_input_is_one_line_and_no_directory(run, tmp_path):
     p = run("lab", "--variants", "original,tall", "-o", tmp_path / "x", check=2)
     assert p.stderr.count("\n") == 1 and "'tall'" in p.stderr
     assert not (tmp_path / "x").exists()
+
+
+def test_lab_ctrl_c_then_resume_equals_one_run(pupper_bin, lab_run, tmp_path):
+    import signal
+    import subprocess
+    import time
+
+    from conftest import clean_env
+
+    out = tmp_path / "run"
+    proc = subprocess.Popen([str(pupper_bin), "lab", "-j", "1", "-o", str(out), "-q"], cwd=tmp_path,
+                            env=clean_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not (out / "manifest.json").exists():
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGINT)
+    so, se = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and "pupper lab --resume" in se, se
+    p = subprocess.run([str(pupper_bin), "lab", "--resume", str(out), "-q"], cwd=tmp_path,
+                       env=clean_env(MUJOCO_GL="egl"), capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout == lab_run[1].stdout
+    assert (out / "summary.csv").read_bytes() == (lab_run[0] / "summary.csv").read_bytes()
+    assert (out / "best.csv").read_bytes() == (lab_run[0] / "best.csv").read_bytes()

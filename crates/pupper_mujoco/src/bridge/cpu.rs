@@ -39,6 +39,10 @@ impl Physics for LoadedModel<'_> {
     }
 }
 
+/// A simulation's start: its joint targets (also its start angles when a
+/// pose is given) and, for a searched pose, its base height.
+type Start = (Vec<f64>, Option<f64>);
+
 /// Offsets of state components within a state row.
 #[derive(Debug, Clone, Copy)]
 struct Offsets {
@@ -107,7 +111,13 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
         let batch = mj
             .batch
             .getattr("Batch")
-            .and_then(|b| b.call1((&template, n, threads)))
+            .and_then(|b| {
+                // torque mode steps once per control step: a persistent batch
+                // keeps each MjData between calls instead of rebuilding it
+                let kw = PyDict::new(py);
+                kw.set_item("persistent", mode == Mode::Torque)?;
+                b.call((&template, n, threads), Some(&kw))
+            })
             .internal()?;
         let colliding = colliding_geoms(&template).internal()?;
         if same_body {
@@ -148,12 +158,24 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
                 }
             }
         } else {
-            // bodies differ: a model per cell, from the compiled variants
+            // bodies differ: a model per distinct setting, shared by the
+            // cells that have it (torque mode writes no gains into the model,
+            // so a lab's cells of one body share one; fewer copies stay in cache)
             let models = PyList::empty(py);
+            let mut made: Vec<(Vec<u64>, Bound<'py, PyAny>)> = Vec::new();
             for c in cells {
-                let m = prepare(&owner.variant(c.leg_scale, c.torso_mass_scale)?).internal()?;
-                let limits = c.torque_limits(info)?;
-                set_model_params(&m, mode, c, &limits, &colliding).internal()?;
+                let key = model_key(mode, c);
+                let m = match made.iter().find(|(k, _)| *k == key) {
+                    Some((_, m)) => m.clone(),
+                    None => {
+                        let m =
+                            prepare(&owner.variant(c.leg_scale, c.torso_mass_scale)?).internal()?;
+                        let limits = c.torque_limits(info)?;
+                        set_model_params(&m, mode, c, &limits, &colliding).internal()?;
+                        made.push((key, m.clone()));
+                        m
+                    }
+                };
                 models.append(m).internal()?;
             }
             batch.call_method1("set_models", (models,)).internal()?;
@@ -212,14 +234,25 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
         kw.set_item("stage", 0).internal()?;
         batch.call_method("reset", (), Some(&kw)).internal()?;
         // each simulation's start: joint angles (also its targets), base height
-        let starts: Vec<(Vec<f64>, Option<f64>)> = match (initial, &pose, key) {
-            (InitialState::Auto, _, _) => cells
-                .iter()
-                .map(|c| {
-                    let p = owner.stand_pose(c.leg_scale, c.torso_mass_scale)?;
-                    Ok((p.targets, Some(p.base_z)))
-                })
-                .collect::<Result<_>>()?,
+        let starts: Vec<Start> = match (initial, &pose, key) {
+            (InitialState::Auto, _, _) => {
+                // one search per body, not per cell
+                let mut poses: Vec<((u64, u64), Start)> = Vec::new();
+                let mut starts = Vec::with_capacity(n);
+                for c in cells {
+                    let key = (c.leg_scale.to_bits(), c.torso_mass_scale.to_bits());
+                    let start = match poses.iter().find(|(k, _)| *k == key) {
+                        Some((_, s)) => s.clone(),
+                        None => {
+                            let p = owner.stand_pose(c.leg_scale, c.torso_mass_scale)?;
+                            poses.push((key, (p.targets, Some(p.base_z))));
+                            poses[poses.len() - 1].1.clone()
+                        }
+                    };
+                    starts.push(start);
+                }
+                starts
+            }
             (_, Some(p), _) => vec![(p.clone(), None); n],
             (_, None, Some(k)) => {
                 let kf = &info.keyframes[k];
@@ -324,6 +357,21 @@ fn failed_ids(py: Python<'_>, e: PyErr) -> Result<Vec<i64>> {
         .and_then(|i| i.call_method0("tolist"))
         .and_then(|i| i.extract())
         .map_err(|_| py_err(e))
+}
+
+/// What makes two cells' models differ: body, the gains written into the
+/// actuators (servo mode only), torque limit, friction.
+fn model_key(mode: Mode, c: &CellSetup) -> Vec<u64> {
+    let (gains, bias) = actuator_params(mode, c);
+    let opt = |v: Option<f64>| v.map_or(u64::MAX, f64::to_bits);
+    let mut key = vec![
+        c.leg_scale.to_bits(),
+        c.torso_mass_scale.to_bits(),
+        opt(c.max_torque),
+        opt(c.friction),
+    ];
+    key.extend(gains.iter().chain(&bias).map(|v| v.to_bits()));
+    key
 }
 
 fn actuator_params(mode: Mode, c: &CellSetup) -> ([f64; 3], [f64; 3]) {
