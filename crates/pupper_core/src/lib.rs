@@ -20,6 +20,7 @@ pub mod pd;
 pub mod physics;
 pub mod pose;
 pub mod quat;
+pub mod randomize;
 pub mod rundir;
 pub mod schedule;
 pub mod spec;
