@@ -82,7 +82,10 @@ pub fn stand(spec: &SweepSpec) -> Result<StandReport> {
     })?;
     let m = &results[0].metrics;
     Ok(StandReport {
-        model: cfg.model.display(),
+        model: match spec.variant.as_str() {
+            "original" => cfg.model.display(),
+            body => format!("{} ({body})", cfg.model.display()),
+        },
         mode: cfg.mode,
         kp: cfg.defaults.kp,
         kd: cfg.defaults.kd,
