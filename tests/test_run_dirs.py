@@ -357,3 +357,16 @@ def test_a_model_without_keyframe_stands_and_sweeps(run, tmp_path):
     p = run("sweep", "--model", model, "--grid", "kp=2,30", "--seconds", "2", "-o", "servo", "-q", check=0)
     _, rows = read_csv(tmp_path / "servo" / "summary.csv")
     assert float(rows[1]["final_z"]) > float(rows[0]["final_z"]) + 0.005, rows
+
+
+def test_motors_without_ranges_run_unclipped_and_say_so(run, tmp_path):
+    model = _dog(tmp_path)
+    robot = (tmp_path / "dog.xml").read_text().replace(' ctrlrange="-2 2"', "")
+    assert "ctrlrange" not in robot
+    (tmp_path / "dog.xml").write_text(robot)
+    p = run("sweep", "--model", model, "--mode", "torque", "--grid", "kp=10,30", "--seconds", "1",
+            "-o", "run", "-q", check=0)
+    assert "not clipped" in p.stderr and "--max-torque" in p.stderr, p.stderr
+    _, rows = read_csv(tmp_path / "run" / "summary.csv")
+    assert [r["status"] for r in rows] == ["ok", "ok"]
+    assert all(float(r["saturation_frac"]) == 0.0 for r in rows)

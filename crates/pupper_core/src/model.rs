@@ -43,6 +43,9 @@ pub const BUILTINS: [Builtin; 2] = [
 
 pub const BUILTIN_NAMES: [&str; 2] = [BUILTINS[0].name, BUILTINS[1].name];
 
+/// The torque limit of an actuator that has none (no clipping).
+pub const UNLIMITED: f64 = f64::MAX;
+
 /// A built-in model by name, or an MJCF file.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -236,8 +239,10 @@ impl ModelInfo {
     /// Each actuator's own torque limit, the default of `--max-torque`: its
     /// force range, else its control range (the force a unit-gain actuator
     /// makes at full control; times the gear at the joint). Pupper v3: 3 N·m.
+    /// An actuator with neither range is [`UNLIMITED`]: not clipped.
     pub fn torque_limits(&self) -> Result<Vec<f64>> {
-        self.actuators
+        Ok(self
+            .actuators
             .iter()
             .map(|a| {
                 let bound = |r: [f64; 2]| r[0].abs().max(r[1].abs());
@@ -245,14 +250,28 @@ impl ModelInfo {
                     .map(bound)
                     .or(a.ctrlrange.map(bound))
                     .filter(|l| l.is_finite() && *l > 0.0)
-                    .ok_or_else(|| {
-                        Error::Model(format!(
-                            "actuator '{}' of model '{}' has no force or control range to take a torque limit from: give --max-torque",
-                            a.name, self.name
-                        ))
-                    })
+                    .unwrap_or(UNLIMITED)
             })
-            .collect()
+            .collect())
+    }
+
+    /// A note naming the actuators [`ModelInfo::torque_limits`] leaves unclipped.
+    pub fn unlimited_note(&self) -> Option<String> {
+        let limits = self.torque_limits().ok()?;
+        let names: Vec<&str> = self
+            .actuators
+            .iter()
+            .zip(&limits)
+            .filter(|(_, l)| **l == UNLIMITED)
+            .map(|(a, _)| a.name.as_str())
+            .collect();
+        (!names.is_empty()).then(|| {
+            format!(
+                "actuators {} of model '{}' have no force or control range: their torques are not clipped (give --max-torque to clip them)",
+                names.join(", "),
+                self.name
+            )
+        })
     }
 
     /// The keyframe cells start from (None: the default pose), and a note

@@ -232,6 +232,12 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             Some(t) => vec![t; info.nu],
             None => info.torque_limits()?,
         };
+        let unclipped = cfg
+            .defaults
+            .max_torque
+            .is_none()
+            .then(|| info.unlimited_note())
+            .flatten();
         let manifest = Manifest {
             pupper_version: pupper_core::VERSION.to_string(),
             mujoco_version: model.mujoco_version().to_string(),
@@ -309,7 +315,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             complete: writer.manifest.complete,
             wall_seconds: started.elapsed().as_secs_f64(),
             mujoco_version: writer.manifest.mujoco_version.clone(),
-            notes: note.into_iter().collect(),
+            notes: note.into_iter().chain(unclipped).collect(),
         })
     })
 }
