@@ -68,6 +68,19 @@ enum Command {
     },
 }
 
+/// `--grid`, repeatable.
+#[derive(Args, Debug)]
+struct GridArg {
+    /// A grid axis and its values, AXIS=VALUES; repeat for more axes.
+    #[arg(
+        long = "grid",
+        short = 'g',
+        value_name = "AXIS=VALUES",
+        allow_hyphen_values = true
+    )]
+    grid: Vec<String>,
+}
+
 /// A model, one of its bodies, and how to print what is found.
 #[derive(Args, Debug)]
 struct BodyArgs {
@@ -195,21 +208,20 @@ impl SimArgs {
 }
 
 #[derive(Args, Debug)]
+#[command(
+    after_help = "Without --grid the gains are kp=10,30,60,120 x kd=0.5,1,2,5; --grid replaces them \
+(any sweep axis; a variant axis there replaces --variants). The best gains per body follow the \
+--best-by rule of `pupper sweep`: status ok, saturation under --max-saturation, lowest \
+last_1s_std_mm, ties to the first cell."
+)]
 struct LabArgs {
     #[command(flatten)]
     model: ModelArg,
     /// The bodies, comma-separated: original, long-leg (legs 1.5x), heavy (torso mass 2x).
     #[arg(long, value_delimiter = ',', default_values_t = pupper_core::lab::VARIANTS.map(String::from), value_name = "NAME,...")]
     variants: Vec<String>,
-    /// A grid axis over the bodies, AXIS=VALUES; repeat for more
-    /// [default: kp=10,30,60,120 and kd=0.5,1,2,5].
-    #[arg(
-        long = "grid",
-        short = 'g',
-        value_name = "AXIS=VALUES",
-        allow_hyphen_values = true
-    )]
-    grid: Vec<String>,
+    #[command(flatten)]
+    grid: GridArg,
     /// Simulated seconds per cell.
     #[arg(long, default_value_t = pupper_core::lab::SECONDS, value_name = "S")]
     seconds: f64,
@@ -266,14 +278,8 @@ within ±1 mm of its pre-push mean), max_tilt_deg, peak_torque (N·m), saturatio
 tracking_rms (rad), status (ok, fell, diverged), event_time (s, when it fell or diverged)."
 )]
 struct SweepArgs {
-    /// A grid axis and its values, AXIS=VALUES; repeat for more axes.
-    #[arg(
-        long = "grid",
-        short = 'g',
-        value_name = "AXIS=VALUES",
-        allow_hyphen_values = true
-    )]
-    grid: Vec<String>,
+    #[command(flatten)]
+    grid: GridArg,
     /// A named grid: chapter-4.6 (the chapter's soft/default/stiff/underD servo cases) or lab (kp 10,30,60,120 x kd 0.5,1,2,5).
     #[arg(long, value_name = "NAME", conflicts_with = "grid")]
     preset: Option<String>,
@@ -351,7 +357,7 @@ impl SweepArgs {
         Ok(SweepSpec {
             grid: match &self.preset {
                 Some(p) => GridInput::Preset(p.clone()),
-                None => GridInput::Specs(self.grid.clone()),
+                None => GridInput::Specs(self.grid.grid.clone()),
             },
             push: !self.no_push,
             push_force: self.push_force,
@@ -486,7 +492,7 @@ fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
     run_job(
         Job {
             spec: a.spec()?,
-            resume_alone: a.grid.is_empty() && a.preset.is_none(),
+            resume_alone: a.grid.grid.is_empty() && a.preset.is_none(),
             out: a.out,
             resume: a.resume,
             preset: a.preset,
@@ -506,12 +512,12 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
     let spec = SweepSpec {
         model: a.model.model.clone(),
         threads: a.threads,
-        ..pupper_core::lab::spec(&a.variants, &a.grid, a.seconds, sine)
+        ..pupper_core::lab::spec(&a.variants, &a.grid.grid, a.seconds, sine)
     };
     run_job(
         Job {
             spec,
-            resume_alone: a.grid.is_empty(),
+            resume_alone: a.grid.grid.is_empty(),
             out: a.out,
             resume: a.resume,
             preset: Some("lab".into()),

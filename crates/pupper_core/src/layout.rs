@@ -96,14 +96,7 @@ pub(crate) mod tests {
     /// A free base plus `legs` three-joint legs, actuated in an order that
     /// differs from the joint order, like a user model might.
     pub fn quadruped_info(legs: usize) -> ModelInfo {
-        let mut joints = vec![JointInfo {
-            name: "root".into(),
-            kind: "free".into(),
-            qpos_adr: 0,
-            dof_adr: 0,
-            range: None,
-            body: 1,
-        }];
+        let mut joints = vec![JointInfo::free_base()];
         for i in 0..legs * 3 {
             joints.push(JointInfo {
                 name: format!("j{i}"),
@@ -127,24 +120,7 @@ pub(crate) mod tests {
                 gear: 1.0,
             })
             .collect();
-        ModelInfo {
-            name: "test".into(),
-            source: "test".into(),
-            sha256: String::new(),
-            nq: 7 + legs * 3,
-            nv: 6 + legs * 3,
-            nu: legs * 3,
-            nbody: 2 + legs * 3,
-            timestep: 0.002,
-            total_mass: 1.0,
-            bodies: vec![],
-            joints,
-            actuators,
-            keyframes: vec![],
-            sensors: vec![],
-            qpos0: vec![],
-            legs: vec![],
-        }
+        ModelInfo::for_test("test", joints, actuators)
     }
 
     #[test]

@@ -168,6 +168,51 @@ pub struct JointInfo {
     pub body: usize,
 }
 
+#[cfg(test)]
+impl ModelInfo {
+    /// A test model of these joints (a free base first) and actuators.
+    pub(crate) fn for_test(
+        name: &str,
+        joints: Vec<JointInfo>,
+        actuators: Vec<ActuatorInfo>,
+    ) -> ModelInfo {
+        let hinges = joints.len() - 1;
+        ModelInfo {
+            name: name.into(),
+            source: "test".into(),
+            sha256: String::new(),
+            nq: 7 + hinges,
+            nv: 6 + hinges,
+            nu: actuators.len(),
+            nbody: 2 + hinges,
+            timestep: 0.002,
+            total_mass: 1.0,
+            bodies: vec![],
+            joints,
+            actuators,
+            keyframes: vec![],
+            sensors: vec![],
+            qpos0: vec![0.0; 7 + hinges],
+            legs: vec![],
+        }
+    }
+}
+
+#[cfg(test)]
+impl JointInfo {
+    /// A free joint at qpos 0 moving body 1: the base of test models.
+    pub(crate) fn free_base() -> JointInfo {
+        JointInfo {
+            name: "root".into(),
+            kind: "free".into(),
+            qpos_adr: 0,
+            dof_adr: 0,
+            range: None,
+            body: 1,
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ActuatorInfo {
     pub name: String,

@@ -207,14 +207,7 @@ mod tests {
     /// Two mirrored legs: thigh 0.1 m straight down, calf 0.1 m straight
     /// down, right leg axes -y, left +y; hip 0.2 m above the base origin.
     fn biped() -> ModelInfo {
-        let mut joints = vec![JointInfo {
-            name: "root".into(),
-            kind: "free".into(),
-            qpos_adr: 0,
-            dof_adr: 0,
-            range: None,
-            body: 1,
-        }];
+        let mut joints = vec![JointInfo::free_base()];
         let mut actuators = Vec::new();
         let mut legs = Vec::new();
         for (side, y) in [("r", -1.0), ("l", 1.0)] {
@@ -255,26 +248,10 @@ mod tests {
                 foot_radius: 0.01,
             });
         }
-        let mut qpos0 = vec![0.0; 13];
-        qpos0[2] = 0.1;
-        ModelInfo {
-            name: "biped".into(),
-            source: "test".into(),
-            sha256: String::new(),
-            nq: 13,
-            nv: 12,
-            nu: actuators.len(),
-            nbody: 8,
-            timestep: 0.002,
-            total_mass: 1.0,
-            bodies: vec![],
-            joints,
-            actuators,
-            keyframes: vec![],
-            sensors: vec![],
-            qpos0,
-            legs,
-        }
+        let mut info = ModelInfo::for_test("biped", joints, actuators);
+        info.qpos0[2] = 0.1;
+        info.legs = legs;
+        info
     }
 
     #[test]
