@@ -144,6 +144,24 @@ const SHOWN: [(&str, &str, usize, usize); 9] = [
     ("status", "status", 8, 0),
 ];
 
+/// An axis value in at most 8 characters: as written when it fits, else
+/// with 4 significant digits (summary.csv keeps every digit).
+fn short(text: &str) -> String {
+    match text.parse::<f64>() {
+        Ok(v) if text.len() > 8 => {
+            let digits = (3 - v.abs().log10().floor() as i32).clamp(0, 6) as usize;
+            let t = format!("{v:.digits$}");
+            let t = if t.contains('.') {
+                t.trim_end_matches('0').trim_end_matches('.').to_string()
+            } else {
+                t
+            };
+            if t.len() <= 8 { t } else { format!("{v:.2e}") }
+        }
+        _ => text.to_string(),
+    }
+}
+
 pub fn sweep(o: &SweepOutcome) -> String {
     let col = |name: &str| o.header.iter().position(|h| h == name);
     let metrics_at = col("final_z").unwrap_or(o.header.len());
@@ -173,7 +191,7 @@ pub fn sweep(o: &SweepOutcome) -> String {
             let _ = write!(line, "{:<8} ", r[2]);
         }
         for (i, _) in &axes {
-            let _ = write!(line, "{:>8} ", r[*i]);
+            let _ = write!(line, "{:>8} ", short(&r[*i]));
         }
         for (name, _, w, d) in SHOWN {
             let text = col(name).map(|i| r[i].as_str()).unwrap_or("");
@@ -350,4 +368,19 @@ pub fn lab(o: &SweepOutcome, groups: &[pupper_core::best::Group]) -> String {
         }
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::short;
+
+    #[test]
+    fn axis_values_fit_their_column() {
+        assert_eq!(short("30"), "30");
+        assert_eq!(short("long-leg"), "long-leg");
+        assert_eq!(short("1.779527559055118"), "1.78");
+        assert_eq!(short("99.22047244094489"), "99.22");
+        assert_eq!(short("0.000123456789"), "0.000123");
+        assert!(short("123456789.5").len() <= 9);
+    }
 }
