@@ -284,6 +284,19 @@ impl ModelInfo {
     /// Each actuator's own torque limit, the default of `--max-torque`: its
     /// force range, else its control range (the force a unit-gain actuator
     /// makes at full control; times the gear at the joint). Pupper v3: 3 N·m.
+    /// Refuses a pose (start and target angles) without one angle per actuator.
+    pub fn check_pose(&self, pose: &[f64]) -> Result<()> {
+        if pose.len() == self.nu {
+            return Ok(());
+        }
+        Err(Error::Config(format!(
+            "the pose has {} angles but model '{}' has {} actuated joints: give one angle per actuator, in actuator order",
+            pose.len(),
+            self.name,
+            self.nu
+        )))
+    }
+
     /// An actuator with neither range is [`UNLIMITED`]: not clipped.
     pub fn torque_limits(&self) -> Result<Vec<f64>> {
         Ok(self

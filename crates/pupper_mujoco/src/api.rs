@@ -154,16 +154,10 @@ pub fn record_run(dir: &std::path::Path, indices: &[usize], fps: f64) -> Result<
 /// start is a fallback (no `home` keyframe).
 fn check_start(info: &ModelInfo, initial: &InitialState) -> Result<Option<String>> {
     match initial {
-        InitialState::Pose(p) if p.len() != info.nu => Err(Error::Config(format!(
-            "the pose has {} angles but model '{}' has {} actuated joints: give one angle per actuator, in actuator order",
-            p.len(),
-            info.name,
-            info.nu
-        ))),
+        InitialState::Pose(p) => info.check_pose(p).map(|()| None),
         InitialState::Keyframe(k) => info.start_keyframe(k).map(|(_, note)| note),
         // a body pupper cannot pose is refused before anything is written
         InitialState::Auto => pupper_core::pose::stand_pose(info, 1.0).map(|_| None),
-        _ => Ok(None),
     }
 }
 

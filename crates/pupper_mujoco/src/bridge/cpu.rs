@@ -217,14 +217,7 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
             // base x, y and orientation as the first keyframe (or qpos0) has them
             InitialState::Auto => (info.keyframes.first().map(|_| 0), None),
             InitialState::Pose(p) => {
-                if p.len() != info.nu {
-                    return Err(Error::Config(format!(
-                        "the pose has {} angles but model '{}' has {} actuated joints: give one angle per actuator, in actuator order",
-                        p.len(),
-                        info.name,
-                        info.nu
-                    )));
-                }
+                info.check_pose(p)?;
                 (info.keyframes.first().map(|_| 0), Some(p.clone()))
             }
         };
