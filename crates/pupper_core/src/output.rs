@@ -128,6 +128,15 @@ pub fn read_manifest(dir: &Path) -> Result<Manifest> {
 /// A cell's trace: its id and (t, z) samples.
 pub type Trace = (String, Vec<(f64, f64)>);
 
+/// A run file's text, or None when the run has not written it yet.
+fn read_if_there(path: &Path) -> Result<Option<String>> {
+    match std::fs::read_to_string(path) {
+        Ok(t) => Ok(Some(t)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(Error::io("read", path, e)),
+    }
+}
+
 /// Lines of a file that ends cleanly: a last line without its newline is
 /// the trace of a write that was cut short, and is left out.
 fn whole_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
@@ -144,10 +153,8 @@ fn whole_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
 pub(crate) fn read_rows(dir: &Path, config: &SweepConfig) -> Result<BTreeMap<usize, Vec<String>>> {
     let p = dir.join(SUMMARY);
     let mut rows = BTreeMap::new();
-    let text = match std::fs::read_to_string(&p) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(rows),
-        Err(e) => return Err(Error::io("read", &p, e)),
+    let Some(text) = read_if_there(&p)? else {
+        return Ok(rows);
     };
     let want = header_of(config);
     let cells = config.grid.cells();
@@ -218,10 +225,8 @@ pub(crate) fn read_traces(
 ) -> Result<BTreeMap<usize, Trace>> {
     let p = dir.join(TRACES);
     let mut out = BTreeMap::new();
-    let text = match std::fs::read_to_string(&p) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(out),
-        Err(e) => return Err(Error::io("read", &p, e)),
+    let Some(text) = read_if_there(&p)? else {
+        return Ok(out);
     };
     let by_id: BTreeMap<&str, usize> = keep.iter().map(|(i, r)| (r[1].as_str(), *i)).collect();
     let mut samples: BTreeMap<usize, Vec<(f64, f64)>> = BTreeMap::new();

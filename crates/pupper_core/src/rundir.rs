@@ -361,7 +361,7 @@ impl RunWriter {
         if self.want_traces {
             let mut out = String::from("id,t,z\n");
             for tr in self.traces.values() {
-                trace_lines(&mut out, tr);
+                trace_lines(&mut out, &tr.0, &tr.1);
             }
             write_atomic(&dir.join(TRACES), out.as_bytes())?;
         }
@@ -388,7 +388,7 @@ impl RunWriter {
             let mut traces = String::new();
             if self.want_traces {
                 for r in results {
-                    trace_lines(&mut traces, &(r.cell.id.clone(), r.trace.clone()));
+                    trace_lines(&mut traces, &r.cell.id, &r.trace);
                 }
             }
             let rows = csv_bytes(&[], &new_rows)?;
@@ -460,7 +460,7 @@ impl RunWriter {
     }
 }
 
-fn trace_lines(out: &mut String, (id, samples): &Trace) {
+fn trace_lines(out: &mut String, id: &str, samples: &[(f64, f64)]) {
     for (t, z) in samples {
         out.push_str(&format!("{id},{},{}\n", fmt_f64(*t), fmt_f64(*z)));
     }
