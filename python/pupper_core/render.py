@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING, Any, Callable, Sequence, Union
 
 import numpy as np
 
+from pupper_core._files import atomic_write
+
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco
 
@@ -507,17 +509,6 @@ def _compose(panels: Sequence["PILImage.Image"], gap: int = 4) -> "PILImage.Imag
     return out
 
 
-def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    """``write(tmp)`` then rename over ``path``: never a half-written file."""
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
 def _atomic_save(img_or_frames: Any, path: Path, fmt: str, **kw: Any) -> None:
     def save(tmp: Path) -> None:
         if isinstance(img_or_frames, list):
@@ -526,7 +517,7 @@ def _atomic_save(img_or_frames: Any, path: Path, fmt: str, **kw: Any) -> None:
         else:
             img_or_frames.save(tmp, format=fmt, **kw)
 
-    _atomic_write(path, save)
+    atomic_write(path, save)
 
 
 _LABEL_COLOURS = [(255, 60, 60), (230, 30, 30), (255, 255, 255), (255, 200, 60), (20, 20, 20), (60, 60, 60), (245, 245, 245), (0, 0, 0)]
@@ -652,7 +643,7 @@ def write_effects(
                 for k, z in enumerate(dr.base_z):
                     w.writerow([rec["id"], k, repr(float(rec["times"][k])), repr(z), int(bool(rec["pushing"][k]))])
 
-    _atomic_write(csv_path, table)
+    atomic_write(csv_path, table)
     return png_path, (gif_path if gif else None), csv_path
 
 
