@@ -15,7 +15,8 @@ pc = pytest.importorskip("pupper_core")
 
 STUB = Path(pc.__file__).parent / "_native.pyi"
 #: Spec fields that are CLI switches or arguments without a default value.
-NO_CLI_DEFAULT = {"out", "force", "resume", "trace", "sine", "pose", "max_torque"}
+NO_CLI_DEFAULT = {"out", "force", "resume", "trace", "sine", "pose", "max_torque",
+                  "randomize"}  # repeatable: none unless given
 #: Spec fields whose flag has another name on the command line.
 CLI_FLAG = {"push": "--no-push"}
 

@@ -205,7 +205,9 @@ def lab(
     gains. With `out`, the run directory also gets best.csv, the lab's
     figures and (where OpenGL works) the bodies drawn at their best gains;
     `render=True` adds the GIF. Other keywords: seconds, sine, model,
-    force, resume, threads, max_saturation (defaults as `pupper lab --help`).
+    force, resume, threads, max_saturation, rank, and the population
+    (replicates, seed, randomize) as `sweep` takes them (defaults as
+    `pupper lab --help`).
     """
     callback = _progress_printer() if progress is True else (progress or None)
     res = _native.lab(list(variants) if variants is not None else None,

@@ -88,6 +88,9 @@ class SweepResult:
     """Seconds the sweep took (NaN for a run read back from disk)."""
     config: dict[str, Any]
     """The inputs that decide the numbers, as stored in manifest.json."""
+    replicates: SweepResult | None
+    """replicates.csv (a row per cell and replicate: drawn values, metrics);
+    None without replicates."""
     @property
     def table(self) -> dict[str, NDArray[Any] | list[str]]:
         """Every column by name."""
@@ -109,16 +112,19 @@ class SweepResult:
     def row(self, i: int) -> dict[str, Any]:
         """Row `i` as a dict: index an int, text as str, numbers as float."""
     @overload
-    def best(self, metric: str = "last_1s_std_mm", *, by: None = None, minimize: bool = True,
+    def best(self, metric: str | None = None, *, by: None = None, minimize: bool = True,
              max_saturation: float = 0.05) -> dict[str, Any]: ...
     @overload
-    def best(self, metric: str = "last_1s_std_mm", *, by: Sequence[str], minimize: bool = True,
+    def best(self, metric: str | None = None, *, by: Sequence[str], minimize: bool = True,
              max_saturation: float = 0.05) -> list[dict[str, Any]]:
         """The best cell, by pupper's rule: among cells whose status is ok,
         whose metric is a number and whose saturation_frac is under
         `max_saturation`, the lowest metric (highest with `minimize=False`);
         ties go to the first cell in grid order. With `by`, the best of each
-        group of those axes' values (with `cells` and `eligible` counts)."""
+        group of those axes' values (with `cells` and `eligible` counts).
+        metric defaults to "last_1s_std_mm", or for a replicated sweep
+        "p95:last_1s_std_mm" (statistics are "mean:M" and "p95:M"; eligible:
+        no replicate fell or diverged, p95:saturation_frac under the bound)."""
     def to_pandas(self) -> Any:
         """The table as a pandas DataFrame (pandas must be installed)."""
 
@@ -153,6 +159,10 @@ def lab(
     resume: bool = ...,
     threads: int = ...,
     max_saturation: float = ...,
+    rank: str | None = ...,
+    replicates: int = ...,
+    seed: int = ...,
+    randomize: Sequence[str] = ...,
     progress: Callable[[int, int], object] | None = ...,
 ) -> SweepResult:
     """The chapter's lab; best.csv in `out`. Plots and rendering are the wrapper's."""

@@ -162,6 +162,13 @@ class SweepOptions(SimOptions, total=False):
     sine: Sequence[float] | None
     trace: bool
     trace_every: int
+    replicates: int
+    """Runs of every cell, each on a robot drawn by `randomize`."""
+    seed: int
+    """Seed of the draws (each a function of seed, cell id, replicate, quantity)."""
+    randomize: Sequence[str]
+    """`QUANTITY=DISTRIBUTION` specs as `pupper sweep --randomize` takes them:
+    "torso_mass=±10%", "friction=0.5:1.2", "q_noise=N(0,0.002)", "delay=0:3"."""
     threads: int
     chunk_cells: int
     max_cells: int

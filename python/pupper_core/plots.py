@@ -158,7 +158,14 @@ def _ipython_display() -> None:
 
 
 def label_of(column: str) -> str:
-    """Axis/colorbar label with units for a summary column."""
+    """Axis/colorbar label with units for a summary column (statistics over
+    replicates, ``mean:M`` and ``p95:M``, say so)."""
+    stat, sep, metric = column.partition(":")
+    if sep and stat in ("mean", "p95"):
+        word = "mean" if stat == "mean" else ("worst-side 95th percentile" if metric != "final_z" else "5th percentile")
+        return f"{LABELS.get(metric, metric)}, {word} over replicates"
+    if column == "failure_fraction":
+        return "share of replicates that fell or diverged"
     return LABELS.get(column, column)
 
 
@@ -198,8 +205,13 @@ def _nrows(table: Table) -> int:
 
 
 def _status(table: Table) -> np.ndarray:
+    """Each row's status; a replicated cell counts as fallen when any of its
+    replicates fell or diverged (it is never "best")."""
     if "status" in table:
         return np.asarray([str(s) for s in table["status"]], dtype=object)
+    if "failure_fraction" in table:
+        ff = np.asarray(table["failure_fraction"], dtype=float)
+        return np.asarray(["ok" if f == 0 else "fell" for f in ff], dtype=object)
     return np.asarray(["ok"] * _nrows(table), dtype=object)
 
 
@@ -370,6 +382,7 @@ def heatmap(
     *,
     title: str | None = None,
     log: bool | None = None,
+    mark_best: bool = True,
 ) -> "Figure":
     """Heatmap of ``metric`` over ``x`` × ``y``, one panel per value of ``by``.
 
@@ -489,7 +502,7 @@ def heatmap(
             # best cell
             sel_rows = np.ones(len(vals), bool) if bcol is None else (bcol == pv)
             v2 = np.where(sel_rows & (status != "diverged"), vals, np.nan)
-            bi = _best_index(v2, status, minimize)
+            bi = _best_index(v2, status, minimize) if mark_best else None
             if bi is not None:
                 c, r = xv.index(xs_all[bi]), yv.index(ys_all[bi])
                 a.add_patch(
@@ -697,7 +710,7 @@ def grid_axes(table: Table) -> list[str]:
     start = cols.index("name") + 1 if "name" in cols else 0
     out = []
     for c in cols[start:]:
-        if c == FIRST_METRIC:
+        if c in (FIRST_METRIC, "replicates", "replicate"):
             break
         out.append(c)
     return out
@@ -732,6 +745,16 @@ def describe(manifest: Mapping[str, Any], n_cells: int | None = None) -> str:
         shown = {k: v for k, v in defaults.items()
                  if v is not None and not (k in ("leg_scale", "torso_mass_scale") and v == 1)}
         parts.append("defaults " + ", ".join(f"{SHORT.get(k, k)} {_fmt(v)}" for k, v in shown.items()))
+    reps = cfg.get("replicates") or {}
+    if reps:
+        drawn = []
+        for r in reps.get("randomize") or []:
+            kind, v = next(iter(r["dist"].items()))
+            text = {"relative": lambda x: f"±{x * 100:g}%", "normal": lambda x: f"N({x[0]:g},{x[1]:g})"}.get(
+                kind, lambda x: f"{x[0]:g}:{x[1]:g}")(v)
+            drawn.append(f"{r['quantity']} {text}")
+        parts.append(f"{reps.get('count', 1)} replicates" + (f" ({', '.join(drawn)}; seed {reps.get('seed', 0)})"
+                                                            if drawn else ""))
     if n_cells is not None:
         parts.append(f"{n_cells} cells")
     return " · ".join(parts)
@@ -789,11 +812,18 @@ def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
         finish(fig, "base_z.png", "Base height during the sweep")
 
     # a metric that is NaN in every cell (push_dip_mm without a push) has nothing to show
+    replicated = "failure_fraction" in table
+    candidates = (("failure_fraction", "p95:last_1s_std_mm", "p95:push_dip_mm") if replicated
+                  else ("last_1s_std_mm", "push_dip_mm"))
     metrics = [
         m
-        for m in ("last_1s_std_mm", "push_dip_mm")
+        for m in candidates
         if m in table and np.isfinite(np.asarray(table[m], dtype=float)).any()
     ]
+    if replicated:
+        fig = replicate_spread(d, "last_1s_std_mm")
+        if fig is not None:
+            finish(fig, "spread_last_1s_std_mm.png", "Spread over replicates at the best cells")
     product = _is_product(table, varying, manifest) if varying else False
     for metric in metrics:
         if product and "kp" in varying and "kd" in varying:
@@ -805,21 +835,106 @@ def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
             elif len(others) > 1:
                 by = "_panel"
                 t2[by] = [", ".join(f"{SHORT.get(a, a)} = {_fmt(table[a][i])}" for a in others) for i in range(n)]
-            fig = heatmap(t2, metric, "kp", "kd", by=by)
-            key = _key_line("lowest", _status(table))
+            if metric == "failure_fraction":
+                # the share itself: every cell coloured, none "best"
+                t2.pop("failure_fraction", None)
+                t2[metric] = table[metric]
+                t2["status"] = ["ok"] * n
+            fig = heatmap(t2, metric, "kp", "kd", by=by, mark_best=metric != "failure_fraction")
+            key = _key_line("lowest", _status(t2))
+            if replicated:
+                key = key.replace("pink = fell", "pink = some replicates fell or diverged")
+            if metric == "failure_fraction":
+                key = "0 = every replicate stayed up"
             fig.suptitle(f"{label_of(metric)}\n{key}\n{_wrap_parts(what, fig.get_figwidth(), 10)}", fontsize=11)
-            written.append(_save(fig, out / f"heatmap_{metric}.png"))
+            written.append(_save(fig, out / f"heatmap_{metric.replace(':', '_')}.png"))
         elif product and len(varying) in (1, 2):
             axis = varying[0]
             group = varying[1] if len(varying) == 2 else None
             if group is not None and axis not in ("kp", "kd") and group in ("kp", "kd"):
                 axis, group = group, axis
             fig = metric_vs_axis(table, metric, axis, group, title="")
-            finish(fig, f"{metric}_vs_{axis}.png", f"{label_of(metric)} vs {label_of(axis)}")
+            finish(fig, f"{metric.replace(':', '_')}_vs_{axis}.png", f"{label_of(metric)} vs {label_of(axis)}")
         else:
             fig = bars(table, metric, title="")
-            finish(fig, f"bars_{metric}.png", label_of(metric) + "  (red outline = lowest)")
+            finish(fig, f"bars_{metric.replace(':', '_')}.png", label_of(metric) + "  (red outline = lowest)")
     return written
+
+
+def read_replicates(run_dir: str | os.PathLike) -> dict[str, Any]:
+    """``replicates.csv`` as columns (numbers as float arrays, ``id``,
+    ``name``, ``status`` and a ``variant`` axis as lists of str)."""
+    path = Path(run_dir) / "replicates.csv"
+    with path.open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        return {}
+    out: dict[str, Any] = {}
+    for name in rows[0]:
+        col = [r[name] for r in rows]
+        if name in TEXT_COLUMNS or name in NAMED_AXES:
+            out[name] = col
+        else:
+            out[name] = np.array([float(v) if v.strip() else np.nan for v in col], dtype=float)
+    return out
+
+
+def replicate_spread(run_dir: str | os.PathLike, metric: str = "last_1s_std_mm",
+                     cells: int = 6, by: str | None = None) -> "Figure | None":
+    """The spread of ``metric`` over each replicate at the best cells: a box
+    (quartiles) with every replicate as a dot, the mean (diamond) and the
+    worst-side 95th percentile (bar) that summary.csv reports. Cells are the
+    ``cells`` best by ``p95:<metric>`` among those where no replicate failed
+    (then the rest), or with ``by`` the best of each group as best.csv has
+    them. None when the run has no replicates."""
+    d = Path(run_dir)
+    if not (d / "replicates.csv").exists():
+        return None
+    reps = read_replicates(d)
+    with open(d / "summary.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    key = f"p95:{metric}"
+    if by is not None and (d / "best.csv").exists():
+        with open(d / "best.csv", newline="") as f:
+            chosen = [r["id"] for r in csv.DictReader(f) if r["id"]]
+    else:
+        def rank(r: dict[str, str]) -> tuple[int, float]:
+            v = float(r[key]) if r.get(key) else math.inf
+            return (0 if r["failure_fraction"] == "0" else 1, v)
+
+        chosen = [r["id"] for r in sorted(rows, key=rank)[:cells]]
+    if not chosen:
+        return None
+    by_id = {r["id"]: r for r in rows}
+    with _style():
+        fig = _new_figure((max(5.0, 1.25 * len(chosen) + 2.0), 4.4))
+        ax = fig.subplots()
+        data, labels = [], []
+        for cid in chosen:
+            sel = [i for i, x in enumerate(reps["id"]) if x == cid and reps["status"][i] == "ok"]
+            data.append(np.asarray(reps[metric], dtype=float)[sel])
+            r = by_id[cid]
+            failed = float(r["failure_fraction"])
+            name = r.get("variant") or ""
+            labels.append((f"{name}\n" if name else "") + cid + (f"\n{failed:.0%} failed" if failed else ""))
+        ax.boxplot([x[np.isfinite(x)] for x in data], positions=range(len(data)), widths=0.5,
+                   showfliers=False, medianprops={"color": "#4e79a7"})
+        jitter = np.random.default_rng(0)
+        for i, x in enumerate(data):
+            ax.plot(i + jitter.uniform(-0.15, 0.15, len(x)), x, "o", ms=3, alpha=0.5, color="#59a14f")
+            r = by_id[chosen[i]]
+            if r.get(f"mean:{metric}"):
+                ax.plot([i], [float(r[f"mean:{metric}"])], "D", color="black", ms=6,
+                        label="mean" if i == 0 else None)
+            if r.get(key):
+                ax.plot([i - 0.3, i + 0.3], [float(r[key])] * 2, color="red", lw=2,
+                        label="worst-side 95th percentile" if i == 0 else None)
+        ax.set_xticks(range(len(chosen)), labels, fontsize=9)
+        ax.set_ylabel(label_of(metric))
+        if np.all([np.all(x[np.isfinite(x)] > 0) for x in data if x.size]):
+            ax.set_yscale("log")
+        ax.legend(loc="best")
+        return fig
 
 
 def lab_heatmaps(
@@ -869,23 +984,38 @@ def write_lab_plots(run_dir: str | os.PathLike) -> list[Path]:
         rows = list(csv.DictReader(f))
     with open(d / "best.csv", newline="") as f:
         best_rows = list(csv.DictReader(f))
-    _, manifest, traces = read_run(d)
+    table, manifest, traces = read_run(d)
+    replicated = bool(rows) and "failure_fraction" in rows[0]
+    metric = "p95:last_1s_std_mm" if replicated else "last_1s_std_mm"
     bodies = list(dict.fromkeys(r["variant"] for r in rows))
     kp = sorted({float(r["kp"]) for r in rows})
     kd = sorted({float(r["kd"]) for r in rows})
     values: dict[str, np.ndarray] = {b: np.full((len(kd), len(kp)), np.nan) for b in bodies}
     for r in rows:
-        if r["status"] == "ok" and r["last_1s_std_mm"]:
-            values[r["variant"]][kd.index(float(r["kd"])), kp.index(float(r["kp"]))] = float(r["last_1s_std_mm"])
+        up = r["failure_fraction"] == "0" if replicated else r["status"] == "ok"
+        if up and r[metric]:
+            values[r["variant"]][kd.index(float(r["kd"])), kp.index(float(r["kp"]))] = float(r[metric])
     best: dict[str, tuple[float, float] | None] = {}
     for b in best_rows:
         best[b["variant"]] = (float(b["kp"]), float(b["kd"])) if b["id"] else None
     out = d / "plots"
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    fig = lab_heatmaps(bodies, kp, kd, values, best)
-    fig.suptitle(f"Last-second base-z std per body\n{describe(manifest, len(rows))}", fontsize=11)
+    fig = lab_heatmaps(bodies, kp, kd, values, best, metric="last_1s_std_mm")
+    head = ("Worst-side 95th percentile over replicates of the last-second base-z std per body"
+            if replicated else "Last-second base-z std per body")
+    fig.suptitle(f"{head}\n{describe(manifest, len(rows))}", fontsize=11)
     written.append(_save(fig, out / "lab_heatmaps.png"))
+    if replicated:
+        shares = {**table, "status": ["ok"] * len(rows)}
+        fig = heatmap(shares, "failure_fraction", "kp", "kd", by="variant", mark_best=False)
+        for a, body in zip(fig.axes, bodies):
+            a.set_title(body)
+        written.append(_save(fig, out / "lab_failure_fraction.png"))
+        fig = replicate_spread(d, "last_1s_std_mm", by="variant")
+        if fig is not None:
+            fig.suptitle("Each body's best gains: spread over replicates", fontsize=11)
+            written.append(_save(fig, out / "lab_spread_last_1s_std_mm.png"))
     chosen = {b["id"]: f"{b['variant']}: Kp {float(b['kp']):g}, Kd {float(b['kd']):g}" for b in best_rows if b["id"]}
     picked = {cid: traces[cid] for cid in chosen if cid in traces}
     if picked:

@@ -207,12 +207,57 @@ impl SimArgs {
     }
 }
 
+/// Randomized replicates: a population of plausible robots per cell.
+#[derive(Args, Debug)]
+#[command(next_help_heading = "Randomized replicates")]
+struct PopulationArgs {
+    /// Runs of every cell, each on a robot drawn by --randomize. Writes replicates.csv (a row
+    /// per cell and replicate, with the drawn values and its metrics); summary.csv then holds,
+    /// per metric, `mean:METRIC` and `p95:METRIC` (the worst-side 95th percentile: the 5th for
+    /// final_z) over the replicates that stayed up, and `failure_fraction` (fell or diverged).
+    /// Replicates are more simulations in the same batches.
+    #[arg(long, default_value_t = SweepSpec::default().replicates, value_name = "R")]
+    replicates: u32,
+    /// Seed of the draws. Each draw is a function of (seed, cell id, replicate, quantity)
+    /// alone, so the numbers are the same whatever the threads, batches or resume points.
+    #[arg(long, default_value_t = SweepSpec::default().seed, value_name = "S")]
+    seed: u64,
+    /// What differs between replicates, QUANTITY=DISTRIBUTION; repeat for more.
+    /// Relative (a factor uniform in 1±P): torso_mass=±10%, leg_mass=±10% (thigh and calf),
+    /// motor_gain=±5% (drawn per actuator). Uniform ranges: friction=0.5:1.2 (feet and floor),
+    /// push_force=-35:-15 (N), push_at=1.5:3 (s). Torque mode only: q_noise=N(0,0.002) (rad,
+    /// on the angles the PD reads, every step), delay=0:3 (whole control steps the PD reads
+    /// late). `+-10%` may stand for `±10%`.
+    #[arg(long, value_name = "QUANTITY=DIST", allow_hyphen_values = true)]
+    randomize: Vec<String>,
+}
+
+impl PopulationArgs {
+    fn apply(&self, spec: SweepSpec) -> SweepSpec {
+        SweepSpec {
+            replicates: self.replicates,
+            seed: self.seed,
+            randomize: self.randomize.clone(),
+            ..spec
+        }
+    }
+
+    /// The metric best cells are ranked by, unless given.
+    fn default_rank(&self) -> &'static str {
+        if self.replicates > 1 || !self.randomize.is_empty() {
+            "p95:last_1s_std_mm"
+        } else {
+            "last_1s_std_mm"
+        }
+    }
+}
+
 #[derive(Args, Debug)]
 #[command(
     after_help = "Without --grid the gains are kp=10,30,60,120 x kd=0.5,1,2,5; --grid replaces them \
 (any sweep axis; a variant axis there replaces --variants). The best gains per body follow the \
---best-by rule of `pupper sweep`: status ok, saturation under --max-saturation, lowest \
-last_1s_std_mm, ties to the first cell."
+--best-by rule of `pupper sweep`: status ok (with replicates: none fell or diverged), saturation \
+under --max-saturation, lowest --rank, ties to the first cell."
 )]
 struct LabArgs {
     #[command(flatten)]
@@ -236,6 +281,12 @@ struct LabArgs {
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
     #[arg(long, default_value_t = pupper_core::best::MAX_SATURATION, value_name = "FRACTION")]
     max_saturation: f64,
+    /// The metric each body's best gains are ranked by (lower is better) [default:
+    /// last_1s_std_mm; with replicates p95:last_1s_std_mm].
+    #[arg(long, value_name = "[STAT:]METRIC")]
+    rank: Option<String>,
+    #[command(flatten)]
+    population: PopulationArgs,
     /// Run directory (default runs/<time>-lab).
     #[arg(long, short = 'o', value_name = "DIR", conflicts_with = "resume")]
     out: Option<PathBuf>,
@@ -318,7 +369,7 @@ struct SweepArgs {
     /// Batch threads; 0 uses all cores. Never changes the numbers.
     #[arg(long, short = 'j', default_value_t = SweepSpec::default().threads, value_name = "N")]
     threads: usize,
-    /// Most cells per batch (batches hold about 5 s of work, so a stop loses
+    /// Most cells per batch (batches hold about 10 s of work, so a stop loses
     /// little; fewer cells bound memory). Never changes the numbers.
     #[arg(long, default_value_t = SweepSpec::default().chunk_cells, value_name = "N")]
     chunk_cells: usize,
@@ -333,13 +384,18 @@ struct SweepArgs {
     render: bool,
     /// Pick the best cell of each group of these axes (e.g. kd, or leg_scale,torso_mass_scale):
     /// printed a line per group and written to DIR/best.csv. Rule: among cells whose status
-    /// is ok, whose metric is a number and whose saturation_frac is under --max-saturation,
-    /// the lowest --best-metric wins; ties go to the first cell in grid order.
+    /// is ok (with replicates: none fell or diverged), whose metric is a number and whose
+    /// saturation_frac (with replicates: p95:saturation_frac) is under --max-saturation, the
+    /// lowest --rank wins; ties go to the first cell in grid order.
     #[arg(long, value_name = "AXIS[,AXIS]", value_delimiter = ',')]
     best_by: Option<Vec<String>>,
-    /// The metric --best-by ranks by (lower is better).
-    #[arg(long, default_value = "last_1s_std_mm", value_name = "METRIC")]
-    best_metric: String,
+    /// The metric --best-by ranks by (lower is better): a summary.csv column. With replicates,
+    /// a statistic over them: mean:METRIC or p95:METRIC (worst side), e.g.
+    /// p95:last_1s_std_mm [default: last_1s_std_mm; with replicates p95:last_1s_std_mm].
+    #[arg(long, visible_alias = "best-metric", value_name = "[STAT:]METRIC")]
+    rank: Option<String>,
+    #[command(flatten)]
+    population: PopulationArgs,
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
     #[arg(long, default_value_t = pupper_core::best::MAX_SATURATION, value_name = "FRACTION")]
     max_saturation: f64,
@@ -371,7 +427,7 @@ impl SweepArgs {
             chunk_cells: self.chunk_cells,
             max_cells: self.max_cells,
             force: self.force,
-            ..self.sim.spec()?
+            ..self.population.apply(self.sim.spec()?)
         })
     }
 }
@@ -485,9 +541,13 @@ struct Job {
 }
 
 fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
+    let metric = a
+        .rank
+        .clone()
+        .unwrap_or_else(|| a.population.default_rank().into());
     let rule = a.best_by.as_ref().map(|by| best::Rule {
         max_saturation: a.max_saturation,
-        ..best::Rule::new(&a.best_metric, by)
+        ..best::Rule::new(&metric, by)
     });
     run_job(
         Job {
@@ -512,8 +572,17 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
     let spec = SweepSpec {
         model: a.model.model.clone(),
         threads: a.threads,
-        ..pupper_core::lab::spec(&a.variants, &a.grid.grid, a.seconds, sine)
+        ..a.population.apply(pupper_core::lab::spec(
+            &a.variants,
+            &a.grid.grid,
+            a.seconds,
+            sine,
+        ))
     };
+    let metric = a
+        .rank
+        .clone()
+        .unwrap_or_else(|| a.population.default_rank().into());
     run_job(
         Job {
             spec,
@@ -527,7 +596,7 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
             render: a.render,
             rule: Some(best::Rule {
                 max_saturation: a.max_saturation,
-                ..best::Rule::new("last_1s_std_mm", &["variant".to_string()])
+                ..best::Rule::new(&metric, &["variant".to_string()])
             }),
             lab: true,
         },
@@ -604,7 +673,7 @@ fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
     if let Some(rule) = &a.rule {
         let groups = api::write_best(&outcome, rule)?;
         if a.lab && !a.json {
-            print!("{}", print::lab(&outcome, &groups));
+            print!("{}", print::lab(&outcome, rule, &groups));
         } else if !a.json {
             print!("{}", print::best(&outcome, rule, &groups));
         }

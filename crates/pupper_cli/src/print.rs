@@ -144,6 +144,18 @@ const SHOWN: [(&str, &str, usize, usize); 9] = [
     ("status", "status", 8, 0),
 ];
 
+/// The table of a replicated sweep: statistics over the replicates.
+const SHOWN_REPLICATED: [(&str, &str, usize, usize); 8] = [
+    ("failure_fraction", "fail %", 6, 0),
+    ("mean:final_z", "z m", 6, 3),
+    ("mean:last_1s_std_mm", "std mm", 7, 3),
+    ("p95:last_1s_std_mm", "p95 std", 7, 3),
+    ("p95:push_dip_mm", "p95 dip", 7, 2),
+    ("p95:max_tilt_deg", "p95 tilt", 8, 2),
+    ("p95:peak_torque", "p95 N·m", 7, 2),
+    ("p95:saturation_frac", "p95 sat%", 8, 1),
+];
+
 /// An axis value in at most 8 characters: as written when it fits, else
 /// with 4 significant digits (summary.csv keeps every digit).
 fn short(text: &str) -> String {
@@ -164,7 +176,15 @@ fn short(text: &str) -> String {
 
 pub fn sweep(o: &SweepOutcome) -> String {
     let col = |name: &str| o.header.iter().position(|h| h == name);
-    let metrics_at = col("final_z").unwrap_or(o.header.len());
+    let replicated = col("failure_fraction").is_some();
+    let shown: &[(&str, &str, usize, usize)] = if replicated {
+        &SHOWN_REPLICATED
+    } else {
+        &SHOWN
+    };
+    let metrics_at = col("final_z")
+        .or_else(|| col("replicates"))
+        .unwrap_or(o.header.len());
     let axes: Vec<(usize, &String)> = o
         .header
         .iter()
@@ -181,7 +201,7 @@ pub fn sweep(o: &SweepOutcome) -> String {
     for (_, a) in &axes {
         let _ = write!(head, "{:>8} ", a);
     }
-    for (_, h, w, _) in SHOWN {
+    for &(_, h, w, _) in shown {
         let _ = write!(head, "{:>w$} ", h);
     }
     let _ = writeln!(s, "{}", head.trim_end());
@@ -193,10 +213,12 @@ pub fn sweep(o: &SweepOutcome) -> String {
         for (i, _) in &axes {
             let _ = write!(line, "{:>8} ", short(&r[*i]));
         }
-        for (name, _, w, d) in SHOWN {
+        for &(name, _, w, d) in shown {
             let text = col(name).map(|i| r[i].as_str()).unwrap_or("");
             let shown = match text.parse::<f64>() {
-                Ok(v) if name == "saturation_frac" => format!("{:.d$}", v * 100.0),
+                Ok(v) if name.ends_with("saturation_frac") || name == "failure_fraction" => {
+                    format!("{:.d$}", v * 100.0)
+                }
                 Ok(v) => format!("{v:.d$}"),
                 Err(_) if text.is_empty() => "-".into(),
                 Err(_) => text.to_string(),
@@ -222,11 +244,25 @@ pub fn sweep(o: &SweepOutcome) -> String {
             let _ = writeln!(s, "\nsteadiest: {label}, last-1s std {v:.4} mm");
         }
     }
+    if replicated {
+        steadiest_robust(&mut s, o);
+    }
     let bad = o
         .rows
         .iter()
         .filter(|r| col("status").is_some_and(|i| r[i] != "ok"))
         .count();
+    let shaky = o
+        .rows
+        .iter()
+        .filter(|r| col("failure_fraction").is_some_and(|i| r[i] != "0"))
+        .count();
+    if shaky > 0 {
+        let _ = writeln!(
+            s,
+            "{shaky} cell(s) had replicates that fell or diverged: see failure_fraction, and replicates.csv"
+        );
+    }
     if bad > 0 {
         let _ = writeln!(
             s,
@@ -244,6 +280,38 @@ pub fn sweep(o: &SweepOutcome) -> String {
         );
     }
     s
+}
+
+/// The steadiest cell over the replicates (the `--best-by` rule on the whole
+/// table), and how the nominal ranking would have differed.
+fn steadiest_robust(s: &mut String, o: &SweepOutcome) {
+    let rule = pupper_core::best::Rule::new("p95:last_1s_std_mm", &[]);
+    let Ok(groups) = pupper_core::best::best(&o.header, &o.rows, &rule) else {
+        return;
+    };
+    let col = |name: &str| o.header.iter().position(|h| h == name);
+    let num = |r: &[String], c: &str| -> f64 {
+        col(c).and_then(|i| r[i].parse().ok()).unwrap_or(f64::NAN)
+    };
+    match groups.first().and_then(|g| g.best) {
+        Some(i) => {
+            let r = &o.rows[i];
+            let _ = writeln!(
+                s,
+                "\nsteadiest over {} replicates (none fell, p95 saturation < 5%): {}, last-1s std p95 {:.4} mm, mean {:.4} mm",
+                r[col("replicates").unwrap_or(0)],
+                r[1],
+                num(r, "p95:last_1s_std_mm"),
+                num(r, "mean:last_1s_std_mm")
+            );
+        }
+        None => {
+            let _ = writeln!(
+                s,
+                "\nno cell kept every replicate standing below 5% saturation"
+            );
+        }
+    }
 }
 
 /// The summary rows as JSON objects, numbers as numbers.
@@ -337,9 +405,23 @@ pub fn pose(p: &pupper_core::pose::StandPose) -> String {
 }
 
 /// `pupper lab`: a line per body, its steadiest gains.
-pub fn lab(o: &SweepOutcome, groups: &[pupper_core::best::Group]) -> String {
+pub fn lab(
+    o: &SweepOutcome,
+    rule: &pupper_core::best::Rule,
+    groups: &[pupper_core::best::Group],
+) -> String {
     let col = |name: &str| o.header.iter().position(|h| h == name);
-    let (kp, kd, std, z) = (col("kp"), col("kd"), col("last_1s_std_mm"), col("final_z"));
+    let (kp, kd, std) = (col("kp"), col("kd"), col(&rule.metric));
+    let z = col("final_z").or_else(|| col("mean:final_z"));
+    let label = match rule.metric.as_str() {
+        "last_1s_std_mm" => "z_std".to_string(),
+        m => m.to_string(),
+    };
+    let unit = if rule.metric.ends_with("_mm") {
+        " mm"
+    } else {
+        ""
+    };
     let num = |r: &[String], c: Option<usize>| -> f64 {
         c.and_then(|c| r[c].parse().ok()).unwrap_or(f64::NAN)
     };
@@ -351,7 +433,7 @@ pub fn lab(o: &SweepOutcome, groups: &[pupper_core::best::Group]) -> String {
                 let r = &o.rows[i];
                 let _ = writeln!(
                     s,
-                    "{body:<9} Kp={:<5} Kd={:<4} z_std={:.2} mm  z={:.3} m",
+                    "{body:<9} Kp={:<5} Kd={:<4} {label}={:.2}{unit}  z={:.3} m",
                     format!("{}", num(r, kp)),
                     format!("{}", num(r, kd)),
                     num(r, std),

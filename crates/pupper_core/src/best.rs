@@ -3,6 +3,8 @@
 //! 1. A cell is eligible when its status is `ok` (it neither fell nor
 //!    diverged), the metric is a number, and its `saturation_frac` (the
 //!    share of actuator-steps at the torque limit) is below the threshold.
+//!    In a replicated sweep: no replicate fell or diverged
+//!    (`failure_fraction` 0), and `p95:saturation_frac` is below it.
 //! 2. Among the eligible cells of a group, the lowest metric wins (the
 //!    highest with `minimize = false`).
 //! 3. Ties go to the cell that comes first in grid order.
@@ -12,6 +14,7 @@
 
 use crate::error::{Error, Result};
 use crate::metrics::METRIC_NAMES;
+use crate::output::{AGGREGATED, STATISTICS};
 
 /// The default saturation threshold: cells whose actuators sit at their
 /// torque limit in 5 % or more of the steps are not trusted as "best".
@@ -56,21 +59,39 @@ fn column(header: &[String], name: &str) -> Option<usize> {
 
 /// The best cell of each group of `rows` (summary.csv's rows as text).
 pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<Group>> {
-    let numeric: Vec<&str> = METRIC_NAMES
-        .iter()
-        .copied()
-        .filter(|m| *m != "status")
-        .collect();
+    let replicated = column(header, "failure_fraction").is_some();
+    let numeric: Vec<String> = if replicated {
+        AGGREGATED
+            .iter()
+            .flat_map(|m| STATISTICS.iter().map(move |s| format!("{s}:{m}")))
+            .collect()
+    } else {
+        METRIC_NAMES
+            .iter()
+            .filter(|m| **m != "status")
+            .map(|m| m.to_string())
+            .collect()
+    };
     let metric = column(header, &rule.metric)
-        .filter(|_| numeric.contains(&rule.metric.as_str()))
+        .filter(|_| numeric.contains(&rule.metric))
         .ok_or_else(|| {
+            let hint = match (replicated, rule.metric.contains(':')) {
+                (false, true) => {
+                    " (mean: and p95: statistics need replicates: add --replicates or --randomize)"
+                }
+                (true, false) => " (a replicated sweep ranks by a statistic over replicates)",
+                _ => "",
+            };
+            let shown: Vec<&str> = numeric.iter().map(String::as_str).collect();
             Error::Config(format!(
-                "unknown metric '{}': use one of {}",
+                "unknown metric '{}'{hint}: use one of {}",
                 rule.metric,
-                numeric.join(", ")
+                shown.join(", ")
             ))
         })?;
-    let first_metric = column(header, METRIC_NAMES[0]).unwrap_or(header.len());
+    let first_metric = column(header, METRIC_NAMES[0])
+        .or_else(|| column(header, "replicates"))
+        .unwrap_or(header.len());
     let axes = &header[3.min(first_metric)..first_metric];
     let by = rule
         .by
@@ -98,7 +119,9 @@ pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<
         )));
     }
     let status = column(header, "status");
-    let saturation = column(header, "saturation_frac");
+    let failures = column(header, "failure_fraction");
+    let saturation =
+        column(header, "saturation_frac").or_else(|| column(header, "p95:saturation_frac"));
     let mut groups: Vec<(Vec<String>, Group, f64)> = Vec::new();
     for (i, r) in rows.iter().enumerate() {
         let key: Vec<String> = by.iter().map(|&c| r[c].clone()).collect();
@@ -119,7 +142,11 @@ pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<
         g.cells += 1;
         let v: f64 = r[metric].parse().unwrap_or(f64::NAN);
         let sat: f64 = saturation.map_or(0.0, |c| r[c].parse().unwrap_or(f64::NAN));
-        let ok = status.is_some_and(|c| r[c] == "ok");
+        let ok = match (status, failures) {
+            (Some(c), _) => r[c] == "ok",
+            (None, Some(c)) => r[c].parse::<f64>() == Ok(0.0),
+            (None, None) => false,
+        };
         if !(ok && v.is_finite() && sat < rule.max_saturation) {
             continue;
         }
@@ -166,6 +193,67 @@ pub fn table(
 
 #[cfg(test)]
 mod tests {
+    /// A replicated table: eligibility is "no replicate failed" and
+    /// p95:saturation_frac under the bound.
+    #[test]
+    fn replicated_cells_are_ranked_by_a_statistic() {
+        let mut header: Vec<String> = [
+            "index",
+            "id",
+            "name",
+            "kp",
+            "replicates",
+            "failure_fraction",
+        ]
+        .map(String::from)
+        .to_vec();
+        for m in AGGREGATED {
+            for st in STATISTICS {
+                header.push(format!("{st}:{m}"));
+            }
+        }
+        let col = |n: &str| header.iter().position(|h| h == n).unwrap();
+        let row = |i: usize, failed: &str, p95: &str, sat: &str| {
+            let mut r = vec![String::new(); header.len()];
+            r[0] = i.to_string();
+            r[1] = format!("kp{i}");
+            r[3] = i.to_string();
+            r[4] = "8".into();
+            r[5] = failed.into();
+            r[col("p95:last_1s_std_mm")] = p95.into();
+            r[col("mean:last_1s_std_mm")] = "0.5".into();
+            r[col("p95:saturation_frac")] = sat.into();
+            r
+        };
+        let rows = vec![
+            row(0, "0.125", "0.1", "0"), // lowest, but one replicate fell
+            row(1, "0", "0.3", "0.2"),   // saturated
+            row(2, "0", "0.4", "0"),
+            row(3, "0", "0.2", "0.01"),
+        ];
+        let g = best(&header, &rows, &Rule::new("p95:last_1s_std_mm", &[])).unwrap();
+        assert_eq!((g[0].best, g[0].eligible), (Some(3), 2));
+        // the mean ranks too (all equal: the first eligible cell wins)
+        let g = best(&header, &rows, &Rule::new("mean:last_1s_std_mm", &[])).unwrap();
+        assert_eq!(g[0].best, Some(2));
+        let e = best(&header, &rows, &Rule::new("last_1s_std_mm", &[]))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("statistic over replicates") && e.contains("p95:last_1s_std_mm"),
+            "{e}"
+        );
+        let plain: Vec<String> = ["index", "id", "name", "kp"]
+            .iter()
+            .map(|s| s.to_string())
+            .chain(METRIC_NAMES.iter().map(|s| s.to_string()))
+            .collect();
+        let e = best(&plain, &[], &Rule::new("p95:last_1s_std_mm", &[]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--replicates"), "{e}");
+    }
+
     use super::*;
     use crate::output::header;
 

@@ -14,6 +14,7 @@ use crate::model::ModelSource;
 use crate::pd;
 use crate::physics::{CellSetup, Force, Mode, Physics};
 use crate::quat;
+use crate::randomize::{Draws, Noise, Replicates};
 use crate::schedule::Schedule;
 
 /// Values used for any axis the grid does not vary.
@@ -56,6 +57,10 @@ pub struct SweepConfig {
     pub schedule: Schedule,
     pub mode: Mode,
     pub defaults: Defaults,
+    /// Randomized replicates of every cell; a plain sweep leaves it out of
+    /// the manifest (so its manifest is what it always was).
+    #[serde(default, skip_serializing_if = "Replicates::is_plain")]
+    pub replicates: Replicates,
 }
 
 impl Default for SweepConfig {
@@ -66,6 +71,7 @@ impl Default for SweepConfig {
             schedule: Schedule::default(),
             mode: Mode::Servo,
             defaults: Defaults::default(),
+            replicates: Replicates::default(),
         }
     }
 }
@@ -92,7 +98,7 @@ impl Default for RunOptions {
         RunOptions {
             threads: 0,
             chunk_cells: 256,
-            chunk_seconds: 5.0,
+            chunk_seconds: 10.0,
             chunk_steps: 250,
             frame_rate: None,
         }
@@ -128,7 +134,30 @@ impl SweepConfig {
                 "max torque {t} is not positive: give --max-torque a value > 0"
             )));
         }
-        Ok(())
+        let axes: Vec<&str> = self.grid.axes.iter().map(|a| a.axis.name()).collect();
+        self.replicates
+            .check(self.mode, self.schedule.push.is_some(), &axes)
+    }
+
+    /// The simulations each cell runs.
+    pub fn replicate_count(&self) -> usize {
+        self.replicates.count.max(1) as usize
+    }
+
+    /// The physical setting of one replicate of a cell, with its draws.
+    pub fn setup_replicate(&self, cell: &Cell, d: &Draws) -> CellSetup {
+        let mut s = self.setup(cell);
+        s.torso_mass_factor = d.torso_mass;
+        s.leg_mass_factor = d.leg_mass;
+        s.motor_gain = d.motor_gain.clone();
+        if d.friction.is_some() {
+            s.friction = d.friction;
+        }
+        if let Some(f) = d.push_force {
+            s.push_force[2] = f;
+        }
+        s.push_at = d.push_at;
+        s
     }
 
     /// The physical setting of one cell.
@@ -164,16 +193,33 @@ impl SweepConfig {
             // a named body sets the scales; numeric scale axes multiply them
             leg_scale: body.leg_scale * get(Axis::LegScale, 1.0),
             torso_mass_scale: body.torso_mass_scale * get(Axis::TorsoMassScale, 1.0),
+            torso_mass_factor: 1.0,
+            leg_mass_factor: 1.0,
+            motor_gain: Vec::new(),
+            push_at: None,
         }
     }
+}
+
+/// One replicate of a cell: its drawn values (in the order of
+/// [`Replicates::columns`]) and its metrics.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Replicate {
+    pub drawn: Vec<f64>,
+    pub metrics: Metrics,
 }
 
 /// One finished cell.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CellResult {
     pub cell: Cell,
+    /// The cell's metrics (of replicate 0 in a replicated sweep).
     pub metrics: Metrics,
-    /// Decimated (time, base z) samples when a trace was asked for.
+    /// Every replicate, in a replicated sweep; empty in a plain one.
+    #[serde(default)]
+    pub replicates: Vec<Replicate>,
+    /// Decimated (time, base z) samples when a trace was asked for (of
+    /// replicate 0 in a replicated sweep, as are the frames).
     pub trace: Vec<(f64, f64)>,
     /// States at the frame rate, when [`RunOptions::frame_rate`] is set.
     pub frames: Option<Frames>,
@@ -226,15 +272,22 @@ pub fn run_cells(
         plans.push(cfg.schedule.plan(f64::from_bits(*bits))?.steps);
     }
     let mut pace = Pace::new(opts);
+    let per_cell = cfg.replicate_count();
     let mut out: Vec<CellResult> = Vec::with_capacity(cells.len());
     for ((bits, group), steps) in groups.iter().zip(plans) {
         let dt = f64::from_bits(*bits);
         let mut rest: &[&Cell] = group;
         while !rest.is_empty() {
-            let (chunk, more) = rest.split_at(pace.cells(steps).min(rest.len()));
+            // a cell's replicates always share its batch
+            let fit = pace.sims(steps).div_ceil(per_cell).max(1);
+            let (chunk, more) = rest.split_at(fit.min(opts.chunk_cells.max(1)).min(rest.len()));
             let started = std::time::Instant::now();
             let results = run_chunk(physics, cfg, chunk, dt, opts, hooks)?;
-            pace.measured(chunk.len(), steps, started.elapsed().as_secs_f64());
+            pace.measured(
+                chunk.len() * per_cell,
+                steps,
+                started.elapsed().as_secs_f64(),
+            );
             hooks.chunk_done(&results)?;
             out.extend(results);
             rest = more;
@@ -252,10 +305,10 @@ pub fn run_cells(
 }
 
 /// Sizes batches to about `chunk_seconds` of work from the speed measured
-/// so far (a cautious guess before the first batch). Up to one cell per
-/// thread costs the same wall time, so a batch is never smaller than that.
+/// so far (a cautious guess before the first batch). Up to one simulation
+/// per thread costs the same wall time, so a batch is never smaller than
+/// that. `--chunk-cells` caps the cells of a batch separately.
 struct Pace {
-    max_cells: usize,
     seconds: f64,
     threads: usize,
     /// Steps per wall second of one thread.
@@ -269,7 +322,6 @@ impl Pace {
             n => n,
         };
         Pace {
-            max_cells: opts.chunk_cells.max(1),
             seconds: opts.chunk_seconds,
             threads,
             // 40 µs per step: Pupper on a slow core (measured again after
@@ -278,19 +330,17 @@ impl Pace {
         }
     }
 
-    /// Cells of `steps` steps for the next batch.
-    fn cells(&self, steps: usize) -> usize {
+    /// Simulations of `steps` steps for the next batch.
+    fn sims(&self, steps: usize) -> usize {
         let fit = self.seconds * self.lane_rate * self.threads as f64 / steps.max(1) as f64;
-        (fit.floor() as usize)
-            .max(self.threads)
-            .clamp(1, self.max_cells)
+        (fit.floor() as usize).max(self.threads).max(1)
     }
 
-    /// A batch of `cells` cells of `steps` steps took `seconds`.
-    fn measured(&mut self, cells: usize, steps: usize, seconds: f64) {
+    /// A batch of `sims` simulations of `steps` steps took `seconds`.
+    fn measured(&mut self, sims: usize, steps: usize, seconds: f64) {
         if seconds > 0.05 {
-            let lanes = cells.min(self.threads).max(1);
-            self.lane_rate = (cells * steps) as f64 / seconds / lanes as f64;
+            let lanes = sims.min(self.threads).max(1);
+            self.lane_rate = (sims * steps) as f64 / seconds / lanes as f64;
         }
     }
 }
@@ -330,6 +380,33 @@ struct TorqueScratch {
     nsat: usize,
 }
 
+/// What the torque-mode PD of one simulation reads: its joint angles and
+/// velocities `delay` control steps late (the start state until then), the
+/// angles with Gaussian noise.
+struct Sensing {
+    delay: usize,
+    noise: Option<Noise>,
+    /// The last `delay + 1` (angles, velocities) of the actuated joints,
+    /// oldest first.
+    history: std::collections::VecDeque<(Vec<f64>, Vec<f64>)>,
+}
+
+impl Sensing {
+    fn exact(&self) -> bool {
+        self.delay == 0 && self.noise.is_none()
+    }
+}
+
+/// One simulation of a chunk: a replicate of a cell.
+struct SimPlan {
+    /// Position of its cell in the chunk.
+    cell: usize,
+    setup: CellSetup,
+    drawn: Vec<f64>,
+    /// Steps during which it is pushed.
+    push: std::ops::Range<usize>,
+}
+
 fn run_chunk(
     physics: &dyn Physics,
     cfg: &SweepConfig,
@@ -338,34 +415,82 @@ fn run_chunk(
     opts: RunOptions,
     hooks: &mut dyn Hooks,
 ) -> Result<Vec<CellResult>> {
-    let setups: Vec<CellSetup> = cells.iter().map(|c| cfg.setup(c)).collect();
-    let limits: Vec<Vec<f64>> = setups
-        .iter()
-        .map(|s| s.torque_limits(physics.info()))
-        .collect::<Result<_>>()?;
-    let mut batch = physics.start(&setups, cfg.mode, &cfg.schedule.initial, opts.threads)?;
-    let layout = physics.layout().clone();
-    let targets: Vec<Vec<f64>> = (0..cells.len())
-        .map(|s| batch.targets(s).to_vec())
-        .collect();
     let schedule = &cfg.schedule;
     let plan = schedule.plan(dt)?;
-    let (nsteps, push) = (plan.steps, plan.push);
-    let n = cells.len();
+    let nsteps = plan.steps;
+    let info = physics.info();
+    let per_cell = cfg.replicate_count();
+    let reps = &cfg.replicates;
+    // every replicate of every cell, cell by cell
+    let mut sims: Vec<SimPlan> = Vec::with_capacity(cells.len() * per_cell);
+    let mut sensing: Vec<Sensing> = Vec::with_capacity(cells.len() * per_cell);
+    let mut recorders: Vec<Recorder> = Vec::with_capacity(cells.len() * per_cell);
+    for (ci, c) in cells.iter().enumerate() {
+        for r in 0..per_cell {
+            let d = reps.draws(&c.id, r as u32, info.nu);
+            let setup = cfg.setup_replicate(c, &d);
+            // a replicate's own push start moves its push window; only
+            // replicate 0 keeps a trace
+            let mut own = schedule.clone();
+            if let (Some(at), Some(p)) = (setup.push_at, own.push.as_mut()) {
+                p.start = at;
+            }
+            if r > 0 {
+                own.trace_every = 0;
+            }
+            let push = match setup.push_at {
+                Some(_) => own.plan(dt)?.push,
+                None => plan.push.clone(),
+            };
+            recorders.push(Recorder::new(&own, dt));
+            sensing.push(Sensing {
+                delay: d.delay,
+                noise: reps.noise(&c.id, r as u32),
+                history: Default::default(),
+            });
+            sims.push(SimPlan {
+                cell: ci,
+                setup,
+                drawn: d.values,
+                push,
+            });
+        }
+    }
+    let setups: Vec<CellSetup> = sims.iter().map(|s| s.setup.clone()).collect();
+    let limits: Vec<Vec<f64>> = setups
+        .iter()
+        .map(|s| s.torque_limits(info))
+        .collect::<Result<_>>()?;
+    let mut batch = physics.start(&setups, cfg.mode, &schedule.initial, opts.threads)?;
+    let layout = physics.layout().clone();
+    let n = sims.len();
+    let targets: Vec<Vec<f64>> = (0..n).map(|s| batch.targets(s).to_vec()).collect();
     let mut state = ChunkState {
         layout: &layout,
         targets: &targets,
-        recorders: (0..n).map(|_| Recorder::new(schedule, dt)).collect(),
+        recorders,
         frames: match opts.frame_rate {
             Some(fps) => {
                 let count = frame_count(schedule.duration, fps)?;
                 (0..n)
-                    .map(|sim| Ok(Some(FrameRecorder::new(fps, count, &batch.qpos(sim)?))))
+                    .map(|sim| {
+                        if sim % per_cell != 0 {
+                            return Ok(None);
+                        }
+                        Ok(Some(FrameRecorder::new(fps, count, &batch.qpos(sim)?)))
+                    })
                     .collect::<Result<_>>()?
             }
-            None => vec![None; n],
+            None => (0..n).map(|_| None).collect(),
         },
     };
+    // steps at which some simulation's push starts or ends: no call crosses one
+    let mut bounds: Vec<usize> = sims
+        .iter()
+        .flat_map(|s| [s.push.start, s.push.end])
+        .collect();
+    bounds.sort_unstable();
+    bounds.dedup();
     let mut alive: Vec<usize> = (0..n).collect();
     let nu = layout.nu;
 
@@ -376,17 +501,14 @@ fn run_chunk(
     let mut t_before = 0.0f64;
     let mut since_check = 0usize;
     while k < nsteps && !alive.is_empty() {
-        // A call never crosses a push boundary.
         let mut end = (k + opts.chunk_steps.max(1)).min(nsteps);
         if cfg.mode == Mode::Torque {
             end = k + 1;
         }
-        for b in [push.start, push.end] {
-            if k < b && b < end {
-                end = b;
-            }
+        if let Some(&b) = bounds.iter().find(|&&b| b > k) {
+            end = end.min(b);
         }
-        let pushing = push.contains(&k);
+        let pushing = |sim: usize| sims[sim].push.contains(&k);
         let nstep = end - k;
         step_time.clear();
         let mut t = t_before;
@@ -395,7 +517,7 @@ fn run_chunk(
             t += dt;
         }
         let force_of = |sim: usize, step: usize| -> [f64; 3] {
-            let mut f = if pushing {
+            let mut f = if pushing(sim) {
                 setups[sim].push_force
             } else {
                 [0.0; 3]
@@ -432,7 +554,7 @@ fn run_chunk(
                             nsat += 1;
                         }
                     }
-                    state.sample(sim, step_time[step] + dt, pushing, qpos, peak, nsat);
+                    state.sample(sim, step_time[step] + dt, pushing(sim), qpos, peak, nsat);
                 })?
             }
             Mode::Torque => {
@@ -446,37 +568,50 @@ fn run_chunk(
                     &alive,
                     &forces,
                     &mut |pos, qpos, qvel, ctrl| {
-                        let s = &setups[alive[pos]];
-                        let lim = &limits[alive[pos]];
+                        let sim = alive[pos];
+                        let s = &setups[sim];
+                        let lim = &limits[sim];
                         let mut scratch = scratch.borrow_mut();
                         let sc = &mut scratch[pos];
                         sc.peak = 0.0;
                         sc.nsat = 0;
+                        let sense = &mut sensing[sim];
+                        let exact = sense.exact();
+                        if !exact {
+                            let q = layout.act_qpos.iter().map(|&i| qpos[i]).collect();
+                            let v = layout.act_dof.iter().map(|&i| qvel[i]).collect();
+                            sense.history.push_back((q, v));
+                            if sense.history.len() > sense.delay + 1 {
+                                sense.history.pop_front();
+                            }
+                        }
                         for a in 0..nu {
-                            let (tau, sat) = pd::torque(
-                                s.kp,
-                                s.kd,
-                                targets[alive[pos]][a],
-                                qpos[layout.act_qpos[a]],
-                                qvel[layout.act_dof[a]],
-                                lim[a],
-                            );
+                            let (q, v) = match sense.history.front() {
+                                Some((q, v)) if !exact => (q[a], v[a]),
+                                _ => (qpos[layout.act_qpos[a]], qvel[layout.act_dof[a]]),
+                            };
+                            let q = match &mut sense.noise {
+                                Some(noise) => q + noise.sample(),
+                                None => q,
+                            };
+                            let (tau, sat) = pd::torque(s.kp, s.kd, targets[sim][a], q, v, lim[a]);
                             ctrl[a] = tau;
-                            sc.peak = sc.peak.max(tau.abs());
-                            sc.nsat += sat as usize;
+                            // what the motor delivers: its gain times the
+                            // command, clamped at its force range
+                            let delivered = (s.gain(a) * tau).abs();
+                            sc.peak = sc.peak.max(if delivered > lim[a] {
+                                lim[a]
+                            } else {
+                                delivered
+                            });
+                            sc.nsat += (sat || delivered >= lim[a] * (1.0 + 1e-12)) as usize;
                         }
                     },
                     &mut |pos, _step, qpos, _act| {
                         let scratch = scratch.borrow();
                         let sc = &scratch[pos];
-                        state.sample(
-                            alive[pos],
-                            step_time[0] + dt,
-                            pushing,
-                            qpos,
-                            sc.peak,
-                            sc.nsat,
-                        );
+                        let sim = alive[pos];
+                        state.sample(sim, step_time[0] + dt, pushing(sim), qpos, sc.peak, sc.nsat);
                     },
                 )?;
                 d.into_iter().map(|p| (p, 0)).collect()
@@ -501,19 +636,27 @@ fn run_chunk(
             }
         }
     }
-    Ok(cells
-        .iter()
-        .zip(state.recorders)
-        .zip(state.frames)
-        .map(|((c, r), f)| {
-            let (metrics, trace) = r.finish();
-            debug_assert!(metrics.status != Status::Diverged || metrics.event_time.is_finite());
-            CellResult {
-                cell: (*c).clone(),
-                metrics,
+    // back to cells: replicate 0 carries the trace and frames
+    let replicated = !reps.is_plain();
+    let mut out: Vec<CellResult> = Vec::with_capacity(cells.len());
+    for ((sim, r), f) in sims.into_iter().zip(state.recorders).zip(state.frames) {
+        let (metrics, trace) = r.finish();
+        debug_assert!(metrics.status != Status::Diverged || metrics.event_time.is_finite());
+        if out.len() == sim.cell {
+            out.push(CellResult {
+                cell: cells[sim.cell].clone(),
+                metrics: metrics.clone(),
+                replicates: Vec::new(),
                 trace,
                 frames: f.map(FrameRecorder::finish),
-            }
-        })
-        .collect())
+            });
+        }
+        if replicated {
+            out[sim.cell].replicates.push(Replicate {
+                drawn: sim.drawn,
+                metrics,
+            });
+        }
+    }
+    Ok(out)
 }

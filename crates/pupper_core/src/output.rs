@@ -18,6 +18,30 @@ pub const SUMMARY: &str = "summary.csv";
 pub const MANIFEST: &str = "manifest.json";
 pub const TRACES: &str = "traces.csv";
 pub const BEST: &str = "best.csv";
+pub const REPLICATES: &str = "replicates.csv";
+
+/// The metrics summarised over replicates (all numeric ones but the time of
+/// an event, which only failed replicates have).
+pub const AGGREGATED: [&str; 8] = [
+    "final_z",
+    "last_1s_std_mm",
+    "push_dip_mm",
+    "settle_time_s",
+    "max_tilt_deg",
+    "peak_torque",
+    "saturation_frac",
+    "tracking_rms",
+];
+
+/// The statistics a replicated summary has per metric: `mean:METRIC` and
+/// `p95:METRIC` (the worst-side 95 % point).
+pub const STATISTICS: [&str; 2] = ["mean", "p95"];
+
+/// Whether a metric's bad side is high (all but the base height, whose
+/// bad side is low: a sagging robot).
+pub fn worse_high(metric: &str) -> bool {
+    metric != "final_z"
+}
 
 /// A float as the shortest text that reads back to the same bits; NaN empty.
 pub fn fmt_f64(v: f64) -> String {
@@ -36,15 +60,80 @@ pub fn header(axes: &[String]) -> Vec<String> {
     h
 }
 
-/// The header of a sweep's `summary.csv`.
-pub fn header_of(config: &SweepConfig) -> Vec<String> {
-    let axes: Vec<String> = config
+fn axis_names(config: &SweepConfig) -> Vec<String> {
+    config
         .grid
         .axes
         .iter()
         .map(|a| a.axis.name().to_string())
+        .collect()
+}
+
+/// The header of a sweep's `summary.csv`: the metrics of each cell, or for
+/// a replicated sweep their statistics over the replicates.
+pub fn header_of(config: &SweepConfig) -> Vec<String> {
+    if config.replicates.is_plain() {
+        return header(&axis_names(config));
+    }
+    let mut h: Vec<String> = ["index", "id", "name"].map(String::from).to_vec();
+    h.extend(axis_names(config));
+    h.extend(["replicates", "failure_fraction"].map(String::from));
+    for m in AGGREGATED {
+        for s in STATISTICS {
+            h.push(format!("{s}:{m}"));
+        }
+    }
+    h
+}
+
+/// The header of `replicates.csv`, for a model of `nu` actuators.
+pub fn replicates_header(config: &SweepConfig, nu: usize) -> Vec<String> {
+    let mut h: Vec<String> = ["index", "id", "name"].map(String::from).to_vec();
+    h.extend(axis_names(config));
+    h.push("replicate".into());
+    h.extend(config.replicates.columns(nu));
+    h.extend(METRIC_NAMES.iter().map(|s| s.to_string()));
+    h
+}
+
+/// One row of `replicates.csv`.
+pub fn replicate_row(cell: &Cell, replicate: usize, drawn: &[f64], m: &Metrics) -> Vec<String> {
+    let mut r = row(cell, m);
+    let at = 3 + cell.values.len();
+    let mut mid = vec![replicate.to_string()];
+    mid.extend(drawn.iter().map(|v| fmt_f64(*v)));
+    r.splice(at..at, mid);
+    r
+}
+
+/// A replicated cell's summary row: how many replicates, the share that
+/// fell or diverged, and each metric's mean and worst-side 95th percentile
+/// over the replicates that stayed up (empty when none did, or when one
+/// of them has no value for it, e.g. never settled).
+pub fn robust_row(cell: &Cell, runs: &[&Metrics]) -> Vec<String> {
+    let mut r = vec![cell.index.to_string(), cell.id.clone(), cell.name.clone()];
+    r.extend(cell.values.iter().map(|(a, v)| a.text(*v)));
+    let up: Vec<&Metrics> = runs
+        .iter()
+        .copied()
+        .filter(|m| m.status == crate::metrics::Status::Ok)
         .collect();
-    header(&axes)
+    r.push(runs.len().to_string());
+    let failed = (runs.len() - up.len()) as f64 / runs.len().max(1) as f64;
+    r.push(fmt_f64(failed));
+    for name in AGGREGATED {
+        let mut xs: Vec<f64> = up.iter().map(|m| m.get(name).unwrap_or(f64::NAN)).collect();
+        if xs.is_empty() || xs.iter().any(|x| !x.is_finite()) {
+            r.extend([String::new(), String::new()]);
+            continue;
+        }
+        xs.sort_by(f64::total_cmp);
+        let mean = crate::stats::mean(&xs);
+        let p = if worse_high(name) { 0.95 } else { 0.05 };
+        r.push(fmt_f64(mean));
+        r.push(fmt_f64(crate::stats::percentile(&xs, p)));
+    }
+    r
 }
 
 /// One summary row as text fields.
@@ -253,6 +342,82 @@ pub(crate) fn read_traces(
     Ok(out)
 }
 
+/// The rows of a run's `replicates.csv` for the finished cells in `keep`,
+/// by cell index, each cell's replicates in order. A cell whose replicates
+/// are not all there is left out (it runs again); a truncated last line is
+/// dropped.
+pub(crate) fn read_replicates(
+    dir: &Path,
+    header: &[String],
+    count: usize,
+    keep: &BTreeMap<usize, Vec<String>>,
+) -> Result<BTreeMap<usize, Vec<Vec<String>>>> {
+    let p = dir.join(REPLICATES);
+    let mut out: BTreeMap<usize, Vec<Vec<String>>> = BTreeMap::new();
+    let Some(text) = read_if_there(&p)? else {
+        return Ok(out);
+    };
+    let broken = |line: usize, what: String| {
+        Error::Output(format!(
+            "{}:{line}: {what}; this file does not belong to the run's manifest: move it away, or start a new run with --force",
+            p.display()
+        ))
+    };
+    let at = header.iter().position(|h| h == "replicate").unwrap_or(0);
+    for (n, line) in whole_lines(&text) {
+        let fields: Vec<String> = match csv::ReaderBuilder::new()
+            .has_headers(false)
+            .from_reader(line.as_bytes())
+            .records()
+            .next()
+        {
+            Some(Ok(rec)) => rec.iter().map(String::from).collect(),
+            _ => return Err(broken(n, "not a CSV row".into())),
+        };
+        if n == 1 {
+            if fields != header {
+                return Err(broken(
+                    n,
+                    format!("its columns are not {}", header.join(",")),
+                ));
+            }
+            continue;
+        }
+        if fields.len() != header.len() {
+            return Err(broken(
+                n,
+                format!(
+                    "{} fields where the header has {}",
+                    fields.len(),
+                    header.len()
+                ),
+            ));
+        }
+        let Some(index) = fields[0].parse::<usize>().ok() else {
+            return Err(broken(n, format!("index '{}' is not a cell", fields[0])));
+        };
+        let Some(cell_row) = keep.get(&index) else {
+            continue; // its cell did not finish: it runs again
+        };
+        let rows = out.entry(index).or_default();
+        if fields[1] != cell_row[1] || fields[at] != rows.len().to_string() {
+            return Err(broken(
+                n,
+                format!(
+                    "row of cell '{}' replicate {} is out of place (expected cell '{}' replicate {})",
+                    fields[1],
+                    fields[at],
+                    cell_row[1],
+                    rows.len()
+                ),
+            ));
+        }
+        rows.push(fields);
+    }
+    out.retain(|_, rows| rows.len() == count);
+    Ok(out)
+}
+
 /// A run directory read back (what Python's `load_run` returns).
 #[derive(Debug, Clone)]
 pub struct RunTables {
@@ -262,14 +427,29 @@ pub struct RunTables {
     pub rows: Vec<Vec<String>>,
     /// (cell id, (t, z) samples) in cell order, for traced runs.
     pub traces: Vec<(String, Vec<(f64, f64)>)>,
+    /// replicates.csv's header and rows (cell, then replicate order), for
+    /// replicated runs.
+    pub replicate_header: Vec<String>,
+    pub replicate_rows: Vec<Vec<String>>,
 }
 
 /// Reads a run directory, checking its rows against its manifest.
 pub fn read_run(dir: &Path) -> Result<RunTables> {
     let manifest = read_manifest(dir)?;
-    let rows = read_rows(dir, &manifest.config)?;
+    let mut rows = read_rows(dir, &manifest.config)?;
     let traces = read_traces(dir, &rows)?;
+    let (replicate_header, replicate_rows) = if manifest.config.replicates.is_plain() {
+        (Vec::new(), Vec::new())
+    } else {
+        let h = replicates_header(&manifest.config, manifest.torque_limits.len());
+        let count = manifest.config.replicate_count();
+        let reps = read_replicates(dir, &h, count, &rows)?;
+        rows.retain(|i, _| reps.contains_key(i));
+        (h, reps.into_values().flatten().collect())
+    };
     Ok(RunTables {
+        replicate_header,
+        replicate_rows,
         header: header_of(&manifest.config),
         rows: rows.into_values().collect(),
         traces: traces.into_values().collect(),

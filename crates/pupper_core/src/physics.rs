@@ -44,9 +44,27 @@ pub struct CellSetup {
     pub timestep: Option<f64>,
     pub leg_scale: f64,
     pub torso_mass_scale: f64,
+    /// Factors on the compiled body's torso mass and on its thigh and calf
+    /// masses (inertias alike): a replicate's draws, 1 when nominal.
+    pub torso_mass_factor: f64,
+    pub leg_mass_factor: f64,
+    /// Factor on each actuator's gain, in actuator order; empty: all 1.
+    pub motor_gain: Vec<f64>,
+    /// When this simulation's push starts; None: the schedule's.
+    pub push_at: Option<f64>,
 }
 
 impl CellSetup {
+    /// The gain factor of actuator `a`.
+    pub fn gain(&self, a: usize) -> f64 {
+        self.motor_gain.get(a).copied().unwrap_or(1.0)
+    }
+
+    /// True when the masses are the compiled body's own.
+    pub fn nominal_masses(&self) -> bool {
+        self.torso_mass_factor == 1.0 && self.leg_mass_factor == 1.0
+    }
+
     /// The torque limit of each actuator in this cell.
     pub fn torque_limits(&self, info: &ModelInfo) -> Result<Vec<f64>> {
         match self.max_torque {

@@ -257,6 +257,176 @@ pub fn draw(r: &Randomize, seed: u64, cell: &str, replicate: u32, index: u32) ->
     }
 }
 
+/// A sweep's population: how many replicates each cell runs, the seed, and
+/// what varies between them. `count = 1` with nothing randomized is a plain
+/// sweep (no replicates.csv; the manifest does not mention it).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Replicates {
+    pub count: u32,
+    pub seed: u64,
+    #[serde(default)]
+    pub randomize: Vec<Randomize>,
+}
+
+impl Default for Replicates {
+    fn default() -> Self {
+        Replicates {
+            count: 1,
+            seed: 0,
+            randomize: Vec::new(),
+        }
+    }
+}
+
+/// What one replicate of one cell drew; quantities not randomized hold
+/// their nominal value.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Draws {
+    /// Factor on the torso's mass and inertia.
+    pub torso_mass: f64,
+    /// Factor on the thigh and calf masses and inertias.
+    pub leg_mass: f64,
+    /// Factor on each actuator's gain, in actuator order; empty: all 1.
+    pub motor_gain: Vec<f64>,
+    /// Sliding friction of every colliding geom.
+    pub friction: Option<f64>,
+    /// The push's vertical force (N).
+    pub push_force: Option<f64>,
+    /// The push's start (s).
+    pub push_at: Option<f64>,
+    /// Control steps of observation latency (torque mode).
+    pub delay: usize,
+    /// Values in the order of [`Replicates::columns`].
+    pub values: Vec<f64>,
+}
+
+/// Gaussian noise on the joint angles the torque-mode PD reads, one
+/// stream per simulation (drawn in step order, actuator by actuator).
+pub struct Noise {
+    rng: ChaCha8Rng,
+    normal: Normal<f64>,
+}
+
+impl Noise {
+    pub fn sample(&mut self) -> f64 {
+        self.normal.sample(&mut self.rng)
+    }
+}
+
+impl Replicates {
+    /// True for a plain sweep: one run per cell, nothing drawn.
+    pub fn is_plain(&self) -> bool {
+        self.count <= 1 && self.randomize.is_empty()
+    }
+
+    pub fn get(&self, q: Quantity) -> Option<&Randomize> {
+        self.randomize.iter().find(|r| r.quantity == q)
+    }
+
+    /// Checks the population against the sweep it belongs to: the mode,
+    /// whether there is a push, and the grid's axes.
+    pub fn check(&self, mode: Mode, push: bool, axes: &[&str]) -> Result<()> {
+        if self.count == 0 {
+            return Err(Error::Config(
+                "replicates is 0: give --replicates a whole number >= 1".into(),
+            ));
+        }
+        for (i, r) in self.randomize.iter().enumerate() {
+            let name = r.quantity.name();
+            if self.randomize[..i].iter().any(|o| o.quantity == r.quantity) {
+                return Err(Error::Config(format!(
+                    "--randomize {name} is given twice: keep one"
+                )));
+            }
+            r.check_mode(mode)?;
+            if matches!(r.quantity, Quantity::PushForce | Quantity::PushAt) && !push {
+                return Err(Error::Config(format!(
+                    "--randomize {name} varies the push, which is off: drop --no-push or this --randomize"
+                )));
+            }
+            if matches!(r.quantity, Quantity::Friction | Quantity::PushForce)
+                && axes.contains(&name)
+            {
+                return Err(Error::Config(format!(
+                    "both the grid and --randomize set {name}: drop the {name} axis or the --randomize"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The drawn-value columns of replicates.csv, in spec order
+    /// (`motor_gain` has one per actuator; `q_noise` none: it is drawn
+    /// every step).
+    pub fn columns(&self, nu: usize) -> Vec<String> {
+        let mut out = Vec::new();
+        for r in &self.randomize {
+            match r.quantity {
+                Quantity::MotorGain => {
+                    out.extend((0..nu).map(|a| format!("motor_gain_{a}")));
+                }
+                Quantity::QNoise => {}
+                q => out.push(q.name().to_string()),
+            }
+        }
+        out
+    }
+
+    /// Replicate `replicate` of the cell `cell_id`, for a model of `nu`
+    /// actuators.
+    pub fn draws(&self, cell_id: &str, replicate: u32, nu: usize) -> Draws {
+        let mut d = Draws {
+            torso_mass: 1.0,
+            leg_mass: 1.0,
+            motor_gain: Vec::new(),
+            friction: None,
+            push_force: None,
+            push_at: None,
+            delay: 0,
+            values: Vec::new(),
+        };
+        let one = |r: &Randomize| draw(r, self.seed, cell_id, replicate, 0);
+        for r in &self.randomize {
+            match r.quantity {
+                Quantity::MotorGain => {
+                    d.motor_gain = (0..nu)
+                        .map(|a| draw(r, self.seed, cell_id, replicate, a as u32))
+                        .collect();
+                    d.values.extend(&d.motor_gain);
+                    continue;
+                }
+                Quantity::QNoise => continue,
+                _ => {}
+            }
+            let v = one(r);
+            match r.quantity {
+                Quantity::TorsoMass => d.torso_mass = v,
+                Quantity::LegMass => d.leg_mass = v,
+                Quantity::Friction => d.friction = Some(v),
+                Quantity::PushForce => d.push_force = Some(v),
+                Quantity::PushAt => d.push_at = Some(v),
+                Quantity::Delay => d.delay = v as usize,
+                Quantity::MotorGain | Quantity::QNoise => {}
+            }
+            d.values.push(v);
+        }
+        d
+    }
+
+    /// The angle-noise stream of a replicate, when `q_noise` is randomized.
+    pub fn noise(&self, cell_id: &str, replicate: u32) -> Option<Noise> {
+        let r = self.get(Quantity::QNoise)?;
+        let Dist::Normal(m, s) = r.dist else {
+            return None;
+        };
+        let normal = Normal::new(m, s).ok()?;
+        Some(Noise {
+            rng: generator(self.seed, cell_id, replicate, Quantity::QNoise, 0),
+            normal,
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -313,6 +483,79 @@ mod tests {
         assert_ne!(a, draw(&r, 7, "kp30_kd1", 3, 1), "another index");
         let t = p("torso_mass=±10%");
         assert_ne!(draw(&t, 7, "kp30_kd1", 3, 0), draw(&r, 7, "kp30_kd1", 3, 0));
+    }
+
+    #[test]
+    fn a_population_is_checked_against_its_sweep() {
+        let pop = |specs: &[&str], count| Replicates {
+            count,
+            seed: 1,
+            randomize: specs.iter().map(|s| p(s)).collect(),
+        };
+        let e = |r: Replicates, mode, push, axes: &[&str]| {
+            r.check(mode, push, axes).unwrap_err().to_string()
+        };
+        assert!(e(pop(&[], 0), Mode::Torque, true, &[]).contains("--replicates"));
+        assert!(e(pop(&["delay=0:1", "delay=1:2"], 4), Mode::Torque, true, &[]).contains("twice"));
+        assert!(e(pop(&["push_at=1:2"], 4), Mode::Torque, false, &[]).contains("--no-push"));
+        assert!(
+            e(
+                pop(&["friction=0.5:1"], 4),
+                Mode::Servo,
+                true,
+                &["kp", "friction"]
+            )
+            .contains("drop the friction axis")
+        );
+        assert!(
+            e(pop(&["q_noise=N(0,0.01)"], 4), Mode::Servo, true, &[]).contains("--mode torque")
+        );
+        assert!(
+            pop(&["torso_mass=±10%"], 4)
+                .check(Mode::Servo, true, &["torso_mass_scale"])
+                .is_ok()
+        );
+        assert!(pop(&[], 1).is_plain() && !pop(&[], 2).is_plain());
+        assert!(!pop(&["friction=1:1"], 1).is_plain());
+    }
+
+    #[test]
+    fn draws_fill_their_columns_in_spec_order() {
+        let r = Replicates {
+            count: 4,
+            seed: 3,
+            randomize: [
+                "delay=0:3",
+                "motor_gain=±5%",
+                "q_noise=N(0,0.1)",
+                "torso_mass=±10%",
+            ]
+            .iter()
+            .map(|s| p(s))
+            .collect(),
+        };
+        assert_eq!(
+            r.columns(2),
+            ["delay", "motor_gain_0", "motor_gain_1", "torso_mass"]
+        );
+        let d = r.draws("kp30", 2, 2);
+        assert_eq!(d.values.len(), 4);
+        assert_eq!(d.values[0], d.delay as f64);
+        assert_eq!(d.values[1..3], d.motor_gain[..]);
+        assert_eq!(d.values[3], d.torso_mass);
+        assert_eq!((d.leg_mass, d.friction, d.push_at), (1.0, None, None));
+        assert!(d.motor_gain.iter().all(|g| (0.95..=1.05).contains(g)));
+        assert_ne!(d.motor_gain[0], d.motor_gain[1], "drawn per actuator");
+        // the noise stream is a function of its key: two readers agree
+        let (mut a, mut b) = (r.noise("kp30", 2).unwrap(), r.noise("kp30", 2).unwrap());
+        let xs: Vec<f64> = (0..5).map(|_| a.sample()).collect();
+        assert_eq!(xs, (0..5).map(|_| b.sample()).collect::<Vec<_>>());
+        assert!(r.noise("kp30", 3).unwrap().sample() != xs[0]);
+        // nothing randomized: the nominal robot
+        let plain = Replicates::default().draws("kp30", 0, 12);
+        assert_eq!((plain.torso_mass, plain.delay), (1.0, 0));
+        assert!(plain.values.is_empty() && plain.motor_gain.is_empty());
+        assert!(Replicates::default().noise("kp30", 0).is_none());
     }
 
     /// Mean and spread of 20 000 draws against the spec, with a fixed seed;

@@ -18,8 +18,9 @@ use std::time::Instant;
 use crate::error::{Error, Result};
 use crate::experiment::CellResult;
 use crate::output::{
-    MANIFEST, Manifest, SUMMARY, TRACES, Trace, config_diff, csv_bytes, fmt_f64, header_of,
-    read_manifest, read_rows, read_traces, row,
+    MANIFEST, Manifest, REPLICATES, SUMMARY, TRACES, Trace, config_diff, csv_bytes, fmt_f64,
+    header_of, read_manifest, read_replicates, read_rows, read_traces, replicate_row,
+    replicates_header, robust_row, row,
 };
 
 /// The lock file every writer of a run directory holds.
@@ -145,7 +146,7 @@ fn only_ours(dir: &Path) -> bool {
         let name = e.file_name().to_string_lossy().into_owned();
         name == LOCK
             || (name.starts_with('.') && name.contains(".tmp"))
-            || ((name == SUMMARY || name == TRACES)
+            || ((name == SUMMARY || name == TRACES || name == REPLICATES)
                 && std::fs::read_to_string(e.path()).is_ok_and(|t| t.lines().count() <= 1))
     })
 }
@@ -202,6 +203,7 @@ struct Open {
     _lock: File,
     summary: Option<Appender>,
     traces: Option<Appender>,
+    replicates: Option<Appender>,
     synced: Instant,
 }
 
@@ -214,6 +216,9 @@ pub struct RunWriter {
     rows: BTreeMap<usize, Vec<String>>,
     traces: BTreeMap<usize, Trace>,
     want_traces: bool,
+    /// replicates.csv's header (empty for a plain sweep) and rows by cell.
+    rep_header: Vec<String>,
+    reps: BTreeMap<usize, Vec<Vec<String>>>,
     pub manifest: Manifest,
     lock: Option<File>,
     open: Option<Open>,
@@ -233,6 +238,11 @@ impl RunWriter {
             rows: BTreeMap::new(),
             traces: BTreeMap::new(),
             want_traces: manifest.config.schedule.trace_every > 0,
+            rep_header: match manifest.config.replicates.is_plain() {
+                true => Vec::new(),
+                false => replicates_header(&manifest.config, manifest.torque_limits.len()),
+            },
+            reps: BTreeMap::new(),
             manifest,
             lock: None,
             open: None,
@@ -280,6 +290,13 @@ impl RunWriter {
                     )));
                 }
                 w.rows = read_rows(dir, &w.manifest.config)?;
+                if w.replicated() {
+                    let count = w.manifest.config.replicate_count();
+                    w.reps = read_replicates(dir, &w.rep_header, count, &w.rows)?;
+                    // a cell without all its replicates on disk runs again
+                    let reps = &w.reps;
+                    w.rows.retain(|i, _| reps.contains_key(i));
+                }
                 if w.want_traces {
                     w.traces = read_traces(dir, &w.rows)?;
                 }
@@ -292,6 +309,20 @@ impl RunWriter {
 
     pub fn dir(&self) -> Option<&Path> {
         self.dir.as_deref()
+    }
+
+    fn replicated(&self) -> bool {
+        !self.rep_header.is_empty()
+    }
+
+    /// replicates.csv's header (empty for a plain sweep).
+    pub fn replicate_header(&self) -> &[String] {
+        &self.rep_header
+    }
+
+    /// replicates.csv's rows so far, by cell then replicate.
+    pub fn replicate_rows(&self) -> impl Iterator<Item = &Vec<String>> {
+        self.reps.values().flatten()
     }
 
     pub fn header(&self) -> &[String] {
@@ -338,6 +369,7 @@ impl RunWriter {
         if self.existing == Existing::Overwrite {
             // an overwritten run must not keep files of the old one
             let _ = std::fs::remove_file(dir.join(TRACES));
+            let _ = std::fs::remove_file(dir.join(REPLICATES));
         }
         // a resume's files are rewritten from what was read: sorted, without
         // a truncated last line or traces of cells that must run again
@@ -347,6 +379,10 @@ impl RunWriter {
             summary: Some(Appender::open(dir.join(SUMMARY))?),
             traces: match self.want_traces {
                 true => Some(Appender::open(dir.join(TRACES))?),
+                false => None,
+            },
+            replicates: match self.replicated() {
+                true => Some(Appender::open(dir.join(REPLICATES))?),
                 false => None,
             },
             synced: Instant::now(),
@@ -365,6 +401,10 @@ impl RunWriter {
             }
             write_atomic(&dir.join(TRACES), out.as_bytes())?;
         }
+        if self.replicated() {
+            let rows: Vec<Vec<String>> = self.reps.values().flatten().cloned().collect();
+            write_atomic(&dir.join(REPLICATES), &csv_bytes(&self.rep_header, &rows)?)?;
+        }
         let rows: Vec<Vec<String>> = self.rows.values().cloned().collect();
         write_atomic(&dir.join(SUMMARY), &csv_bytes(&self.header, &rows)?)
     }
@@ -376,14 +416,35 @@ impl RunWriter {
         write_atomic(&dir.join(MANIFEST), (text + "\n").as_bytes())
     }
 
-    /// Adds finished cells: their traces, then their rows, appended; then
-    /// the manifest. If any write fails, the files and the manifest go back
-    /// to how they were before this call and the error is returned.
+    /// Adds finished cells: their traces and replicates, then their rows,
+    /// appended (a row promises the rest is on disk); then the manifest.
+    /// If any write fails, the files and the manifest go back to how they
+    /// were before this call and the error is returned.
     pub fn add(&mut self, results: &[CellResult]) -> Result<()> {
         if self.dir.is_some() && self.open.is_none() {
             self.create()?;
         }
-        let new_rows: Vec<Vec<String>> = results.iter().map(|r| row(&r.cell, &r.metrics)).collect();
+        let replicated = self.replicated();
+        let new_rows: Vec<Vec<String>> = results
+            .iter()
+            .map(|r| match replicated {
+                false => row(&r.cell, &r.metrics),
+                true => robust_row(
+                    &r.cell,
+                    &r.replicates.iter().map(|p| &p.metrics).collect::<Vec<_>>(),
+                ),
+            })
+            .collect();
+        let new_reps: Vec<Vec<Vec<String>>> = results
+            .iter()
+            .map(|r| {
+                r.replicates
+                    .iter()
+                    .enumerate()
+                    .map(|(k, p)| replicate_row(&r.cell, k, &p.drawn, &p.metrics))
+                    .collect()
+            })
+            .collect();
         if let Some(open) = &mut self.open {
             let mut traces = String::new();
             if self.want_traces {
@@ -392,6 +453,7 @@ impl RunWriter {
                 }
             }
             let rows = csv_bytes(&[], &new_rows)?;
+            let reps = csv_bytes(&[], &new_reps.concat())?;
             let cells_done = self.rows.len() + results.len();
             let mut manifest = self.manifest.clone();
             manifest.cells_done = cells_done;
@@ -403,11 +465,17 @@ impl RunWriter {
                 if let Some(t) = &mut open.traces {
                     t.append(traces.as_bytes())?;
                 }
+                if let Some(t) = &mut open.replicates {
+                    t.append(&reps)?;
+                }
                 if let Some(s) = &mut open.summary {
                     s.append(&rows)?;
                 }
                 if sync {
-                    for a in [&open.traces, &open.summary].into_iter().flatten() {
+                    for a in [&open.traces, &open.replicates, &open.summary]
+                        .into_iter()
+                        .flatten()
+                    {
                         a.sync()?;
                     }
                 }
@@ -416,20 +484,29 @@ impl RunWriter {
                 write_atomic(&dir.join(MANIFEST), (text + "\n").as_bytes())
             })();
             if let Err(e) = written {
-                for a in [&mut open.traces, &mut open.summary].into_iter().flatten() {
+                for a in [&mut open.traces, &mut open.replicates, &mut open.summary]
+                    .into_iter()
+                    .flatten()
+                {
                     a.roll_back();
                 }
                 return Err(e);
             }
-            for a in [&mut open.traces, &mut open.summary].into_iter().flatten() {
+            for a in [&mut open.traces, &mut open.replicates, &mut open.summary]
+                .into_iter()
+                .flatten()
+            {
                 a.commit()?;
             }
             if sync {
                 open.synced = Instant::now();
             }
         }
-        for (r, fields) in results.iter().zip(new_rows) {
+        for ((r, fields), reps) in results.iter().zip(new_rows).zip(new_reps) {
             self.rows.insert(r.cell.index, fields);
+            if replicated {
+                self.reps.insert(r.cell.index, reps);
+            }
             if self.want_traces {
                 self.traces
                     .insert(r.cell.index, (r.cell.id.clone(), r.trace.clone()));
@@ -551,7 +628,29 @@ mod tests {
             },
             trace: vec![(0.002, 0.25)],
             frames: None,
+            replicates: Vec::new(),
         }
+    }
+
+    /// A replicated cell: replicate k has final_z 0.1 + k/100; replicate 1
+    /// fell.
+    fn replicated(cell: Cell, count: usize) -> CellResult {
+        let mut r = result(cell);
+        r.replicates = (0..count)
+            .map(|k| {
+                let mut m = r.metrics.clone();
+                m.final_z = 0.1 + k as f64 / 100.0;
+                if k == 1 {
+                    m.status = Status::Fell;
+                    m.event_time = 1.5;
+                }
+                crate::experiment::Replicate {
+                    drawn: vec![1.0 + k as f64 / 10.0],
+                    metrics: m,
+                }
+            })
+            .collect();
+        r
     }
 
     fn cfg(grid: &str, traces: bool) -> SweepConfig {
@@ -570,6 +669,79 @@ mod tests {
             .collect();
         v.sort();
         v
+    }
+
+    #[test]
+    fn replicates_are_written_before_their_rows_and_resumed_whole() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("run");
+        let mut c = cfg("kp=1,2,3", false);
+        c.replicates = crate::randomize::Replicates {
+            count: 3,
+            seed: 7,
+            randomize: vec![crate::randomize::Randomize::parse("friction=0.5:1.2").unwrap()],
+        };
+        let cells = c.grid.cells();
+        let mut w = RunWriter::new(Some(&dir), Existing::Refuse, manifest(c.clone())).unwrap();
+        w.add(&[
+            replicated(cells[0].clone(), 3),
+            replicated(cells[1].clone(), 3),
+        ])
+        .unwrap();
+        drop(w); // killed
+        let reps = std::fs::read_to_string(dir.join(REPLICATES)).unwrap();
+        assert!(
+            reps.starts_with("index,id,name,kp,replicate,friction,final_z,"),
+            "{reps}"
+        );
+        assert!(reps.contains("\n0,kp1,,1,1,1.1,0.11,"), "{reps}");
+        let summary = std::fs::read_to_string(dir.join(SUMMARY)).unwrap();
+        assert!(
+            summary.starts_with(
+                "index,id,name,kp,replicates,failure_fraction,mean:final_z,p95:final_z,"
+            ),
+            "{summary}"
+        );
+        // one of three fell; the others have final_z 0.1 and 0.12: mean
+        // 0.11, 5th percentile (final_z's bad side is low) 0.101
+        let first = summary.lines().nth(1).unwrap();
+        assert!(
+            first.starts_with("0,kp1,,1,3,0.3333333333333333,"),
+            "{first}"
+        );
+        let fields: Vec<f64> = first
+            .split(',')
+            .skip(6)
+            .take(2)
+            .map(|v| v.parse().unwrap())
+            .collect();
+        assert!(
+            (fields[0] - 0.11).abs() < 1e-12 && (fields[1] - 0.101).abs() < 1e-12,
+            "{first}"
+        );
+        // a statistic some replicate has no value for is empty
+        assert!(first.contains(",0.11000000000000001,0.101,,,"), "{first}");
+        // cell 1's replicate rows are cut short on disk: it must run again
+        let cut = reps.trim_end().rsplit_once('\n').unwrap().0.to_string() + "\n";
+        std::fs::write(dir.join(REPLICATES), cut).unwrap();
+        let mut w = RunWriter::new(Some(&dir), Existing::Resume, manifest(c.clone())).unwrap();
+        assert_eq!(w.done().collect::<Vec<_>>(), vec![0]);
+        w.create().unwrap();
+        w.add(&[
+            replicated(cells[1].clone(), 3),
+            replicated(cells[2].clone(), 3),
+        ])
+        .unwrap();
+        w.finish(true).unwrap();
+        let again = std::fs::read_to_string(dir.join(REPLICATES)).unwrap();
+        assert_eq!(again.lines().count(), 1 + 9);
+        assert_eq!(
+            again.lines().take(7).collect::<Vec<_>>(),
+            reps.lines().take(7).collect::<Vec<_>>()
+        );
+        let back = crate::output::read_run(&dir).unwrap();
+        assert_eq!((back.rows.len(), back.replicate_rows.len()), (3, 9));
+        assert_eq!(names(&dir), [LOCK, MANIFEST, REPLICATES, SUMMARY]);
     }
 
     #[test]

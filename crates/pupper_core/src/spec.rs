@@ -14,6 +14,7 @@ use crate::experiment::{Defaults, RunOptions, SweepConfig};
 use crate::grid::{Axis, AxisValues, DEFAULT_MAX_CELLS, Grid, parse_values};
 use crate::model::ModelSource;
 use crate::physics::Mode;
+use crate::randomize::{Randomize, Replicates};
 use crate::rundir::Existing;
 use crate::schedule::{InitialState, Push, Schedule, SineForce};
 use crate::variant::variant;
@@ -74,6 +75,12 @@ pub struct SweepSpec {
     /// Keep base-z traces, every `trace_every`-th step.
     pub trace: bool,
     pub trace_every: usize,
+    /// Runs of every cell, each with its own draws of `randomize`.
+    pub replicates: u32,
+    /// Seed of the draws: the same seed gives the same robots.
+    pub seed: u64,
+    /// `QUANTITY=DISTRIBUTION` specs (see `pupper sweep --help`).
+    pub randomize: Vec<String>,
     /// Batch threads (0: all cores) and cells per batch: speed, never numbers.
     pub threads: usize,
     pub chunk_cells: usize,
@@ -107,6 +114,9 @@ impl Default for SweepSpec {
             pose: None,
             trace: false,
             trace_every: 10,
+            replicates: 1,
+            seed: 0,
+            randomize: Vec::new(),
             threads: 0,
             chunk_cells: 256,
             max_cells: DEFAULT_MAX_CELLS,
@@ -167,6 +177,20 @@ impl SweepSpec {
         }
         let grid = self.grid()?;
         grid.check_size(self.max_cells)?;
+        let randomize = self
+            .randomize
+            .iter()
+            .map(|r| Randomize::parse(r))
+            .collect::<Result<Vec<_>>>()?;
+        let sims = grid.len().saturating_mul(self.replicates.max(1) as usize);
+        if sims > self.max_cells {
+            return Err(Error::Grid(format!(
+                "{} cells x {} replicates make {sims} simulations, over the limit of {}: use fewer values or replicates, or raise --max-cells",
+                grid.len(),
+                self.replicates,
+                self.max_cells
+            )));
+        }
         let schedule = Schedule {
             duration: self.seconds,
             initial: match &self.pose {
@@ -202,6 +226,11 @@ impl SweepSpec {
                     leg_scale: body.leg_scale,
                     torso_mass_scale: body.torso_mass_scale,
                 }
+            },
+            replicates: Replicates {
+                count: self.replicates,
+                seed: self.seed,
+                randomize,
             },
         };
         config.validate()?;

@@ -37,6 +37,28 @@ impl Tail {
     }
 }
 
+/// The arithmetic mean (NaN for no values).
+pub fn mean(xs: &[f64]) -> f64 {
+    if xs.is_empty() {
+        return f64::NAN;
+    }
+    xs.iter().sum::<f64>() / xs.len() as f64
+}
+
+/// The `p`-quantile (0 <= p <= 1) of ascending `sorted` values, linear
+/// between order statistics (NumPy's default, Hyndman & Fan type 7); NaN
+/// for no values.
+pub fn percentile(sorted: &[f64], p: f64) -> f64 {
+    let n = sorted.len();
+    if n == 0 {
+        return f64::NAN;
+    }
+    let h = (n - 1) as f64 * p.clamp(0.0, 1.0);
+    let lo = h.floor() as usize;
+    let hi = (lo + 1).min(n - 1);
+    sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
+}
+
 /// The chapter's push dip, streamed over (post-step time, z) samples: mean
 /// z over `[push_start - 0.5, push_start)` minus the minimum over
 /// `[push_start, push_end + 1.5)`, floored at 0.
@@ -146,6 +168,21 @@ impl Settle {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Known answers (NumPy: np.percentile([1, 2, 3, 4, 10], [95, 5, 50]) =
+    /// [8.8, 1.2, 3.0]).
+    #[test]
+    fn percentiles_interpolate_like_numpy() {
+        let xs = [1.0, 2.0, 3.0, 4.0, 10.0];
+        assert!((percentile(&xs, 0.95) - 8.8).abs() < 1e-12);
+        assert!((percentile(&xs, 0.05) - 1.2).abs() < 1e-12);
+        assert_eq!(percentile(&xs, 0.5), 3.0);
+        assert_eq!(percentile(&xs, 1.0), 10.0);
+        assert_eq!(percentile(&[7.0], 0.95), 7.0);
+        assert!(percentile(&[], 0.5).is_nan());
+        assert_eq!(mean(&xs), 4.0);
+        assert!(mean(&[]).is_nan());
+    }
 
     /// The streamed dip over (post-step time, z) samples.
     fn push_dip(times: &[f64], z: &[f64], push_start: f64, push_end: f64) -> f64 {

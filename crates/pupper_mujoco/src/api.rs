@@ -176,6 +176,9 @@ pub struct SweepOutcome {
     pub rows: Vec<Vec<String>>,
     /// Traces of the cells run now (id, samples), when asked for.
     pub traces: Vec<(String, Vec<(f64, f64)>)>,
+    /// replicates.csv's header and rows, for a replicated sweep.
+    pub replicate_header: Vec<String>,
+    pub replicate_rows: Vec<Vec<String>>,
     pub out: Option<PathBuf>,
     pub cells_total: usize,
     /// Cells this call ran (a resume skips finished ones).
@@ -274,7 +277,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                     s
                 }
             };
-            total += steps;
+            total += steps * cfg.replicate_count() as u64;
         }
         ui.start(todo.len(), total);
         writer.create()?;
@@ -303,6 +306,8 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             header: writer.header().to_vec(),
             rows: writer.rows().cloned().collect(),
             traces: writer.traces().cloned().collect(),
+            replicate_header: writer.replicate_header().to_vec(),
+            replicate_rows: writer.replicate_rows().cloned().collect(),
             out: writer.dir().map(|p| p.to_path_buf()),
             cells_total: writer.manifest.cells_total,
             cells_run: todo.len(),

@@ -79,6 +79,7 @@ fn small_sweep(mode: Mode, threads: usize, chunk_cells: usize) -> Vec<CellResult
         },
         mode,
         defaults: Defaults::default(),
+        replicates: Default::default(),
     };
     let opts = RunOptions {
         threads,
@@ -157,6 +158,7 @@ fn body_variants_change_the_stance() {
         },
         mode: Mode::Servo,
         defaults: Defaults::default(),
+        replicates: Default::default(),
     };
     let r = run(&cfg, RunOptions::default());
     let z: Vec<f64> = r.iter().map(|c| c.metrics.final_z).collect();

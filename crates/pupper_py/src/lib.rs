@@ -170,7 +170,7 @@ fn spec_from(py: Python<'_>, options: Option<&Bound<'_, PyDict>>) -> PyResult<Sw
     serde_path_to_error::deserialize(&mut de).map_err(|e| {
         let what = e.inner().to_string();
         let what = what.split(" at line").next().unwrap_or_default();
-        if what.contains("expected usize") {
+        if what.contains("integer `-") && what.contains("expected u") {
             // a negative count: name the keyword and what it takes
             let got = what.split('`').nth(1).unwrap_or("it");
             return pyo3::exceptions::PyValueError::new_err(format!(
@@ -429,6 +429,7 @@ fn run_spec(
             complete: outcome.complete,
             wall_seconds: outcome.wall_seconds,
             config: &req.sweep.config,
+            replicates: Some((outcome.replicate_header, outcome.replicate_rows)),
         },
     )
 }
@@ -438,7 +439,7 @@ fn run_spec(
 /// best.csv (the best gains per body) in `out`. Plots and rendering are the
 /// Python wrapper's.
 #[pyfunction]
-#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::lab::SECONDS, sine=pupper_core::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, progress=None))]
+#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::lab::SECONDS, sine=pupper_core::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, rank=None, replicates=1, seed=0, randomize=Vec::new(), progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn lab(
     py: Python<'_>,
@@ -452,8 +453,26 @@ fn lab(
     resume: bool,
     threads: usize,
     max_saturation: f64,
+    rank: Option<String>,
+    replicates: i64,
+    seed: i64,
+    randomize: Vec<String>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<result::SweepResult> {
+    let count = |name: &str, v: i64| {
+        u64::try_from(v).map_err(|_| {
+            pyo3::exceptions::PyValueError::new_err(format!(
+                "{name} must be a whole number >= 0, not {v}"
+            ))
+        })
+    };
+    let (replicates, seed) = (count("replicates", replicates)?, count("seed", seed)?);
+    let replicates = u32::try_from(replicates).map_err(|_| {
+        pyo3::exceptions::PyValueError::new_err(format!(
+            "replicates {replicates} is too many: use at most {}",
+            u32::MAX
+        ))
+    })?;
     let variants =
         variants.unwrap_or_else(|| pupper_core::lab::VARIANTS.map(String::from).to_vec());
     let spec = SweepSpec {
@@ -462,11 +481,21 @@ fn lab(
         force,
         resume,
         threads,
+        replicates,
+        seed,
+        randomize: randomize.clone(),
         ..pupper_core::lab::spec(&variants, &grid.unwrap_or_default(), seconds, sine)
     };
+    let metric = rank.unwrap_or_else(|| {
+        if replicates > 1 || !randomize.is_empty() {
+            "p95:last_1s_std_mm".into()
+        } else {
+            "last_1s_std_mm".into()
+        }
+    });
     let rule = best::Rule {
         max_saturation,
-        ..best::Rule::new("last_1s_std_mm", &["variant".to_string()])
+        ..best::Rule::new(&metric, &["variant".to_string()])
     };
     run_spec(py, spec, progress, "python: pupper_core.lab", Some(&rule))
 }
@@ -485,6 +514,7 @@ fn load_run(py: Python<'_>, run_dir: PathBuf) -> PyResult<result::SweepResult> {
             complete: run.manifest.complete,
             wall_seconds: f64::NAN,
             config: &run.manifest.config,
+            replicates: Some((run.replicate_header, run.replicate_rows)),
         },
     )
 }

@@ -16,6 +16,14 @@ use pupper_core::metrics::METRIC_NAMES;
 /// Columns of text in summary.csv.
 const TEXT: [&str; 4] = ["id", "name", "status", "variant"];
 
+/// Where a table's axis columns end: its first column that is not an axis.
+fn axes_end(header: &[String]) -> usize {
+    header
+        .iter()
+        .position(|h| h == METRIC_NAMES[0] || h == "replicates" || h == "replicate")
+        .unwrap_or(header.len())
+}
+
 /// Per-cell metrics of a sweep: the rows of its summary.csv, as numpy columns.
 ///
 /// `res["kp"]` is a column; `res.table` maps every column to its array;
@@ -40,6 +48,11 @@ pub struct SweepResult {
     /// The inputs that decide the numbers, as stored in manifest.json.
     #[pyo3(get)]
     config: Py<PyAny>,
+    /// replicates.csv as a SweepResult (a row per cell and replicate, with
+    /// the drawn values and its metrics); None for a sweep without
+    /// replicates.
+    #[pyo3(get)]
+    replicates: Option<Py<SweepResult>>,
 }
 
 /// What a result is made from.
@@ -51,6 +64,8 @@ pub struct Parts<'a> {
     pub complete: bool,
     pub wall_seconds: f64,
     pub config: &'a pupper_core::experiment::SweepConfig,
+    /// replicates.csv's header and rows, for a replicated sweep.
+    pub replicates: Option<(Vec<String>, Vec<Vec<String>>)>,
 }
 
 fn number(text: &str) -> f64 {
@@ -92,7 +107,27 @@ impl SweepResult {
             .getattr("loads")?
             .call1((config_text,))?
             .unbind();
+        let replicates = match p.replicates {
+            Some((header, rows)) if !header.is_empty() => {
+                let table = SweepResult::new(
+                    py,
+                    Parts {
+                        header,
+                        rows,
+                        traces: &[],
+                        out: p.out,
+                        complete: p.complete,
+                        wall_seconds: p.wall_seconds,
+                        config: p.config,
+                        replicates: None,
+                    },
+                )?;
+                Some(Py::new(py, table)?)
+            }
+            _ => None,
+        };
         Ok(SweepResult {
+            replicates,
             header: p.header,
             rows: p.rows,
             columns: columns.unbind(),
@@ -152,11 +187,7 @@ impl SweepResult {
     /// The grid's axis columns, in grid order.
     #[getter]
     fn axes(&self) -> Vec<String> {
-        let end = self
-            .header
-            .iter()
-            .position(|h| h == METRIC_NAMES[0])
-            .unwrap_or(self.header.len());
+        let end = axes_end(&self.header);
         self.header[3.min(end)..end].to_vec()
     }
 
@@ -197,15 +228,27 @@ impl SweepResult {
     /// best of each group of those axes' values, as a list of dicts that
     /// also hold `cells` and `eligible` (a group with no eligible cell has
     /// only its axis values, `cells`, `eligible` and `id` None).
-    #[pyo3(signature = (metric = "last_1s_std_mm", *, by = None, minimize = true, max_saturation = best::MAX_SATURATION))]
+    ///
+    /// A replicated sweep ranks by a statistic over its replicates,
+    /// `"mean:METRIC"` or `"p95:METRIC"` (the default metric is
+    /// `"p95:last_1s_std_mm"`); a cell is eligible when none of its
+    /// replicates fell or diverged and its p95:saturation_frac is under
+    /// `max_saturation`.
+    #[pyo3(signature = (metric = None, *, by = None, minimize = true, max_saturation = best::MAX_SATURATION))]
     fn best<'py>(
         &self,
         py: Python<'py>,
-        metric: &str,
+        metric: Option<&str>,
         by: Option<Vec<String>>,
         minimize: bool,
         max_saturation: f64,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let replicated = self.header.iter().any(|h| h == "failure_fraction");
+        let metric = metric.unwrap_or(if replicated {
+            "p95:last_1s_std_mm"
+        } else {
+            "last_1s_std_mm"
+        });
         let grouped = by.is_some();
         let rule = best::Rule {
             minimize,
@@ -260,11 +303,21 @@ impl SweepResult {
     fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
         let mut cols: Vec<String> = vec!["name".into()];
         cols.extend(self.axes());
-        cols.extend(
+        let per_replicate = self.header.iter().any(|h| h == "replicate");
+        if per_replicate {
+            cols.push("replicate".into());
+        }
+        let shown = if self.header.iter().any(|h| h == "failure_fraction") {
+            [
+                "failure_fraction",
+                "mean:final_z",
+                "mean:last_1s_std_mm",
+                "p95:last_1s_std_mm",
+            ]
+        } else {
             ["final_z", "last_1s_std_mm", "push_dip_mm", "status"]
-                .iter()
-                .map(|s| s.to_string()),
-        );
+        };
+        cols.extend(shown.iter().map(|s| s.to_string()));
         let idx: Vec<usize> = cols
             .iter()
             .filter_map(|c| self.header.iter().position(|h| h == c))
@@ -296,8 +349,9 @@ impl SweepResult {
             format!(", written to {}", out.str()?)
         };
         Ok(format!(
-            "SweepResult({} cells{place})\n{}",
+            "SweepResult({} {}{place})\n{}",
             self.rows.len(),
+            if per_replicate { "replicates" } else { "cells" },
             lines.join("\n")
         ))
     }

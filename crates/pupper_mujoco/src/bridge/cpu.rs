@@ -84,7 +84,9 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
         let n = cells.len();
         let dt = cells[0].timestep.unwrap_or(info.timestep);
         let same_body = cells.iter().all(|c| {
-            c.leg_scale == cells[0].leg_scale && c.torso_mass_scale == cells[0].torso_mass_scale
+            c.leg_scale == cells[0].leg_scale
+                && c.torso_mass_scale == cells[0].torso_mass_scale
+                && c.nominal_masses()
         });
         let prepare = |m: &Bound<'py, PyAny>| -> PyResult<Bound<'py, PyAny>> {
             let m = mj.copy.call1((m,))?;
@@ -137,7 +139,7 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
             for (i, c) in cells.iter().enumerate() {
                 let limits = c.torque_limits(info)?;
                 for a in 0..info.nu {
-                    let (gp, bp) = actuator_params(mode, c);
+                    let (gp, bp) = actuator_params(mode, c, a);
                     for j in 0..gp.len().min(g.shape()[2]) {
                         g[[i, a, j]] = gp[j];
                         b[[i, a, j]] = bp[j];
@@ -164,12 +166,15 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
             let models = PyList::empty(py);
             let mut made: Vec<(Vec<u64>, Bound<'py, PyAny>)> = Vec::new();
             for c in cells {
-                let key = model_key(mode, c);
+                let key = model_key(mode, c, info.nu);
                 let m = match made.iter().find(|(k, _)| *k == key) {
                     Some((_, m)) => m.clone(),
                     None => {
                         let m =
                             prepare(&owner.variant(c.leg_scale, c.torso_mass_scale)?).internal()?;
+                        if !c.nominal_masses() {
+                            scale_masses(mj, &m, layout.base.body, c).internal()?;
+                        }
                         let limits = c.torque_limits(info)?;
                         set_model_params(&m, mode, c, &limits, &colliding).internal()?;
                         made.push((key, m.clone()));
@@ -352,26 +357,86 @@ fn failed_ids(py: Python<'_>, e: PyErr) -> Result<Vec<i64>> {
         .map_err(|_| py_err(e))
 }
 
-/// What makes two cells' models differ: body, the gains written into the
-/// actuators (servo mode only), torque limit, friction.
-fn model_key(mode: Mode, c: &CellSetup) -> Vec<u64> {
-    let (gains, bias) = actuator_params(mode, c);
+/// What makes two cells' models differ: body and its masses, the gains
+/// written into the actuators, torque limit, friction.
+fn model_key(mode: Mode, c: &CellSetup, nu: usize) -> Vec<u64> {
     let opt = |v: Option<f64>| v.map_or(u64::MAX, f64::to_bits);
     let mut key = vec![
         c.leg_scale.to_bits(),
         c.torso_mass_scale.to_bits(),
+        c.torso_mass_factor.to_bits(),
+        c.leg_mass_factor.to_bits(),
         opt(c.max_torque),
         opt(c.friction),
     ];
-    key.extend(gains.iter().chain(&bias).map(|v| v.to_bits()));
+    for a in 0..nu {
+        let (gains, bias) = actuator_params(mode, c, a);
+        key.extend(gains.iter().chain(&bias).map(|v| v.to_bits()));
+    }
     key
 }
 
-fn actuator_params(mode: Mode, c: &CellSetup) -> ([f64; 3], [f64; 3]) {
+/// Actuator `a`'s gain and bias parameters: the PD of servo mode, a direct
+/// torque input in torque mode, both times the motor's gain factor.
+fn actuator_params(mode: Mode, c: &CellSetup, a: usize) -> ([f64; 3], [f64; 3]) {
+    let g = c.gain(a);
     match mode {
-        Mode::Servo => ([c.kp, 0.0, 0.0], [0.0, -c.kp, -c.kd]),
-        Mode::Torque => ([1.0, 0.0, 0.0], [0.0, 0.0, 0.0]),
+        // g = 1 gives the nominal values exactly (1 * x == x)
+        Mode::Servo => ([g * c.kp, 0.0, 0.0], [0.0, -(g * c.kp), -(g * c.kd)]),
+        Mode::Torque => ([g, 0.0, 0.0], [0.0, 0.0, 0.0]),
     }
+}
+
+/// Scales a compiled body's torso mass and inertia, and its thigh and calf
+/// ones (bodies two or more levels below the base), then recomputes what
+/// the compiler derives from masses (`mj_setConst`, and the mean inertia
+/// and mass as the compiler sums them), so the model equals one compiled
+/// with those masses.
+fn scale_masses(
+    mj: &super::python::Mujoco<'_>,
+    m: &Bound<'_, PyAny>,
+    base: usize,
+    c: &CellSetup,
+) -> PyResult<()> {
+    let parent: Vec<usize> = m
+        .getattr("body_parentid")?
+        .call_method0("tolist")?
+        .extract()?;
+    let mass = m.getattr("body_mass")?.cast_into::<PyArray1<f64>>()?;
+    let inertia = m.getattr("body_inertia")?.cast_into::<PyArray2<f64>>()?;
+    {
+        let (mut mass, mut inertia) = (mass.readwrite(), inertia.readwrite());
+        let (mut mass, mut inertia) = (mass.as_array_mut(), inertia.as_array_mut());
+        for b in 0..parent.len() {
+            // levels below the base, if b is the base or under it
+            let (mut at, mut depth) = (b, 0usize);
+            while at != base && at != 0 {
+                at = parent[at];
+                depth += 1;
+            }
+            let f = match (at == base, depth) {
+                (true, 0) => c.torso_mass_factor,
+                (true, d) if d >= 2 => c.leg_mass_factor,
+                _ => continue,
+            };
+            mass[b] *= f;
+            for j in 0..3 {
+                inertia[[b, j]] *= f;
+            }
+        }
+    }
+    let data = mj.module.getattr("MjData")?.call1((m,))?;
+    mj.module.getattr("mj_setConst")?.call1((m, &data))?;
+    let m0: Vec<f64> = m.getattr("dof_M0")?.call_method0("tolist")?.extract()?;
+    let masses: Vec<f64> = mass.call_method0("tolist")?.extract()?;
+    let stat = m.getattr("stat")?;
+    let sum = |xs: &[f64]| xs.iter().fold(0.0, |acc, x| acc + x);
+    stat.setattr("meaninertia", sum(&m0) / m0.len().max(1) as f64)?;
+    stat.setattr(
+        "meanmass",
+        sum(&masses[1..]) / (masses.len() - 1).max(1) as f64,
+    )?;
+    Ok(())
 }
 
 fn expand3<'py>(batch: &Bound<'py, PyAny>, field: &str) -> Result<Bound<'py, PyArray3<f64>>> {
@@ -403,7 +468,6 @@ fn set_model_params(
     limits: &[f64],
     colliding: &[usize],
 ) -> PyResult<()> {
-    let (gp, bp) = actuator_params(mode, c);
     let g = m
         .getattr("actuator_gainprm")?
         .cast_into::<PyArray2<f64>>()?;
@@ -416,6 +480,7 @@ fn set_model_params(
     let (mut g, mut b, mut r) = (g.readwrite(), b.readwrite(), r.readwrite());
     let (mut g, mut b, mut r) = (g.as_array_mut(), b.as_array_mut(), r.as_array_mut());
     for a in 0..g.shape()[0] {
+        let (gp, bp) = actuator_params(mode, c, a);
         for j in 0..3 {
             g[[a, j]] = gp[j];
             b[[a, j]] = bp[j];
