@@ -33,6 +33,7 @@ wheel: setup
 bench: setup
 	$(PY) benches/bench_sweep.py
 	$(PY) benches/bench_lab.py
+	$(PY) benches/bench_replicates.py
 
 lint:
 	cargo fmt --all -- --check

@@ -285,8 +285,6 @@ struct LabArgs {
     /// last_1s_std_mm; with replicates p95:last_1s_std_mm].
     #[arg(long, value_name = "[STAT:]METRIC")]
     rank: Option<String>,
-    #[command(flatten)]
-    population: PopulationArgs,
     /// Run directory (default runs/<time>-lab).
     #[arg(long, short = 'o', value_name = "DIR", conflicts_with = "resume")]
     out: Option<PathBuf>,
@@ -305,6 +303,9 @@ struct LabArgs {
     /// No progress bar.
     #[arg(long, short = 'q')]
     quiet: bool,
+    // last: its help heading would hold every option after it
+    #[command(flatten)]
+    population: PopulationArgs,
 }
 
 #[derive(Args, Debug)]
@@ -394,8 +395,6 @@ struct SweepArgs {
     /// p95:last_1s_std_mm [default: last_1s_std_mm; with replicates p95:last_1s_std_mm].
     #[arg(long, visible_alias = "best-metric", value_name = "[STAT:]METRIC")]
     rank: Option<String>,
-    #[command(flatten)]
-    population: PopulationArgs,
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
     #[arg(long, default_value_t = pupper_core::best::MAX_SATURATION, value_name = "FRACTION")]
     max_saturation: f64,
@@ -405,6 +404,9 @@ struct SweepArgs {
     /// No progress bar.
     #[arg(long, short = 'q')]
     quiet: bool,
+    // last: its help heading would hold every option after it
+    #[command(flatten)]
+    population: PopulationArgs,
 }
 
 impl SweepArgs {

@@ -165,6 +165,10 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
             // so a lab's cells of one body share one; fewer copies stay in cache)
             let models = PyList::empty(py);
             let mut made: Vec<(Vec<u64>, Bound<'py, PyAny>)> = Vec::new();
+            // one scratch MjData for every mass edit's mj_setConst: the
+            // models differ in values, not sizes (an MjData per model cost
+            // seconds of page faults for 512 of them)
+            let mut scratch: Option<Bound<'py, PyAny>> = None;
             for c in cells {
                 let key = model_key(mode, c, info.nu);
                 let m = match made.iter().find(|(k, _)| *k == key) {
@@ -173,7 +177,15 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
                         let m =
                             prepare(&owner.variant(c.leg_scale, c.torso_mass_scale)?).internal()?;
                         if !c.nominal_masses() {
-                            scale_masses(mj, &m, layout.base.body, c).internal()?;
+                            let data = match &scratch {
+                                Some(d) => d.clone(),
+                                None => {
+                                    let d =
+                                        mj.module.getattr("MjData").and_then(|f| f.call1((&m,)));
+                                    scratch.insert(d.internal()?).clone()
+                                }
+                            };
+                            scale_masses(mj, &m, &data, layout.base.body, c).internal()?;
                         }
                         let limits = c.torque_limits(info)?;
                         set_model_params(&m, mode, c, &limits, &colliding).internal()?;
@@ -395,6 +407,7 @@ fn actuator_params(mode: Mode, c: &CellSetup, a: usize) -> ([f64; 3], [f64; 3]) 
 fn scale_masses(
     mj: &super::python::Mujoco<'_>,
     m: &Bound<'_, PyAny>,
+    data: &Bound<'_, PyAny>,
     base: usize,
     c: &CellSetup,
 ) -> PyResult<()> {
@@ -425,8 +438,7 @@ fn scale_masses(
             }
         }
     }
-    let data = mj.module.getattr("MjData")?.call1((m,))?;
-    mj.module.getattr("mj_setConst")?.call1((m, &data))?;
+    mj.module.getattr("mj_setConst")?.call1((m, data))?;
     let m0: Vec<f64> = m.getattr("dof_M0")?.call_method0("tolist")?.extract()?;
     let masses: Vec<f64> = mass.call_method0("tolist")?.extract()?;
     let stat = m.getattr("stat")?;
