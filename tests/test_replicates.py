@@ -266,3 +266,21 @@ def test_lab_with_replicates(run, tmp_path):
     assert json.loads((tmp_path / "lab" / "manifest.json").read_text())["batches"] == 1
     plots = {q.name for q in (tmp_path / "lab" / "plots").iterdir()}
     assert {"lab_heatmaps.png", "lab_failure_fraction.png", "lab_spread_last_1s_std_mm.png"} <= plots
+
+
+def test_resume_alone_ranks_a_replicated_run_by_its_statistic(run, tmp_path):
+    out = tmp_path / "run"
+    run("sweep", "--grid", "kd=0.5,1", "--seconds", "2.5", "--no-push", "--replicates", "2",
+        "--randomize", "friction=0.6:1", "-q", "-o", out, check=0)
+    # the flags are the manifest's: the default ranking must be its statistic
+    p = run("sweep", "--resume", out, "--best-by", "kd", "-q", check=0)
+    assert "best p95:last_1s_std_mm by kd:" in p.stdout, p.stdout + p.stderr
+
+
+def test_lab_takes_the_counts_sweep_takes():
+    with pytest.raises(ValueError, match="replicates must be a whole number >= 0, not -1"):
+        pc.lab(replicates=-1, progress=False)
+    with pytest.raises(ValueError, match="seed must be a whole number >= 0, not -2"):
+        pc.lab(seed=-2, progress=False)
+    with pytest.raises(pc.ConfigError, match="--replicates"):
+        pc.lab(replicates=0, progress=False)

@@ -201,8 +201,8 @@ def lab(
     Kp 10,30,60,120 x Kd 0.5,1,2,5 (or `grid`, CLI strings) in torque mode
     under a 2 N, 1.2 Hz vertical sine force, 6 s, no push, in one batch.
 
-    `res.best("last_1s_std_mm", by=["variant"])` gives each body's steadiest
-    gains. With `out`, the run directory also gets best.csv, the lab's
+    `res.best(by=["variant"])` gives each body's steadiest gains (by
+    last_1s_std_mm, or p95:last_1s_std_mm over replicates). With `out`, the run directory also gets best.csv, the lab's
     figures and (where OpenGL works) the bodies drawn at their best gains;
     `render=True` adds the GIF. Other keywords: seconds, sine, model,
     force, resume, threads, max_saturation, rank, and the population

@@ -215,7 +215,8 @@ struct PopulationArgs {
     /// per cell and replicate, with the drawn values and its metrics); summary.csv then holds,
     /// per metric, `mean:METRIC` and `p95:METRIC` (the worst-side 95th percentile: the 5th for
     /// final_z) over the replicates that stayed up, and `failure_fraction` (fell or diverged).
-    /// Replicates are more simulations in the same batches.
+    /// Replicates are more simulations in the same batches; --trace and --render show
+    /// replicate 0 of each cell.
     #[arg(long, default_value_t = SweepSpec::default().replicates, value_name = "R")]
     replicates: u32,
     /// Seed of the draws. Each draw is a function of (seed, cell id, replicate, quantity)
@@ -239,15 +240,6 @@ impl PopulationArgs {
             seed: self.seed,
             randomize: self.randomize.clone(),
             ..spec
-        }
-    }
-
-    /// The metric best cells are ranked by, unless given.
-    fn default_rank(&self) -> &'static str {
-        if self.replicates > 1 || !self.randomize.is_empty() {
-            "p95:last_1s_std_mm"
-        } else {
-            "last_1s_std_mm"
         }
     }
 }
@@ -543,10 +535,8 @@ struct Job {
 }
 
 fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
-    let metric = a
-        .rank
-        .clone()
-        .unwrap_or_else(|| a.population.default_rank().into());
+    // no --rank: chosen in run_job, once the run's config is known
+    let metric = a.rank.clone().unwrap_or_default();
     let rule = a.best_by.as_ref().map(|by| best::Rule {
         max_saturation: a.max_saturation,
         ..best::Rule::new(&metric, by)
@@ -581,10 +571,7 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
             sine,
         ))
     };
-    let metric = a
-        .rank
-        .clone()
-        .unwrap_or_else(|| a.population.default_rank().into());
+    let metric = a.rank.clone().unwrap_or_default();
     run_job(
         Job {
             spec,
@@ -641,6 +628,15 @@ fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
             s
         }
     };
+    // without --rank: the steadiest, over the replicates when there are
+    // some (a `--resume DIR` alone learns that from the manifest)
+    let mut a = a;
+    if let Some(rule) = a.rule.as_mut().filter(|r| r.metric.is_empty()) {
+        rule.metric = match sweep.config.replicates.is_plain() {
+            true => "last_1s_std_mm".into(),
+            false => "p95:last_1s_std_mm".into(),
+        };
+    }
     // the ranking rule is checked against the grid before anything runs
     if let Some(rule) = &a.rule {
         best::best(&output::header_of(&sweep.config), &[], rule)?;

@@ -437,7 +437,6 @@ pub struct RunTables {
 pub fn read_run(dir: &Path) -> Result<RunTables> {
     let manifest = read_manifest(dir)?;
     let mut rows = read_rows(dir, &manifest.config)?;
-    let traces = read_traces(dir, &rows)?;
     let (replicate_header, replicate_rows) = if manifest.config.replicates.is_plain() {
         (Vec::new(), Vec::new())
     } else {
@@ -447,6 +446,8 @@ pub fn read_run(dir: &Path) -> Result<RunTables> {
         rows.retain(|i, _| reps.contains_key(i));
         (h, reps.into_values().flatten().collect())
     };
+    // traces of the cells kept (not of one whose replicates are cut short)
+    let traces = read_traces(dir, &rows)?;
     Ok(RunTables {
         replicate_header,
         replicate_rows,

@@ -454,25 +454,25 @@ fn lab(
     threads: usize,
     max_saturation: f64,
     rank: Option<String>,
-    replicates: i64,
-    seed: i64,
+    replicates: i128,
+    seed: i128,
     randomize: Vec<String>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<result::SweepResult> {
-    let count = |name: &str, v: i64| {
-        u64::try_from(v).map_err(|_| {
-            pyo3::exceptions::PyValueError::new_err(format!(
+    // the ranges `sweep` takes, with its messages
+    let whole = |name: &str, v: i128, most: u64| -> PyResult<u64> {
+        match u64::try_from(v) {
+            Ok(v) if v <= most => Ok(v),
+            Ok(_) => Err(pyo3::exceptions::PyValueError::new_err(format!(
+                "{name} {v} is too large: use at most {most}"
+            ))),
+            Err(_) => Err(pyo3::exceptions::PyValueError::new_err(format!(
                 "{name} must be a whole number >= 0, not {v}"
-            ))
-        })
+            ))),
+        }
     };
-    let (replicates, seed) = (count("replicates", replicates)?, count("seed", seed)?);
-    let replicates = u32::try_from(replicates).map_err(|_| {
-        pyo3::exceptions::PyValueError::new_err(format!(
-            "replicates {replicates} is too many: use at most {}",
-            u32::MAX
-        ))
-    })?;
+    let replicates = whole("replicates", replicates, u32::MAX as u64)? as u32;
+    let seed = whole("seed", seed, u64::MAX)?;
     let variants =
         variants.unwrap_or_else(|| pupper_core::lab::VARIANTS.map(String::from).to_vec());
     let spec = SweepSpec {

@@ -662,17 +662,26 @@ impl SimBatch for MujocoBatch<'_, '_> {
             }
         }
         let ids_arg = self.ids_arg(ids)?;
-        if let Err(e) = self.batch.call_method1("step", (ids_arg,)) {
-            let failed = failed_ids(self.owner.mj.py, e)?;
-            let _ = self.newly_warned(ids);
-            return Ok(ids
-                .iter()
-                .enumerate()
-                .filter(|(_, s)| failed.contains(&(**s as i64)))
-                .map(|(p, _)| p)
-                .collect());
-        }
+        // MuJoCo raising in some simulations leaves them unstepped; the
+        // others stepped, and are observed as usual (so a simulation's
+        // samples never depend on which others share its call)
+        let failed: Vec<usize> = match self.batch.call_method1("step", (ids_arg,)) {
+            Ok(_) => Vec::new(),
+            Err(e) => {
+                let failed = failed_ids(self.owner.mj.py, e)?;
+                ids.iter()
+                    .enumerate()
+                    .filter(|(_, s)| failed.contains(&(**s as i64)))
+                    .map(|(p, _)| p)
+                    .collect()
+            }
+        };
         let mut diverged = self.newly_warned(ids);
+        for p in failed {
+            if !diverged.contains(&p) {
+                diverged.push(p);
+            }
+        }
         let s = self.state.readonly();
         let rows = s.as_slice().map_err(|e| Error::Internal(e.to_string()))?;
         for (pos, &sim) in ids.iter().enumerate() {
