@@ -93,6 +93,24 @@ def as_float(s: str) -> float:
     return float(s) if s != "" else float("nan")
 
 
+def chapter_metrics(ts, zs, timestep: float, push_at: float = 2.0, push_for: float = 0.25) -> dict:
+    """The chapter's numbers from a hand-written loop's post-step (t, base z)
+    samples: final z, last-second std (mm), and the push dip (mm: mean z over
+    the 0.5 s before the push minus the lowest z until 1.5 s after it)."""
+    import numpy as np
+
+    t, z = np.asarray(ts), np.asarray(zs)
+    n = round(1.0 / timestep)
+    pre = z[(t >= push_at - 0.5) & (t < push_at)].mean()
+    low = z[(t >= push_at) & (t < push_at + push_for + 1.5)].min()
+    return {
+        "final_z": z[-1],
+        "last_1s_std_mm": z[-n:].std() * 1000.0,
+        "push_dip_mm": max(pre - low, 0.0) * 1000.0,
+        "samples": len(z),
+    }
+
+
 def assert_drawn_as_traced(run_dir: Path) -> None:
     """Every frame that --render drew shows the base where traces.csv (written
     by the sweep itself, one sample per step) has it, at that time, exactly."""

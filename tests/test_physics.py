@@ -6,10 +6,9 @@ from __future__ import annotations
 import json
 import math
 
-import numpy as np
 import pytest
 
-from conftest import REPO, as_float, read_csv
+from conftest import REPO, as_float, chapter_metrics, read_csv
 
 mujoco = pytest.importorskip("mujoco")
 pc = pytest.importorskip("pupper_core")
@@ -38,16 +37,7 @@ def serial_servo(kp: float, kd: float, seconds: float) -> dict[str, float]:
         # base z after the step: the free joint's position (d.xpos would be
         # the pre-integration kinematics of this step)
         zs.append(d.qpos[2])
-    t, z = np.array(ts), np.array(zs)
-    n = round(1.0 / m.opt.timestep)
-    pre = z[(t >= 1.5) & (t < 2.0)].mean()
-    low = z[(t >= 2.0) & (t < 2.0 + 0.25 + 1.5)].min()
-    return {
-        "final_z": z[-1],
-        "last_1s_std_mm": z[-n:].std() * 1000.0,
-        "push_dip_mm": max(pre - low, 0.0) * 1000.0,
-        "samples": len(z),
-    }
+    return chapter_metrics(ts, zs, m.opt.timestep)
 
 
 def test_servo_batch_equals_serial_python_loop():

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import REPO, as_float, clean_env, read_csv
+from conftest import REPO, as_float, chapter_metrics, clean_env, read_csv
 
 mujoco = pytest.importorskip("mujoco")
 pc = pytest.importorskip("pupper_core")
@@ -156,12 +156,7 @@ def serial_delayed_torque(kp: float, kd: float, seconds: float, delay: int,
         mujoco.mj_step(m, d)
         ts.append(d.time)
         zs.append(d.qpos[2])
-    t, z = np.array(ts), np.array(zs)
-    n = round(1.0 / m.opt.timestep)
-    pre = z[(t >= 1.5) & (t < 2.0)].mean()
-    low = z[(t >= 2.0) & (t < 2.0 + 0.25 + 1.5)].min()
-    return {"final_z": z[-1], "last_1s_std_mm": z[-n:].std() * 1000.0,
-            "push_dip_mm": max(pre - low, 0.0) * 1000.0}
+    return chapter_metrics(ts, zs, m.opt.timestep)
 
 
 @pytest.mark.parametrize("k", [1, 3])

@@ -14,7 +14,7 @@
 
 use crate::error::{Error, Result};
 use crate::metrics::METRIC_NAMES;
-use crate::output::{AGGREGATED, STATISTICS};
+use crate::output::{STATISTICS, aggregated};
 
 /// The default saturation threshold: cells whose actuators sit at their
 /// torque limit in 5 % or more of the steps are not trusted as "best".
@@ -61,8 +61,7 @@ fn column(header: &[String], name: &str) -> Option<usize> {
 pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<Group>> {
     let replicated = column(header, "failure_fraction").is_some();
     let numeric: Vec<String> = if replicated {
-        AGGREGATED
-            .iter()
+        aggregated()
             .flat_map(|m| STATISTICS.iter().map(move |s| format!("{s}:{m}")))
             .collect()
     } else {
@@ -207,7 +206,7 @@ mod tests {
         ]
         .map(String::from)
         .to_vec();
-        for m in AGGREGATED {
+        for m in aggregated() {
             for st in STATISTICS {
                 header.push(format!("{st}:{m}"));
             }

@@ -406,7 +406,6 @@ impl Sensing {
 struct SimPlan {
     /// Position of its cell in the chunk.
     cell: usize,
-    setup: CellSetup,
     drawn: Vec<f64>,
     /// Steps during which it is pushed.
     push: std::ops::Range<usize>,
@@ -430,6 +429,7 @@ fn run_chunk(
     let mut sims: Vec<SimPlan> = Vec::with_capacity(cells.len() * per_cell);
     let mut sensing: Vec<Sensing> = Vec::with_capacity(cells.len() * per_cell);
     let mut recorders: Vec<Recorder> = Vec::with_capacity(cells.len() * per_cell);
+    let mut setups: Vec<CellSetup> = Vec::with_capacity(cells.len() * per_cell);
     for (ci, c) in cells.iter().enumerate() {
         for r in 0..per_cell {
             let d = reps.draws(&c.id, r as u32, info.nu);
@@ -453,15 +453,14 @@ fn run_chunk(
                 noise: reps.noise(&c.id, r as u32),
                 history: Default::default(),
             });
+            setups.push(setup);
             sims.push(SimPlan {
                 cell: ci,
-                setup,
                 drawn: d.values,
                 push,
             });
         }
     }
-    let setups: Vec<CellSetup> = sims.iter().map(|s| s.setup.clone()).collect();
     let limits: Vec<Vec<f64>> = setups
         .iter()
         .map(|s| s.torque_limits(info))
@@ -610,12 +609,17 @@ fn run_chunk(
                             let sense = &mut sensing[sim];
                             let exact = sense.exact();
                             if !exact {
-                                let q = layout.act_qpos.iter().map(|&i| qpos[i]).collect();
-                                let v = layout.act_dof.iter().map(|&i| qvel[i]).collect();
+                                // the oldest entry's buffers take the newest state
+                                let (mut q, mut v) = if sense.history.len() > sense.delay {
+                                    sense.history.pop_front().unwrap_or_default()
+                                } else {
+                                    Default::default()
+                                };
+                                q.clear();
+                                q.extend(layout.act_qpos.iter().map(|&i| qpos[i]));
+                                v.clear();
+                                v.extend(layout.act_dof.iter().map(|&i| qvel[i]));
                                 sense.history.push_back((q, v));
-                                if sense.history.len() > sense.delay + 1 {
-                                    sense.history.pop_front();
-                                }
                             }
                             for a in 0..nu {
                                 let (q, v) = match sense.history.front() {

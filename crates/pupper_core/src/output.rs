@@ -20,18 +20,14 @@ pub const TRACES: &str = "traces.csv";
 pub const BEST: &str = "best.csv";
 pub const REPLICATES: &str = "replicates.csv";
 
-/// The metrics summarised over replicates (all numeric ones but the time of
-/// an event, which only failed replicates have).
-pub const AGGREGATED: [&str; 8] = [
-    "final_z",
-    "last_1s_std_mm",
-    "push_dip_mm",
-    "settle_time_s",
-    "max_tilt_deg",
-    "peak_torque",
-    "saturation_frac",
-    "tracking_rms",
-];
+/// The metrics summarised over replicates: the numeric ones but the time
+/// of an event, which only failed replicates have.
+pub fn aggregated() -> impl Iterator<Item = &'static str> {
+    METRIC_NAMES
+        .iter()
+        .copied()
+        .filter(|m| !matches!(*m, "status" | "event_time"))
+}
 
 /// The statistics a replicated summary has per metric: `mean:METRIC` and
 /// `p95:METRIC` (the worst-side 95 % point).
@@ -78,7 +74,7 @@ pub fn header_of(config: &SweepConfig) -> Vec<String> {
     let mut h: Vec<String> = ["index", "id", "name"].map(String::from).to_vec();
     h.extend(axis_names(config));
     h.extend(["replicates", "failure_fraction"].map(String::from));
-    for m in AGGREGATED {
+    for m in aggregated() {
         for s in STATISTICS {
             h.push(format!("{s}:{m}"));
         }
@@ -121,7 +117,7 @@ pub fn robust_row(cell: &Cell, runs: &[&Metrics]) -> Vec<String> {
     r.push(runs.len().to_string());
     let failed = (runs.len() - up.len()) as f64 / runs.len().max(1) as f64;
     r.push(fmt_f64(failed));
-    for name in AGGREGATED {
+    for name in aggregated() {
         let mut xs: Vec<f64> = up.iter().map(|m| m.get(name).unwrap_or(f64::NAN)).collect();
         if xs.is_empty() || xs.iter().any(|x| !x.is_finite()) {
             r.extend([String::new(), String::new()]);
@@ -236,6 +232,54 @@ fn whole_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
     whole.lines().enumerate().map(|(i, l)| (i + 1, l))
 }
 
+/// The data rows of a run table's text, each with its line number: every
+/// line a CSV row, the first equal to `header`, the others as wide. A
+/// truncated last line is dropped. Errors name `path:line`.
+fn table_rows(path: &Path, text: &str, header: &[String]) -> Result<Vec<(usize, Vec<String>)>> {
+    let broken = |line: usize, what: String| broken_row(path, line, what);
+    let mut out = Vec::new();
+    for (n, line) in whole_lines(text) {
+        let fields: Vec<String> = match csv::ReaderBuilder::new()
+            .has_headers(false)
+            .from_reader(line.as_bytes())
+            .records()
+            .next()
+        {
+            Some(Ok(rec)) => rec.iter().map(String::from).collect(),
+            _ => return Err(broken(n, "not a CSV row".into())),
+        };
+        if n == 1 {
+            if fields != header {
+                return Err(broken(
+                    n,
+                    format!("its columns are not {}", header.join(",")),
+                ));
+            }
+            continue;
+        }
+        if fields.len() != header.len() {
+            return Err(broken(
+                n,
+                format!(
+                    "{} fields where the header has {}",
+                    fields.len(),
+                    header.len()
+                ),
+            ));
+        }
+        out.push((n, fields));
+    }
+    Ok(out)
+}
+
+/// A run file's row that does not fit the run's manifest.
+fn broken_row(path: &Path, line: usize, what: String) -> Error {
+    Error::Output(format!(
+        "{}:{line}: {what}; this file does not belong to the run's manifest: move it away, or start a new run with --force",
+        path.display()
+    ))
+}
+
 /// The rows of a run's `summary.csv`, by cell index, each checked against
 /// the manifest's grid: its index in range, its id and axis values those of
 /// that cell. A truncated last line is dropped (its cell runs again).
@@ -247,36 +291,8 @@ pub(crate) fn read_rows(dir: &Path, config: &SweepConfig) -> Result<BTreeMap<usi
     };
     let want = header_of(config);
     let cells = config.grid.cells();
-    let broken = |line: usize, what: String| {
-        Error::Output(format!(
-            "{}:{line}: {what}; this file does not belong to the run's manifest: move it away, or start a new run with --force",
-            p.display()
-        ))
-    };
-    for (n, line) in whole_lines(&text) {
-        let mut r = csv::ReaderBuilder::new()
-            .has_headers(false)
-            .from_reader(line.as_bytes());
-        let fields: Vec<String> = match r.records().next() {
-            Some(Ok(rec)) => rec.iter().map(String::from).collect(),
-            _ => return Err(broken(n, "not a CSV row".into())),
-        };
-        if n == 1 {
-            if fields != want {
-                return Err(broken(n, format!("its columns are not {}", want.join(","))));
-            }
-            continue;
-        }
-        if fields.len() != want.len() {
-            return Err(broken(
-                n,
-                format!(
-                    "{} fields where the header has {}",
-                    fields.len(),
-                    want.len()
-                ),
-            ));
-        }
+    let broken = |line: usize, what: String| broken_row(&p, line, what);
+    for (n, fields) in table_rows(&p, &text, &want)? {
         let cell = fields[0]
             .parse::<usize>()
             .ok()
@@ -357,42 +373,9 @@ pub(crate) fn read_replicates(
     let Some(text) = read_if_there(&p)? else {
         return Ok(out);
     };
-    let broken = |line: usize, what: String| {
-        Error::Output(format!(
-            "{}:{line}: {what}; this file does not belong to the run's manifest: move it away, or start a new run with --force",
-            p.display()
-        ))
-    };
+    let broken = |line: usize, what: String| broken_row(&p, line, what);
     let at = header.iter().position(|h| h == "replicate").unwrap_or(0);
-    for (n, line) in whole_lines(&text) {
-        let fields: Vec<String> = match csv::ReaderBuilder::new()
-            .has_headers(false)
-            .from_reader(line.as_bytes())
-            .records()
-            .next()
-        {
-            Some(Ok(rec)) => rec.iter().map(String::from).collect(),
-            _ => return Err(broken(n, "not a CSV row".into())),
-        };
-        if n == 1 {
-            if fields != header {
-                return Err(broken(
-                    n,
-                    format!("its columns are not {}", header.join(",")),
-                ));
-            }
-            continue;
-        }
-        if fields.len() != header.len() {
-            return Err(broken(
-                n,
-                format!(
-                    "{} fields where the header has {}",
-                    fields.len(),
-                    header.len()
-                ),
-            ));
-        }
+    for (n, fields) in table_rows(&p, &text, header)? {
         let Some(index) = fields[0].parse::<usize>().ok() else {
             return Err(broken(n, format!("index '{}' is not a cell", fields[0])));
         };
