@@ -2,6 +2,9 @@
 #   make sweep   set everything up, then run the default sweep on the built-in model
 #   make test    set everything up, then run every test (cargo test and pytest)
 # PUPPER_PROFILE=debug builds the module and binary without optimisation.
+# PUPPER_EXTRAS=gpu makes `make setup` install optional extras too (gpu:
+# MuJoCo Warp for --backend warp); `make test` installs every extra, as its
+# tests run them for real.
 SHELL := /bin/bash
 ROOT := $(abspath .)
 export PUPPER_PROFILE ?= release
@@ -11,7 +14,7 @@ export MUJOCO_GL ?= egl
 PUPPER := target/$(PUPPER_PROFILE)/pupper
 PY := .venv/bin/python
 
-.PHONY: setup sweep test test-rust test-python wheel bench lint lock clean
+.PHONY: setup sweep test test-rust test-python wheel bench bench-gpu lint lock clean
 
 setup:
 	@bash scripts/setup.sh
@@ -19,6 +22,8 @@ setup:
 sweep: setup
 	$(PUPPER) sweep --grid kp=10,30,60,120 --grid kd=0.5,1,2,5
 
+# every optional extra: the tests run the warp backend (on Warp's CPU device)
+test: export PUPPER_EXTRAS := gpu
 test: setup test-rust test-python
 
 test-rust:
@@ -34,6 +39,11 @@ bench: setup
 	$(PY) benches/bench_sweep.py
 	$(PY) benches/bench_lab.py
 	$(PY) benches/bench_replicates.py
+
+# the warp backend against a bare MuJoCo Warp loop and the cpu backend
+bench-gpu: export PUPPER_EXTRAS := gpu
+bench-gpu: setup
+	$(PY) benches/bench_gpu.py
 
 lint:
 	cargo fmt --all -- --check

@@ -6,7 +6,9 @@
 #   3. the pupper_core Python module (maturin, into .venv), built from this clone
 #   4. the pupper binary (target/$PUPPER_PROFILE/pupper), linked to .venv's Python
 # PUPPER_PROFILE=debug builds without optimisation (quicker to build, slower to
-# run: the fresh-clone check uses it). Re-running it only redoes what changed.
+# run: the fresh-clone check uses it). PUPPER_EXTRAS=gpu (comma-separated)
+# also installs optional extras, pinned in python/requirements-<extra>.lock:
+# gpu is MuJoCo Warp for `--backend warp`. Re-running it only redoes what changed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
@@ -45,6 +47,22 @@ if ! cmp -s "$lock" "$stamp" 2>/dev/null; then
   .venv/bin/python -m pip install -q --disable-pip-version-check -r "$lock"
   cp "$lock" "$stamp"
 fi
+IFS=',' read -r -a extras <<< "${PUPPER_EXTRAS:-}"
+for extra in ${extras[@]+"${extras[@]}"}; do
+  [ -n "$extra" ] || continue
+  lock=python/requirements-$extra.lock
+  if [ ! -f "$lock" ]; then
+    known=$(ls python/requirements-*.lock | sed 's/.*requirements-//; s/\.lock$//' | paste -sd, -)
+    say "error: PUPPER_EXTRAS names '$extra', which is no optional extra (known: $known)"
+    exit 2
+  fi
+  stamp=.venv/.pupper-lock-$extra
+  if ! cmp -s "$lock" "$stamp" 2>/dev/null; then
+    say "installing the optional extra '$extra' ($lock)"
+    .venv/bin/python -m pip install -q --disable-pip-version-check -r "$lock"
+    cp "$lock" "$stamp"
+  fi
+done
 
 # 3 and 4. Build against the venv's interpreter.
 export PYO3_PYTHON="$root/.venv/bin/python"

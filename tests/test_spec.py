@@ -16,7 +16,8 @@ pc = pytest.importorskip("pupper_core")
 STUB = Path(pc.__file__).parent / "_native.pyi"
 #: Spec fields that are CLI switches or arguments without a default value.
 NO_CLI_DEFAULT = {"out", "force", "resume", "trace", "sine", "pose", "max_torque",
-                  "randomize"}  # repeatable: none unless given
+                  "randomize",  # repeatable: none unless given
+                  "device", "chunk_cells"}  # None: the backend's own (help says which)
 #: Spec fields whose flag has another name on the command line.
 CLI_FLAG = {"push": "--no-push"}
 

@@ -205,8 +205,8 @@ def lab(
     last_1s_std_mm, or p95:last_1s_std_mm over replicates). With `out`, the run directory also gets best.csv, the lab's
     figures and (where OpenGL works) the bodies drawn at their best gains;
     `render=True` adds the GIF. Other keywords: seconds, sine, model,
-    force, resume, threads, max_saturation, rank, and the population
-    (replicates, seed, randomize) as `sweep` takes them (defaults as
+    force, resume, threads, max_saturation, rank, backend, device, and the
+    population (replicates, seed, randomize) as `sweep` takes them (defaults as
     `pupper lab --help`).
     """
     callback = _progress_printer() if progress is True else (progress or None)

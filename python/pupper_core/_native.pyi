@@ -163,6 +163,8 @@ def lab(
     replicates: int = ...,
     seed: int = ...,
     randomize: Sequence[str] = ...,
+    backend: Literal["cpu", "warp"] = ...,
+    device: str | None = ...,
     progress: Callable[[int, int], object] | None = ...,
 ) -> SweepResult:
     """The chapter's lab; best.csv in `out`. Plots and rendering are the wrapper's."""

@@ -169,8 +169,15 @@ class SweepOptions(SimOptions, total=False):
     randomize: Sequence[str]
     """`QUANTITY=DISTRIBUTION` specs as `pupper sweep --randomize` takes them:
     "torso_mass=±10%", "friction=0.5:1.2", "q_noise=N(0,0.002)", "delay=0:3"."""
+    backend: Literal["cpu", "warp"]
+    """What steps the physics: "cpu" (MuJoCo, float64) or "warp" (MuJoCo
+    Warp, float32; needs `pip install 'pupper_core[gpu]'`)."""
+    device: str | None
+    """The Warp device of backend="warp": "cuda:0" (default) or "cpu"."""
     threads: int
-    chunk_cells: int
+    chunk_cells: int | None
+    """Most cells per batch; None: 256 on the cpu backend, as many as the
+    device holds on warp."""
     max_cells: int
     force: bool
     resume: bool

@@ -245,6 +245,35 @@ impl PopulationArgs {
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Backend")]
+struct BackendArgs {
+    /// What steps the physics. cpu: MuJoCo on this machine's cores, float64 (the reference).
+    /// warp: MuJoCo Warp, float32, thousands of cells at once on a GPU (tens of thousands of
+    /// cells a batch); needs the optional extra: pip install 'pupper_core[gpu]' (in a
+    /// checkout: make setup PUPPER_EXTRAS=gpu). Results agree with cpu to about 1e-4 m in
+    /// base z on the chapter's schedule; the manifest records backend, device and precision.
+    /// In torque mode warp runs the PD inside MuJoCo's actuators (gain kp, bias -kp·q - kd·q̇,
+    /// clipped at the torque limit), so --randomize delay, q_noise and motor_gain need cpu.
+    #[arg(long, default_value = "cpu", value_name = "NAME", value_parser = ["cpu", "warp"])]
+    backend: String,
+    /// The Warp device for --backend warp: cuda:0 (the first GPU; cuda:1 the second) or cpu
+    /// (slow: for tests on machines without a GPU) [default: cuda:0]. `pupper doctor` lists
+    /// the devices Warp sees.
+    #[arg(long, value_name = "DEVICE")]
+    device: Option<String>,
+}
+
+impl BackendArgs {
+    fn apply(&self, spec: SweepSpec) -> SweepSpec {
+        SweepSpec {
+            backend: self.backend.clone(),
+            device: self.device.clone(),
+            ..spec
+        }
+    }
+}
+
+#[derive(Args, Debug)]
 #[command(
     after_help = "Without --grid the gains are kp=10,30,60,120 x kd=0.5,1,2,5; --grid replaces them \
 (any sweep axis; a variant axis there replaces --variants). The best gains per body follow the \
@@ -295,7 +324,9 @@ struct LabArgs {
     /// No progress bar.
     #[arg(long, short = 'q')]
     quiet: bool,
-    // last: its help heading would hold every option after it
+    // last: their help headings would hold every option after them
+    #[command(flatten)]
+    backend: BackendArgs,
     #[command(flatten)]
     population: PopulationArgs,
 }
@@ -362,10 +393,12 @@ struct SweepArgs {
     /// Batch threads; 0 uses all cores. Never changes the numbers.
     #[arg(long, short = 'j', default_value_t = SweepSpec::default().threads, value_name = "N")]
     threads: usize,
-    /// Most cells per batch (batches hold about 10 s of work, so a stop loses
-    /// little; fewer cells bound memory). Never changes the numbers.
-    #[arg(long, default_value_t = SweepSpec::default().chunk_cells, value_name = "N")]
-    chunk_cells: usize,
+    /// Most cells per batch [default: 256 on the cpu backend, whose batches
+    /// hold about 10 s of work so a stop loses little; on warp, as many as
+    /// the device's memory holds]. Fewer cells bound memory. Never changes
+    /// the numbers.
+    #[arg(long, value_name = "N")]
+    chunk_cells: Option<usize>,
     /// Refuse grids with more cells than this.
     #[arg(long, default_value_t = SweepSpec::default().max_cells, value_name = "N")]
     max_cells: usize,
@@ -396,7 +429,9 @@ struct SweepArgs {
     /// No progress bar.
     #[arg(long, short = 'q')]
     quiet: bool,
-    // last: its help heading would hold every option after it
+    // last: their help headings would hold every option after them
+    #[command(flatten)]
+    backend: BackendArgs,
     #[command(flatten)]
     population: PopulationArgs,
 }
@@ -421,7 +456,7 @@ impl SweepArgs {
             chunk_cells: self.chunk_cells,
             max_cells: self.max_cells,
             force: self.force,
-            ..self.population.apply(self.sim.spec()?)
+            ..self.backend.apply(self.population.apply(self.sim.spec()?))
         })
     }
 }
@@ -564,12 +599,12 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
     let spec = SweepSpec {
         model: a.model.model.clone(),
         threads: a.threads,
-        ..a.population.apply(pupper_core::lab::spec(
+        ..a.backend.apply(a.population.apply(pupper_core::lab::spec(
             &a.variants,
             &a.grid.grid,
             a.seconds,
             sine,
-        ))
+        )))
     };
     let metric = a.rank.clone().unwrap_or_default();
     run_job(

@@ -128,6 +128,16 @@ pub fn doctor(r: &PythonReport) -> String {
             let _ = writeln!(s, "mujoco     not usable");
         }
     }
+    match (&r.warp, &r.warp_problem) {
+        (Some(v), _) => {
+            let _ = writeln!(s, "warp       {v}");
+            let _ = writeln!(s, "devices    {}", r.warp_devices.join(", "));
+        }
+        (None, Some(p)) => {
+            let _ = writeln!(s, "warp       not usable (--backend warp): {p}");
+        }
+        (None, None) => {}
+    }
     s
 }
 

@@ -5,6 +5,7 @@ use std::cell::RefCell;
 
 use serde::{Deserialize, Serialize};
 
+use crate::backend::Backend;
 use crate::error::{Error, Result};
 use crate::frames::{FrameRecorder, Frames, frame_count};
 use crate::grid::{Axis, Cell, Grid};
@@ -61,6 +62,9 @@ pub struct SweepConfig {
     /// the manifest (so its manifest is what it always was).
     #[serde(default, skip_serializing_if = "Replicates::is_plain")]
     pub replicates: Replicates,
+    /// What steps the physics; the cpu backend is left out of the manifest.
+    #[serde(default, skip_serializing_if = "Backend::is_cpu")]
+    pub backend: Backend,
 }
 
 impl Default for SweepConfig {
@@ -72,17 +76,22 @@ impl Default for SweepConfig {
             mode: Mode::Servo,
             defaults: Defaults::default(),
             replicates: Replicates::default(),
+            backend: Backend::Cpu,
         }
     }
 }
+
+/// Most cells per batch on the cpu backend unless `--chunk-cells` says.
+pub const DEFAULT_CHUNK_CELLS: usize = 256;
 
 /// How to run (not what): changes speed and what is kept, never numbers.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RunOptions {
     /// Threads of the batch; 0 for all cores.
     pub threads: usize,
-    /// Most cells per batch.
-    pub chunk_cells: usize,
+    /// Most cells per batch; None: [`DEFAULT_CHUNK_CELLS`], or what the
+    /// physics' [`Physics::batch_limit`] holds.
+    pub chunk_cells: Option<usize>,
     /// Wall seconds of work a batch aims at: the most a stop (Ctrl-C, a
     /// kill) can lose, whatever the grid. Batches grow or shrink with the
     /// measured speed; numbers never depend on it.
@@ -97,7 +106,7 @@ impl Default for RunOptions {
     fn default() -> Self {
         RunOptions {
             threads: 0,
-            chunk_cells: 256,
+            chunk_cells: None,
             chunk_seconds: 10.0,
             chunk_steps: 250,
             frame_rate: None,
@@ -136,7 +145,8 @@ impl SweepConfig {
         }
         let axes: Vec<&str> = self.grid.axes.iter().map(|a| a.axis.name()).collect();
         self.replicates
-            .check(self.mode, self.schedule.push.is_some(), &axes)
+            .check(self.mode, self.schedule.push.is_some(), &axes)?;
+        self.backend.check(self.mode, &self.replicates)
     }
 
     /// The simulations each cell runs.
@@ -273,14 +283,24 @@ pub fn run_cells(
     }
     let mut pace = Pace::new(opts);
     let per_cell = cfg.replicate_count();
+    let limit = physics.batch_limit();
+    let most_cells = opts
+        .chunk_cells
+        .or(limit.map(|l| l / per_cell))
+        .unwrap_or(DEFAULT_CHUNK_CELLS)
+        .max(1);
     let mut out: Vec<CellResult> = Vec::with_capacity(cells.len());
     for ((bits, group), steps) in groups.iter().zip(plans) {
         let dt = f64::from_bits(*bits);
         let mut rest: &[&Cell] = group;
         while !rest.is_empty() {
             // a cell's replicates always share its batch
-            let fit = pace.sims(steps).div_ceil(per_cell).max(1);
-            let (chunk, more) = rest.split_at(fit.min(opts.chunk_cells.max(1)).min(rest.len()));
+            let fit = match limit {
+                Some(most) => most / per_cell,
+                None => pace.sims(steps).div_ceil(per_cell),
+            }
+            .max(1);
+            let (chunk, more) = rest.split_at(fit.min(most_cells).min(rest.len()));
             let started = std::time::Instant::now();
             let results = run_chunk(physics, cfg, chunk, dt, opts, hooks)?;
             pace.measured(
@@ -466,6 +486,9 @@ fn run_chunk(
         .map(|s| s.torque_limits(info))
         .collect::<Result<_>>()?;
     let mut batch = physics.start(&setups, cfg.mode, &schedule.initial, opts.threads)?;
+    // torque mode's PD in Rust, one control step per call; otherwise the
+    // actuators hold the PD and calls advance open-loop
+    let host_pd = cfg.mode == Mode::Torque && !batch.actuator_pd();
     let layout = physics.layout().clone();
     let n = sims.len();
     let targets: Vec<Vec<f64>> = (0..n).map(|s| batch.targets(s).to_vec()).collect();
@@ -501,9 +524,9 @@ fn run_chunk(
     // 512 simulations cost 1.23x the physics of 32): so lanes of a few
     // simulations per thread run the whole schedule one after another.
     // Simulations are independent, so the numbers do not depend on it.
-    let lanes: Vec<Vec<usize>> = match cfg.mode {
-        Mode::Servo => vec![(0..n).collect()],
-        Mode::Torque => {
+    let lanes: Vec<Vec<usize>> = match host_pd {
+        false => vec![(0..n).collect()],
+        true => {
             let threads = match opts.threads {
                 0 => std::thread::available_parallelism().map_or(1, |t| t.get()),
                 t => t,
@@ -533,7 +556,7 @@ fn run_chunk(
         let mut t_before = 0.0f64;
         while k < nsteps && !alive.is_empty() {
             let mut end = (k + opts.chunk_steps.max(1)).min(nsteps);
-            if cfg.mode == Mode::Torque {
+            if host_pd {
                 end = k + 1;
             }
             if let Some(&b) = bounds.iter().find(|&&b| b > k) {
@@ -561,8 +584,8 @@ fn run_chunk(
                 }
                 f
             };
-            let diverged: Vec<(usize, usize)> = match cfg.mode {
-                Mode::Servo => {
+            let diverged: Vec<(usize, usize)> = match host_pd {
+                false => {
                     let forces: Vec<[f64; 3]>;
                     let force = if sine {
                         forces = alive
@@ -588,7 +611,7 @@ fn run_chunk(
                         state.sample(sim, step_time[step] + dt, pushing(sim), qpos, peak, nsat);
                     })?
                 }
-                Mode::Torque => {
+                true => {
                     let forces: Vec<[f64; 3]> = alive.iter().map(|&s| force_of(s, 0)).collect();
                     let scratch: RefCell<Vec<TorqueScratch>> = RefCell::new(
                         (0..alive.len())
@@ -673,7 +696,7 @@ fn run_chunk(
             t_before = t;
             k = end;
             since_check += nstep * n;
-            if since_check >= 2000 || cfg.mode == Mode::Servo {
+            if since_check >= 2000 || !host_pd {
                 since_check = 0;
                 if hooks.should_stop() {
                     return Err(Error::Interrupted("stopped by a signal".into()));

@@ -6,6 +6,7 @@
 //! `pupper_mujoco` implements on MuJoCo's batch; the `#[pymodule]` lives in
 //! `pupper_py`.
 
+pub mod backend;
 pub mod best;
 pub mod error;
 pub mod experiment;

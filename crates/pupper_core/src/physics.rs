@@ -1,6 +1,6 @@
 //! The runner's whole contact with physics: start a batch of cells, advance
-//! it, read what is recorded. The MuJoCo CPU batch in `bridge` implements it;
-//! a GPU backend can slot in beside it.
+//! it, read what is recorded. `pupper_mujoco` implements it twice: MuJoCo's
+//! CPU batch and MuJoCo Warp (see [`crate::backend`]).
 
 use serde::{Deserialize, Serialize};
 
@@ -100,12 +100,23 @@ pub trait Physics {
         initial: &InitialState,
         threads: usize,
     ) -> Result<Box<dyn SimBatch + '_>>;
+    /// The most simulations one batch should hold (a device's memory);
+    /// None: batches are sized by measured speed.
+    fn batch_limit(&self) -> Option<usize> {
+        None
+    }
 }
 
 pub trait SimBatch {
     fn len(&self) -> usize;
     fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+    /// True when the actuators themselves compute torque mode's PD
+    /// ([`crate::backend::ActuatorPd`]): the runner then advances
+    /// open-loop, as in servo mode, instead of stepping the Rust PD.
+    fn actuator_pd(&self) -> bool {
+        false
     }
     /// Simulation `sim`'s joint targets, in ctrl order.
     fn targets(&self, sim: usize) -> &[f64];

@@ -9,6 +9,7 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
+use crate::backend::Backend;
 use crate::error::{Error, Result};
 use crate::experiment::{Defaults, RunOptions, SweepConfig};
 use crate::grid::{Axis, AxisValues, DEFAULT_MAX_CELLS, Grid, parse_values};
@@ -81,9 +82,14 @@ pub struct SweepSpec {
     pub seed: u64,
     /// `QUANTITY=DISTRIBUTION` specs (see `pupper sweep --help`).
     pub randomize: Vec<String>,
+    /// What steps the physics: `cpu` (MuJoCo, float64) or `warp` (MuJoCo
+    /// Warp, float32) on `device` (warp only; default cuda:0).
+    pub backend: String,
+    pub device: Option<String>,
     /// Batch threads (0: all cores) and cells per batch: speed, never numbers.
     pub threads: usize,
-    pub chunk_cells: usize,
+    /// None: 256 on the cpu backend, as many as the device holds on warp.
+    pub chunk_cells: Option<usize>,
     /// Refuse grids with more cells than this.
     pub max_cells: usize,
     /// Run directory; None keeps the results in memory (Python only).
@@ -117,8 +123,10 @@ impl Default for SweepSpec {
             replicates: 1,
             seed: 0,
             randomize: Vec::new(),
+            backend: "cpu".into(),
+            device: None,
             threads: 0,
-            chunk_cells: 256,
+            chunk_cells: None,
             max_cells: DEFAULT_MAX_CELLS,
             out: None,
             force: false,
@@ -165,7 +173,7 @@ impl SweepSpec {
                 "trace_every is 0 with tracing on: give --trace-every a whole number >= 1".into(),
             ));
         }
-        if self.chunk_cells == 0 {
+        if self.chunk_cells == Some(0) {
             return Err(config_error(
                 "chunk_cells is 0: give --chunk-cells a whole number >= 1".into(),
             ));
@@ -232,6 +240,7 @@ impl SweepSpec {
                 seed: self.seed,
                 randomize,
             },
+            backend: Backend::parse(&self.backend, self.device.as_deref())?,
         };
         config.validate()?;
         let existing = match (self.resume, self.force) {

@@ -77,7 +77,14 @@ pub fn stand(spec: &SweepSpec) -> Result<StandReport> {
     let (results, note) = bridge::with_model(&cfg.model, true, |model| {
         let note = check_start(model.info(), &cfg.schedule.initial)?;
         let cells = cfg.grid.cells();
-        let r = experiment::run_cells(model, cfg, &cells, sweep.options, &mut experiment::NoHooks)?;
+        let physics = bridge::physics(model, &cfg.backend)?;
+        let r = experiment::run_cells(
+            physics.as_ref(),
+            cfg,
+            &cells,
+            sweep.options,
+            &mut experiment::NoHooks,
+        )?;
         Ok((r, note))
     })?;
     let m = &results[0].metrics;
@@ -115,7 +122,9 @@ pub fn record(cfg: &SweepConfig, cells: &[Cell], fps: f64) -> Result<Vec<Recordi
     };
     bridge::with_model(&cfg.model, true, |model| {
         check_start(model.info(), &cfg.schedule.initial)?;
-        let results = experiment::run_cells(model, cfg, cells, opts, &mut experiment::NoHooks)?;
+        let physics = bridge::physics(model, &cfg.backend)?;
+        let results =
+            experiment::run_cells(physics.as_ref(), cfg, cells, opts, &mut experiment::NoHooks)?;
         results
             .into_iter()
             .map(|result| {
@@ -225,6 +234,8 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
     bridge::with_model(&cfg.model, true, |model| {
         let info = model.info();
         let note = check_start(info, &cfg.schedule.initial)?;
+        // Warp and its device are checked before anything is written
+        let physics = bridge::physics(model, &cfg.backend)?;
         let torque_limits = match cfg.defaults.max_torque {
             Some(t) => vec![t; info.nu],
             None => info.torque_limits()?,
@@ -287,7 +298,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                 ui: ui.hooks(),
                 writer: &mut writer,
             };
-            experiment::run_cells(model, cfg, &todo, *options, &mut hooks)
+            experiment::run_cells(physics.as_ref(), cfg, &todo, *options, &mut hooks)
         };
         if let Some(dir) = writer.dir() {
             log.move_into(dir);

@@ -80,10 +80,11 @@ fn small_sweep(mode: Mode, threads: usize, chunk_cells: usize) -> Vec<CellResult
         mode,
         defaults: Defaults::default(),
         replicates: Default::default(),
+        backend: Default::default(),
     };
     let opts = RunOptions {
         threads,
-        chunk_cells,
+        chunk_cells: Some(chunk_cells),
         ..RunOptions::default()
     };
     run(&cfg, opts)
@@ -159,6 +160,7 @@ fn body_variants_change_the_stance() {
         mode: Mode::Servo,
         defaults: Defaults::default(),
         replicates: Default::default(),
+        backend: Default::default(),
     };
     let r = run(&cfg, RunOptions::default());
     let z: Vec<f64> = r.iter().map(|c| c.metrics.final_z).collect();

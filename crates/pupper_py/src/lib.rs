@@ -439,7 +439,7 @@ fn run_spec(
 /// best.csv (the best gains per body) in `out`. Plots and rendering are the
 /// Python wrapper's.
 #[pyfunction]
-#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::lab::SECONDS, sine=pupper_core::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, rank=None, replicates=1, seed=0, randomize=Vec::new(), progress=None))]
+#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::lab::SECONDS, sine=pupper_core::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, rank=None, replicates=1, seed=0, randomize=Vec::new(), backend="cpu".to_string(), device=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn lab(
     py: Python<'_>,
@@ -457,6 +457,8 @@ fn lab(
     replicates: i128,
     seed: i128,
     randomize: Vec<String>,
+    backend: String,
+    device: Option<String>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<result::SweepResult> {
     // the ranges `sweep` takes, with its messages
@@ -484,6 +486,8 @@ fn lab(
         replicates,
         seed,
         randomize: randomize.clone(),
+        backend,
+        device,
         ..pupper_core::lab::spec(&variants, &grid.unwrap_or_default(), seconds, sine)
     };
     let metric = rank.unwrap_or_else(|| {

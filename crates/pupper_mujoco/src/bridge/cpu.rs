@@ -9,6 +9,7 @@ use pyo3::types::{PyDict, PyList};
 
 use super::model::LoadedModel;
 use super::python::{PyResultExt, py_err};
+use super::setup::{StartStates, prepare_model};
 use pupper_core::error::{Error, Result};
 use pupper_core::layout::Layout;
 use pupper_core::model::ModelInfo;
@@ -39,9 +40,28 @@ impl Physics for LoadedModel<'_> {
     }
 }
 
-/// A simulation's start: its joint targets (also its start angles when a
-/// pose is given) and, for a searched pose, its base height.
-type Start = (Vec<f64>, Option<f64>);
+/// The cpu backend beside warp's, for code that picks one at run time.
+pub struct CpuPhysics<'a, 'py>(pub &'a LoadedModel<'py>);
+
+impl Physics for CpuPhysics<'_, '_> {
+    fn info(&self) -> &ModelInfo {
+        Physics::info(self.0)
+    }
+
+    fn layout(&self) -> &Layout {
+        Physics::layout(self.0)
+    }
+
+    fn start(
+        &self,
+        cells: &[CellSetup],
+        mode: Mode,
+        initial: &InitialState,
+        threads: usize,
+    ) -> Result<Box<dyn SimBatch + '_>> {
+        self.0.start(cells, mode, initial, threads)
+    }
+}
 
 /// Offsets of state components within a state row.
 #[derive(Debug, Clone, Copy)]
@@ -88,26 +108,7 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
                 && c.torso_mass_scale == cells[0].torso_mass_scale
                 && c.nominal_masses()
         });
-        let prepare = |m: &Bound<'py, PyAny>| -> PyResult<Bound<'py, PyAny>> {
-            let m = mj.copy.call1((m,))?;
-            m.getattr("opt")?.setattr("timestep", dt)?;
-            // Whatever the file declares (a position servo, a motor), each
-            // actuator becomes a fixed-gain one with an affine bias (the PD
-            // of servo mode; zero bias in torque mode), no activation
-            // dynamics, clipped at the cell's torque limit.
-            let fill = |field: &str, v: i64| -> PyResult<()> {
-                m.getattr(field)?.call_method1("fill", (v,)).map(|_| ())
-            };
-            fill("actuator_gaintype", 0)?; // mjGAIN_FIXED
-            fill("actuator_biastype", 1)?; // mjBIAS_AFFINE
-            fill("actuator_dyntype", 0)?; // mjDYN_NONE
-            fill("actuator_forcelimited", 1)?;
-            if mode == Mode::Torque {
-                // direct torque inputs must not be clamped to a position range
-                fill("actuator_ctrllimited", 0)?;
-            }
-            Ok(m)
-        };
+        let prepare = |m: &Bound<'py, PyAny>| prepare_model(mj, m, mode, dt);
         let template =
             prepare(&owner.variant(cells[0].leg_scale, cells[0].torso_mass_scale)?).internal()?;
         let batch = mj
@@ -229,68 +230,21 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
             nstate: state.shape()[1],
         };
         // initial state and targets
-        let (key, pose) = match initial {
-            InitialState::Keyframe(name) => (info.start_keyframe(name)?.0, None),
-            // base x, y and orientation as the first keyframe (or qpos0) has them
-            InitialState::Auto => (info.keyframes.first().map(|_| 0), None),
-            InitialState::Pose(p) => {
-                info.check_pose(p)?;
-                (info.keyframes.first().map(|_| 0), Some(p.clone()))
-            }
-        };
+        let starts = StartStates::new(owner, cells, initial)?;
         let kw = PyDict::new(py);
-        kw.set_item("keyframe", key.map_or(-1, |k| k as i64))
+        kw.set_item("keyframe", starts.keyframe.map_or(-1, |k| k as i64))
             .internal()?;
         kw.set_item("stage", 0).internal()?;
         batch.call_method("reset", (), Some(&kw)).internal()?;
-        // each simulation's start: joint angles (also its targets), base height
-        let starts: Vec<Start> = match (initial, &pose, key) {
-            (InitialState::Auto, _, _) => {
-                // one search per body, not per cell
-                let mut poses: Vec<((u64, u64), Start)> = Vec::new();
-                let mut starts = Vec::with_capacity(n);
-                for c in cells {
-                    let key = (c.leg_scale.to_bits(), c.torso_mass_scale.to_bits());
-                    let start = match poses.iter().find(|(k, _)| *k == key) {
-                        Some((_, s)) => s.clone(),
-                        None => {
-                            let p = owner.stand_pose(c.leg_scale, c.torso_mass_scale)?;
-                            poses.push((key, (p.targets, Some(p.base_z))));
-                            poses[poses.len() - 1].1.clone()
-                        }
-                    };
-                    starts.push(start);
-                }
-                starts
-            }
-            (_, Some(p), _) => vec![(p.clone(), None); n],
-            (_, None, Some(k)) => {
-                let kf = &info.keyframes[k];
-                let t = if kf.ctrl.len() == info.nu {
-                    kf.ctrl.clone()
-                } else {
-                    layout.joint_targets(&kf.qpos)
-                };
-                vec![(t, None); n]
-            }
-            (_, None, None) => vec![(layout.joint_targets(&info.qpos0), None); n],
-        };
-        let set_joints = pose.is_some() || *initial == InitialState::Auto;
         {
             let mut s = state.readwrite();
             let rows = s
                 .as_slice_mut()
                 .map_err(|e| Error::Internal(e.to_string()))?;
-            for (i, (targets, base_z)) in starts.iter().enumerate() {
+            for i in 0..n {
                 let row = &mut rows[i * off.nstate..(i + 1) * off.nstate];
-                if set_joints {
-                    for (a, &q) in targets.iter().enumerate() {
-                        row[off.qpos + layout.act_qpos[a]] = q;
-                    }
-                }
-                if let Some(z) = base_z {
-                    row[off.qpos + layout.base.z()] = *z;
-                }
+                starts.qpos(owner, i, &mut row[off.qpos..off.qpos + info.nq]);
+                let targets = &starts.starts[i].0;
                 let ctrl = &mut row[off.ctrl..off.ctrl + info.nu];
                 match mode {
                     Mode::Servo => ctrl.copy_from_slice(targets),
@@ -298,7 +252,7 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
                 }
             }
         }
-        let targets: Vec<Vec<f64>> = starts.into_iter().map(|(t, _)| t).collect();
+        let targets: Vec<Vec<f64>> = starts.starts.into_iter().map(|(t, _)| t).collect();
         let warned = vec![0; n];
         let mut me = MujocoBatch {
             owner,
@@ -390,7 +344,7 @@ fn model_key(mode: Mode, c: &CellSetup, nu: usize) -> Vec<u64> {
 
 /// Actuator `a`'s gain and bias parameters: the PD of servo mode, a direct
 /// torque input in torque mode, both times the motor's gain factor.
-fn actuator_params(mode: Mode, c: &CellSetup, a: usize) -> ([f64; 3], [f64; 3]) {
+pub(super) fn actuator_params(mode: Mode, c: &CellSetup, a: usize) -> ([f64; 3], [f64; 3]) {
     let g = c.gain(a);
     match mode {
         // g = 1 gives the nominal values exactly (1 * x == x)
@@ -404,7 +358,7 @@ fn actuator_params(mode: Mode, c: &CellSetup, a: usize) -> ([f64; 3], [f64; 3]) 
 /// the compiler derives from masses (`mj_setConst`, and the mean inertia
 /// and mass as the compiler sums them), so the model equals one compiled
 /// with those masses.
-fn scale_masses(
+pub(super) fn scale_masses(
     mj: &super::python::Mujoco<'_>,
     m: &Bound<'_, PyAny>,
     data: &Bound<'_, PyAny>,
@@ -459,7 +413,7 @@ fn expand3<'py>(batch: &Bound<'py, PyAny>, field: &str) -> Result<Bound<'py, PyA
 }
 
 /// Geoms that take part in contacts (the feet and the floor, in Pupper).
-fn colliding_geoms(model: &Bound<'_, PyAny>) -> PyResult<Vec<usize>> {
+pub(super) fn colliding_geoms(model: &Bound<'_, PyAny>) -> PyResult<Vec<usize>> {
     let ct: Vec<i64> = model
         .getattr("geom_contype")?
         .call_method0("tolist")?

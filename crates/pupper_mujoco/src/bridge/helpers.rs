@@ -4,10 +4,14 @@
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
+use super::cpu::CpuPhysics;
 use super::model::LoadedModel;
 use super::python::{Mujoco, PyResultExt, python_message};
+use super::warp::WarpPhysics;
+use pupper_core::backend::Backend;
 use pupper_core::error::{Error, Result};
 use pupper_core::model::ModelSource;
+use pupper_core::physics::Physics;
 
 /// Runs `f` with the imported `mujoco` and the model, floating-checked.
 pub fn with_model<T>(
@@ -20,6 +24,18 @@ pub fn with_model<T>(
         let model = mj.load(source)?;
         let model = if floating { model.floating()? } else { model };
         f(&model)
+    })
+}
+
+/// What steps `model`'s physics on `backend`: the model itself (MuJoCo's
+/// CPU batch), or MuJoCo Warp over it (checked: installed, device there).
+pub fn physics<'a, 'py>(
+    model: &'a LoadedModel<'py>,
+    backend: &Backend,
+) -> Result<Box<dyn Physics + 'a>> {
+    Ok(match backend {
+        Backend::Cpu => Box::new(CpuPhysics(model)),
+        Backend::Warp { device, .. } => Box::new(WarpPhysics::new(model, device)?),
     })
 }
 

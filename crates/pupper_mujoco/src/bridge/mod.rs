@@ -6,7 +6,9 @@ mod helpers;
 mod inspect;
 pub mod model;
 pub mod python;
+mod setup;
+pub mod warp;
 
-pub use helpers::{call_helper, with_model};
+pub use helpers::{call_helper, physics, with_model};
 pub use model::LoadedModel;
 pub use python::{MUJOCO_MAJOR, Mujoco, PythonReport, doctor};

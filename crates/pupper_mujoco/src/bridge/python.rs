@@ -56,6 +56,11 @@ pub struct PythonReport {
     pub mujoco_path: Option<String>,
     pub numpy: Option<String>,
     pub problem: Option<String>,
+    /// warp-lang and mujoco-warp versions, when installed (`--backend warp`).
+    pub warp: Option<String>,
+    /// The Warp devices seen, or why there are none.
+    pub warp_devices: Vec<String>,
+    pub warp_problem: Option<String>,
 }
 
 pub fn doctor() -> Result<PythonReport> {
@@ -77,6 +82,9 @@ pub fn doctor() -> Result<PythonReport> {
             mujoco_path: None,
             numpy: None,
             problem: None,
+            warp: None,
+            warp_devices: Vec::new(),
+            warp_problem: None,
         };
         if let Ok(np) = PyModule::import(py, "numpy") {
             report.numpy = np
@@ -94,6 +102,26 @@ pub fn doctor() -> Result<PythonReport> {
                     .ok();
             }
             Err(e) => report.problem = Some(e.to_string()),
+        }
+        if report.problem.is_none() {
+            // the optional warp backend: versions and devices, or why not
+            let warp = PyModule::import(py, "pupper_core._warp").and_then(|w| {
+                let v = w.getattr("versions")?.call0()?;
+                let text = format!(
+                    "warp-lang {}, mujoco-warp {}",
+                    v.get_item("warp")?,
+                    v.get_item("mujoco_warp")?
+                );
+                let devices: Vec<String> = w.getattr("devices")?.call0()?.extract()?;
+                Ok((text, devices))
+            });
+            match warp {
+                Ok((v, d)) => {
+                    report.warp = Some(v);
+                    report.warp_devices = d;
+                }
+                Err(e) => report.warp_problem = Some(python_message(py, &e)),
+            }
         }
         Ok(report)
     })

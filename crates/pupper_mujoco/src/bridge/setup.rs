@@ -1,0 +1,123 @@
+//! What both backends build from a batch's cells: the compiled model each
+//! simulation runs (actuators made fixed-gain with an affine bias, masses
+//! edited) and each simulation's start (joint targets, base height).
+
+use pyo3::prelude::*;
+
+use super::model::LoadedModel;
+use super::python::Mujoco;
+use pupper_core::error::Result;
+use pupper_core::physics::{CellSetup, Mode, Physics};
+use pupper_core::schedule::InitialState;
+
+/// A copy of `m` with timestep `dt` whose actuators, whatever the file
+/// declares (a position servo, a motor), are fixed-gain with an affine bias
+/// (the PD of servo mode; zero bias in torque mode), no activation
+/// dynamics, clipped at the cell's torque limit.
+pub(crate) fn prepare_model<'py>(
+    mj: &Mujoco<'py>,
+    m: &Bound<'py, PyAny>,
+    mode: Mode,
+    dt: f64,
+) -> PyResult<Bound<'py, PyAny>> {
+    let m = mj.copy.call1((m,))?;
+    m.getattr("opt")?.setattr("timestep", dt)?;
+    let fill = |field: &str, v: i64| -> PyResult<()> {
+        m.getattr(field)?.call_method1("fill", (v,)).map(|_| ())
+    };
+    fill("actuator_gaintype", 0)?; // mjGAIN_FIXED
+    fill("actuator_biastype", 1)?; // mjBIAS_AFFINE
+    fill("actuator_dyntype", 0)?; // mjDYN_NONE
+    fill("actuator_forcelimited", 1)?;
+    if mode == Mode::Torque {
+        // torques (or, on warp, the PD's targets) must not be clamped to
+        // a position range
+        fill("actuator_ctrllimited", 0)?;
+    }
+    Ok(m)
+}
+
+/// A simulation's start: its joint targets (also its start angles when a
+/// pose is given) and, for a searched pose, its base height.
+pub(crate) type Start = (Vec<f64>, Option<f64>);
+
+/// The starts of a batch's simulations.
+pub(crate) struct StartStates {
+    /// The keyframe every simulation is reset to first; None: qpos0.
+    pub keyframe: Option<usize>,
+    /// True when the start angles are the targets (a pose), not the keyframe's.
+    pub set_joints: bool,
+    pub starts: Vec<Start>,
+}
+
+impl StartStates {
+    pub fn new(
+        owner: &LoadedModel<'_>,
+        cells: &[CellSetup],
+        initial: &InitialState,
+    ) -> Result<StartStates> {
+        let info = &owner.info;
+        let layout = Physics::layout(owner);
+        let n = cells.len();
+        let (key, pose) = match initial {
+            InitialState::Keyframe(name) => (info.start_keyframe(name)?.0, None),
+            // base x, y and orientation as the first keyframe (or qpos0) has them
+            InitialState::Auto => (info.keyframes.first().map(|_| 0), None),
+            InitialState::Pose(p) => {
+                info.check_pose(p)?;
+                (info.keyframes.first().map(|_| 0), Some(p.clone()))
+            }
+        };
+        // each simulation's start: joint angles (also its targets), base height
+        let starts: Vec<Start> = match (initial, &pose, key) {
+            (InitialState::Auto, _, _) => {
+                // one search per body, not per cell
+                let mut poses: Vec<((u64, u64), Start)> = Vec::new();
+                let mut starts = Vec::with_capacity(n);
+                for c in cells {
+                    let key = (c.leg_scale.to_bits(), c.torso_mass_scale.to_bits());
+                    let start = match poses.iter().find(|(k, _)| *k == key) {
+                        Some((_, s)) => s.clone(),
+                        None => {
+                            let p = owner.stand_pose(c.leg_scale, c.torso_mass_scale)?;
+                            poses.push((key, (p.targets, Some(p.base_z))));
+                            poses[poses.len() - 1].1.clone()
+                        }
+                    };
+                    starts.push(start);
+                }
+                starts
+            }
+            (_, Some(p), _) => vec![(p.clone(), None); n],
+            (_, None, Some(k)) => {
+                let kf = &info.keyframes[k];
+                let t = if kf.ctrl.len() == info.nu {
+                    kf.ctrl.clone()
+                } else {
+                    layout.joint_targets(&kf.qpos)
+                };
+                vec![(t, None); n]
+            }
+            (_, None, None) => vec![(layout.joint_targets(&info.qpos0), None); n],
+        };
+        Ok(StartStates {
+            keyframe: key,
+            set_joints: pose.is_some() || *initial == InitialState::Auto,
+            starts,
+        })
+    }
+
+    /// Simulation `i`'s qpos, given the qpos it was reset to.
+    pub fn qpos(&self, owner: &LoadedModel<'_>, i: usize, reset: &mut [f64]) {
+        let layout = Physics::layout(owner);
+        let (targets, base_z) = &self.starts[i];
+        if self.set_joints {
+            for (a, &q) in targets.iter().enumerate() {
+                reset[layout.act_qpos[a]] = q;
+            }
+        }
+        if let Some(z) = base_z {
+            reset[layout.base.z()] = *z;
+        }
+    }
+}

@@ -1,0 +1,190 @@
+"""The warp backend (MuJoCo Warp) against the cpu backend, on Warp's CPU
+device: CI has no GPU. `make test` installs the optional extra (gpu), so
+these run real MuJoCo Warp; the first one compiles Warp's kernels (about
+half a minute, then cached)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from conftest import as_float, read_csv
+
+pytest.importorskip("warp", reason="the gpu extra is not installed: make test installs it")
+pc = pytest.importorskip("pupper_core")
+
+WARP = ["--backend", "warp", "--device", "cpu"]
+# a short schedule that still pushes: 1.5 s, push at 0.5 s
+SHORT = ["--seconds", "1.5", "--push-at", "0.5", "-q"]
+NUMBERS = ["final_z", "last_1s_std_mm", "push_dip_mm", "max_tilt_deg", "peak_torque",
+           "tracking_rms"]
+
+
+def both(run, tmp_path: Path, *args: str) -> tuple[tuple, tuple]:
+    """summary.csv (header, rows) of the same sweep on warp and on cpu."""
+    run("sweep", *args, *WARP, "-o", tmp_path / "warp", check=0)
+    run("sweep", *args, "-o", tmp_path / "cpu", check=0)
+    return read_csv(tmp_path / "warp" / "summary.csv"), read_csv(tmp_path / "cpu" / "summary.csv")
+
+
+def assert_agree(warp: tuple, cpu: tuple, tol_z: float = 1e-4) -> None:
+    (hw, rw), (hc, rc) = warp, cpu
+    assert hw == hc, "the backends write different columns"
+    assert [r["id"] for r in rw] == [r["id"] for r in rc]
+    # a plain sweep's status, or a replicated one's failure fraction
+    status, z = ("status", "final_z") if "status" in hw else ("failure_fraction", "mean:final_z")
+    assert [r[status] for r in rw] == [r[status] for r in rc]
+    for a, b in zip(rw, rc):
+        assert abs(as_float(a[z]) - as_float(b[z])) < tol_z, (a, b)
+
+
+@pytest.mark.parametrize("mode", ["servo", "torque"])
+def test_warp_agrees_with_cpu(run, tmp_path, mode):
+    warp, cpu = both(run, tmp_path, "--grid", "kp=5,30", "--grid", "kd=0.1,1",
+                     "--mode", mode, *SHORT)
+    assert_agree(warp, cpu)
+    # float32 against float64 on a 1.5 s schedule: far closer than the bound
+    for a, b in zip(warp[1], cpu[1]):
+        assert abs(float(a["final_z"]) - float(b["final_z"])) < 1e-5, (a, b)
+    m = json.loads((tmp_path / "warp" / "manifest.json").read_text())
+    assert m["config"]["backend"] == {"name": "warp", "device": "cpu", "precision": "float32"}
+    # a cpu run's manifest is what it always was: no backend entry
+    assert "backend" not in json.loads((tmp_path / "cpu" / "manifest.json").read_text())["config"]
+
+
+def test_torque_mode_pd_as_actuator_parameters(run, tmp_path):
+    """Warp runs torque mode's PD as actuator gain kp, bias (0, -kp, -kd)
+    and the torque limit as force range. On the cpu backend (float64) that
+    mapping is servo mode, and it gives the Rust PD's numbers exactly."""
+    args = ["--grid", "kp=5,60", "--grid", "kd=0.1,2", "--max-torque", "1.5", *SHORT]
+    run("sweep", *args, "--mode", "servo", "-o", tmp_path / "servo", check=0)
+    run("sweep", *args, "--mode", "torque", "-o", tmp_path / "torque", check=0)
+    run("sweep", *args, "--mode", "torque", *WARP, "-o", tmp_path / "warp", check=0)
+    _, servo = read_csv(tmp_path / "servo" / "summary.csv")
+    _, torque = read_csv(tmp_path / "torque" / "summary.csv")
+    _, warp = read_csv(tmp_path / "warp" / "summary.csv")
+    for s, t, w in zip(servo, torque, warp):
+        for k in NUMBERS:
+            assert abs(as_float(s[k]) - as_float(t[k])) <= 1e-9 * max(1.0, abs(as_float(t[k]))), (k, s, t)
+        # the 1.5 N·m limit binds: the clip is part of the mapping
+        assert float(t["peak_torque"]) == pytest.approx(1.5)
+        assert abs(float(w["final_z"]) - float(t["final_z"])) < 1e-4
+        assert w["status"] == t["status"]
+
+
+def test_bodies_friction_and_replicates_per_world(run, tmp_path):
+    """Body variants (a Warp model each), friction per world and drawn
+    masses, gains, push times: the same robots as on cpu."""
+    warp, cpu = both(
+        run, tmp_path, "--grid", "variant=original,heavy", "--grid", "friction=0.6,1.1",
+        "--kp", "20", "--kd", "0.5", "--replicates", "3", "--seed", "4",
+        "--randomize", "torso_mass=±10%", "--randomize", "motor_gain=±5%",
+        "--randomize", "push_at=0.4:0.7", *SHORT,
+    )
+    assert_agree(warp, cpu)
+    _, rw = read_csv(tmp_path / "warp" / "replicates.csv")
+    _, rc = read_csv(tmp_path / "cpu" / "replicates.csv")
+    assert len(rw) == len(rc) == 12
+    for a, b in zip(rw, rc):
+        # the same draws, to the digit: they come from Rust either way
+        drawn = [k for k in a if k.startswith(("torso_mass", "motor_gain")) or k == "push_at"]
+        assert len(drawn) == 14, drawn
+        assert {k: a[k] for k in drawn} == {k: b[k] for k in drawn}
+        assert abs(float(a["final_z"]) - float(b["final_z"])) < 1e-4, (a, b)
+
+
+def test_sine_force_lab_on_warp(tmp_path):
+    """The lab (torque mode, each body from its own searched stand pose,
+    a force per step) agrees with cpu."""
+    kw = dict(seconds=1.0, progress=False)
+    a = pc.lab(["original", "long-leg"], ["kp=10,60", "kd=0.5"], backend="warp", device="cpu", **kw)
+    b = pc.lab(["original", "long-leg"], ["kp=10,60", "kd=0.5"], **kw)
+    assert a.header == b.header and list(a["status"]) == list(b["status"])
+    assert max(abs(x - y) for x, y in zip(a["final_z"], b["final_z"])) < 1e-4
+
+
+def test_diverging_world_leaves_the_others_alone(run, tmp_path):
+    common = ["--grid", "timestep=0.01", "--max-torque", "1e6", "--seconds", "2", "-q", *WARP]
+    run("sweep", "--grid", "kp=5,1e6", *common, "-o", tmp_path / "both", check=0)
+    run("sweep", "--grid", "kp=5", *common, "-o", tmp_path / "alone", check=0)
+    _, both_rows = read_csv(tmp_path / "both" / "summary.csv")
+    _, alone = read_csv(tmp_path / "alone" / "summary.csv")
+    ok, bad = both_rows
+    assert bad["status"] == "diverged" and 0 < as_float(bad["event_time"]) <= 2, bad
+    assert ok == {**alone[0], "index": ok["index"]}, "a diverging world changed a healthy one"
+
+
+def test_same_inputs_same_bytes_whatever_the_batches(run, tmp_path):
+    args = ["--grid", "kp=10,40,80", "--grid", "kd=0.5,2", *SHORT, *WARP]
+    run("sweep", *args, "-o", tmp_path / "a", check=0)
+    run("sweep", *args, "--chunk-cells", "2", "-o", tmp_path / "b", check=0)
+    assert (tmp_path / "a" / "summary.csv").read_bytes() == (tmp_path / "b" / "summary.csv").read_bytes()
+    assert json.loads((tmp_path / "b" / "manifest.json").read_text())["batches"] == 3
+    # resuming alone keeps the manifest's backend
+    p = run("sweep", "--resume", tmp_path / "b", "-q", check=0)
+    assert (tmp_path / "a" / "summary.csv").read_bytes() == (tmp_path / "b" / "summary.csv").read_bytes(), p.stderr
+
+
+def test_python_keywords(tmp_path):
+    r = pc.sweep({"kp": [5, 30]}, seconds=1.0, push_at=0.5, backend="warp", device="cpu",
+                 progress=False, out=tmp_path / "py")
+    c = pc.sweep({"kp": [5, 30]}, seconds=1.0, push_at=0.5, progress=False)
+    assert list(r["status"]) == list(c["status"])
+    assert max(abs(x - y) for x, y in zip(r["final_z"], c["final_z"])) < 1e-4
+    assert r.config["backend"]["name"] == "warp"
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--backend", "warp", "--device", "gpu"], ["device 'gpu'", "cuda:0", "cpu"]),
+        (["--device", "cpu"], ["--device", "--backend warp"]),
+        (["--backend", "warp", "--device", "cuda:7"], ["no device 'cuda:7'", "--device cpu"]),
+        (["--backend", "warp", "--device", "cpu", "--mode", "torque", "--replicates", "2",
+          "--randomize", "delay=0:2"], ["delay", "--backend cpu"]),
+        (["--backend", "warp", "--device", "cpu", "--mode", "torque", "--replicates", "2",
+          "--randomize", "q_noise=N(0,0.01)"], ["q_noise", "--backend cpu"]),
+    ],
+)
+def test_bad_backend_input(run, tmp_path, args, words):
+    out = tmp_path / "never"
+    p = run("sweep", *args, "-o", out, check=2)
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1, p.stderr
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    assert not out.exists()
+
+
+def test_missing_warp_says_what_to_install(run, tmp_path):
+    """Without MuJoCo Warp (hidden here by a sitecustomize that blocks its
+    import), --backend warp fails in one line naming the extra, exit 2."""
+    hide = tmp_path / "hide"
+    hide.mkdir()
+    (hide / "sitecustomize.py").write_text("import sys\nsys.modules['warp'] = None\n")
+    out = tmp_path / "never"
+    p = run("sweep", *WARP, "-o", out, env={"PYTHONPATH": str(hide)}, check=2)
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1, p.stderr
+    assert "pupper_core[gpu]" in lines[0] and "'warp'" in lines[0], lines[0]
+    assert not out.exists()
+    # the cpu backend does not need it
+    run("sweep", "--grid", "kp=5", "--seconds", "0.5", "--no-push", "-q", "-o", tmp_path / "cpu",
+        env={"PYTHONPATH": str(hide)}, check=0)
+    # and Python raises the same line
+    code = ("import sys; sys.modules['warp'] = None\nimport pupper_core as pc\n"
+            "try:\n    pc.sweep(backend='warp', device='cpu', progress=False)\n"
+            "except Exception as e:\n    print(type(e).__name__, e)\n")
+    py = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert "pupper_core[gpu]" in py.stdout, (py.stdout, py.stderr)
+
+
+def test_doctor_lists_warp_devices(run):
+    p = run("doctor", "--json", check=0)
+    report = json.loads(p.stdout)
+    assert report["warp"].startswith("warp-lang ")
+    assert any(d.startswith("cpu") for d in report["warp_devices"]), report
