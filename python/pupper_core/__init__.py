@@ -61,6 +61,7 @@ __all__ = [
     "info",
     "lab",
     "load_run",
+    "merge",
     "stand",
     "sweep",
     "METRICS",
@@ -223,6 +224,15 @@ def lab(
             if render:
                 raise
     return res
+
+
+def merge(dirs: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], *,
+          force: bool = False) -> SweepResult:
+    """Puts the shards of one sweep (each run with ``shard="I/N"``) together
+    into the run directory `out`, as `pupper merge` does: its summary.csv is
+    the unsharded sweep's. Refuses shards of different sweeps, a missing or
+    repeated shard (saying which to rerun)."""
+    return _native.merge([os.fspath(d) for d in dirs], os.fspath(out), force=force)
 
 
 def load_run(run_dir: str | os.PathLike[str]) -> SweepResult:

@@ -169,6 +169,9 @@ def lab(
 ) -> SweepResult:
     """The chapter's lab; best.csv in `out`. Plots and rendering are the wrapper's."""
 
+def merge(dirs: Sequence[str | PathLike[str]], out: str | PathLike[str], *, force: bool = ...) -> SweepResult:
+    """Shards of one sweep (each run with shard="I/N") put together into `out`."""
+
 def load_run(run_dir: str) -> SweepResult:
     """A run directory read back, its rows checked against its manifest."""
 

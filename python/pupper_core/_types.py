@@ -174,6 +174,9 @@ class SweepOptions(SimOptions, total=False):
     Warp, float32; needs `pip install 'pupper_core[gpu]'`)."""
     device: str | None
     """The Warp device of backend="warp": "cuda:0" (default) or "cpu"."""
+    shard: str | None
+    """Run only shard "I/N" of the grid's cells (1-based, interleaved); put
+    the shards together with `merge`."""
     threads: int
     chunk_cells: int | None
     """Most cells per batch; None: 256 on the cpu backend, as many as the

@@ -54,6 +54,11 @@ enum Command {
     /// mode under a 2 N, 1.2 Hz vertical sine force, 6 s, no push, all in one batch; the
     /// steadiest gains per body (best.csv), heatmaps, base-z curves and the bodies rendered.
     Lab(Box<LabArgs>),
+    /// Put the shards of one sweep (each run with --shard I/N) together into one run directory,
+    /// whose summary.csv is the one the unsharded sweep writes. Checks that the shards share
+    /// inputs and model and that together they hold every cell once; says which shard to
+    /// rerun otherwise. The manifest lists the shards, their hosts and wall times.
+    Merge(MergeArgs),
     /// Show which Python, prefix and mujoco pupper found, and how to fix it if it found none.
     Doctor {
         #[arg(long)]
@@ -66,6 +71,19 @@ enum Command {
         #[command(flatten)]
         model: ModelArg,
     },
+}
+
+#[derive(Args, Debug)]
+struct MergeArgs {
+    /// The shards' run directories (e.g. runs/study-shard-*).
+    #[arg(required = true, value_name = "DIR")]
+    dirs: Vec<PathBuf>,
+    /// The merged run directory (default runs/<time>-merged).
+    #[arg(long, short = 'o', value_name = "OUT")]
+    out: Option<PathBuf>,
+    /// Overwrite pupper's files in an existing OUT.
+    #[arg(long)]
+    force: bool,
 }
 
 /// `--grid`, repeatable.
@@ -381,6 +399,13 @@ struct SweepArgs {
     /// Overwrite pupper's files in an existing --out directory.
     #[arg(long)]
     force: bool,
+    /// Run only shard I of N of the grid's cells (1 <= I <= N; cell k belongs to shard
+    /// k mod N + 1, so costly and cheap cells spread evenly), into its own run directory
+    /// whose manifest records the whole grid, the shard and the host. Resume, Ctrl-C and
+    /// checks work per shard; `pupper merge` puts the shards together. In a Slurm array:
+    /// --shard $SLURM_ARRAY_TASK_ID/N with --array=1-N.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<String>,
     /// Continue an interrupted run in DIR: checks the inputs match its manifest, runs only missing cells. Alone, it reuses the manifest's inputs.
     #[arg(long, value_name = "DIR")]
     resume: Option<PathBuf>,
@@ -456,6 +481,7 @@ impl SweepArgs {
             chunk_cells: self.chunk_cells,
             max_cells: self.max_cells,
             force: self.force,
+            shard: self.shard.clone(),
             ..self.backend.apply(self.population.apply(self.sim.spec()?))
         })
     }
@@ -493,6 +519,26 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
         }
         Command::Sweep(a) => return sweep(*a, stop),
         Command::Lab(a) => return lab(*a, stop),
+        Command::Merge(a) => {
+            let (out, existing) = match (a.out, a.force) {
+                (Some(o), true) => (o, Existing::Overwrite),
+                (Some(o), false) => (o, Existing::Refuse),
+                (None, _) => (
+                    PathBuf::from("runs").join(format!(
+                        "{}-merged",
+                        chrono::Local::now().format("%Y%m%d-%H%M%S")
+                    )),
+                    Existing::Unique,
+                ),
+            };
+            let (dir, m) = pupper_core::rundir::merge(&a.dirs, &out, existing)?;
+            println!(
+                "merged {} shards ({} cells) into {}",
+                m.merged.len(),
+                m.cells_total,
+                dir.join("summary.csv").display()
+            );
+        }
         Command::Doctor { json } => {
             let r = bridge::doctor()?;
             if json {
@@ -639,7 +685,9 @@ fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
                 ..a.spec.clone()
             }
             .build()?;
-            s.config = output::read_manifest(dir)?.config;
+            let m = output::read_manifest(dir)?;
+            s.config = m.config;
+            s.shard = m.shard.map(|r| r.shard);
             s
         }
         Some(dir) => SweepSpec {

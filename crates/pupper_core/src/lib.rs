@@ -24,6 +24,7 @@ pub mod quat;
 pub mod randomize;
 pub mod rundir;
 pub mod schedule;
+pub mod shard;
 pub mod spec;
 pub mod stats;
 pub mod variant;

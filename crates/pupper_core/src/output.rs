@@ -190,6 +190,32 @@ pub struct Manifest {
     pub started_unix: u64,
     pub wall_seconds: f64,
     pub command: Vec<String>,
+    /// The shard of the grid this run holds (`--shard I/N`), and its host.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<ShardRecord>,
+    /// The shards a `pupper merge` put together.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub merged: Vec<MergedShard>,
+}
+
+/// A sharded run's part of the grid and where it ran.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ShardRecord {
+    #[serde(flatten)]
+    pub shard: crate::shard::Shard,
+    pub host: String,
+}
+
+/// One shard of a merged run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MergedShard {
+    pub dir: String,
+    pub index: u32,
+    pub count: u32,
+    pub host: String,
+    pub cells: usize,
+    pub wall_seconds: f64,
+    pub started_unix: u64,
 }
 
 /// Reads a run's manifest.

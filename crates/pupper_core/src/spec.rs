@@ -18,6 +18,7 @@ use crate::physics::Mode;
 use crate::randomize::{Randomize, Replicates};
 use crate::rundir::Existing;
 use crate::schedule::{InitialState, Push, Schedule, SineForce};
+use crate::shard::Shard;
 use crate::variant::variant;
 
 /// Where the grid comes from.
@@ -98,6 +99,8 @@ pub struct SweepSpec {
     pub force: bool,
     /// Continue the run in `out`.
     pub resume: bool,
+    /// Run only shard `I/N` of the grid's cells (interleaved).
+    pub shard: Option<String>,
 }
 
 impl Default for SweepSpec {
@@ -131,6 +134,7 @@ impl Default for SweepSpec {
             out: None,
             force: false,
             resume: false,
+            shard: None,
         }
     }
 }
@@ -143,6 +147,8 @@ pub struct Sweep {
     pub options: RunOptions,
     pub out: Option<PathBuf>,
     pub existing: Existing,
+    /// The part of the grid this run holds; None: all of it.
+    pub shard: Option<Shard>,
 }
 
 fn config_error(text: String) -> Error {
@@ -257,6 +263,7 @@ impl SweepSpec {
             },
             out: self.out.clone(),
             existing,
+            shard: self.shard.as_deref().map(Shard::parse).transpose()?,
         })
     }
 

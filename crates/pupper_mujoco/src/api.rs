@@ -13,7 +13,7 @@ use pupper_core::experiment::{self, CellResult, Hooks, RunOptions, SweepConfig};
 use pupper_core::grid::Cell;
 use pupper_core::metrics::Status;
 use pupper_core::model::{ModelInfo, ModelSource};
-use pupper_core::output::{self, Manifest, ModelRecord};
+use pupper_core::output::{self, Manifest, ModelRecord, ShardRecord};
 use pupper_core::physics::{CellSetup, Mode};
 use pupper_core::pose::StandPose;
 use pupper_core::rundir::RunWriter;
@@ -227,9 +227,16 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
         options,
         out,
         existing,
+        shard,
     } = &req.sweep;
     cfg.validate()?;
-    let cells = cfg.grid.cells();
+    // a shard runs its part of the grid; the manifest keeps the whole grid
+    let cells: Vec<Cell> = cfg
+        .grid
+        .cells()
+        .into_iter()
+        .filter(|c| shard.is_none_or(|s| s.holds(c.index)))
+        .collect();
     let started = std::time::Instant::now();
     bridge::with_model(&cfg.model, true, |model| {
         let info = model.info();
@@ -268,6 +275,11 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                 .unwrap_or(0),
             wall_seconds: 0.0,
             command: req.command.clone(),
+            shard: shard.map(|shard| ShardRecord {
+                shard,
+                host: pupper_core::rundir::hostname(),
+            }),
+            merged: Vec::new(),
         };
         let mut writer = RunWriter::new(out.as_deref(), *existing, manifest)?;
         let done: Vec<usize> = writer.done().collect();

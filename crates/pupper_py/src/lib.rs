@@ -504,6 +504,24 @@ fn lab(
     run_spec(py, spec, progress, "python: pupper_core.lab", Some(&rule))
 }
 
+/// Shards of one sweep put together into `out` (what `pupper merge` does);
+/// the merged run, read back.
+#[pyfunction]
+#[pyo3(signature = (dirs, out, *, force=false))]
+fn merge(
+    py: Python<'_>,
+    dirs: Vec<PathBuf>,
+    out: PathBuf,
+    force: bool,
+) -> PyResult<result::SweepResult> {
+    let existing = match force {
+        true => pupper_core::rundir::Existing::Overwrite,
+        false => pupper_core::rundir::Existing::Refuse,
+    };
+    let (dir, _) = pupper_core::rundir::merge(&dirs, &out, existing).map_err(to_py)?;
+    load_run(py, dir)
+}
+
 /// A run directory read back: its rows checked against its manifest.
 #[pyfunction]
 fn load_run(py: Python<'_>, run_dir: PathBuf) -> PyResult<result::SweepResult> {
@@ -673,6 +691,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sweep, m)?)?;
     m.add_function(wrap_pyfunction!(read_manifest, m)?)?;
     m.add_function(wrap_pyfunction!(load_run, m)?)?;
+    m.add_function(wrap_pyfunction!(merge, m)?)?;
     m.add_function(wrap_pyfunction!(lab, m)?)?;
     m.add_class::<result::SweepResult>()?;
     m.add_function(wrap_pyfunction!(record, m)?)?;
