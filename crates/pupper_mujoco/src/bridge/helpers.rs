@@ -6,7 +6,7 @@ use pyo3::types::{PyDict, PyList};
 
 use super::cpu::CpuPhysics;
 use super::model::LoadedModel;
-use super::python::{Mujoco, PyResultExt, python_message};
+use super::python::{Mujoco, PyResultExt, exception_name, python_message};
 use super::warp::WarpPhysics;
 use pupper_core::backend::Backend;
 use pupper_core::error::{Error, Result};
@@ -67,11 +67,7 @@ pub fn call_helper(
             .getattr(func)
             .and_then(|f| f.call(pyo3::types::PyTuple::new(py, args)?, Some(&kw)))
             .map_err(|e| {
-                let kind = e
-                    .get_type(py)
-                    .name()
-                    .map(|n| n.to_string())
-                    .unwrap_or_default();
+                let kind = exception_name(py, &e);
                 let msg = python_message(py, &e);
                 if kind.ends_with("Unavailable") {
                     Error::Display(msg)

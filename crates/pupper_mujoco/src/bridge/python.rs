@@ -35,6 +35,15 @@ pub(crate) fn python_message(py: Python<'_>, e: &PyErr) -> String {
     out
 }
 
+/// The class name of a Python exception (`WarpUnavailable`, ...), for the
+/// helpers that turn some of their own exceptions into user errors.
+pub(crate) fn exception_name(py: Python<'_>, e: &PyErr) -> String {
+    e.get_type(py)
+        .name()
+        .map(|n| n.to_string())
+        .unwrap_or_default()
+}
+
 pub(crate) trait PyResultExt<T> {
     fn internal(self) -> Result<T>;
 }

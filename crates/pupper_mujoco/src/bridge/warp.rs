@@ -12,7 +12,7 @@ use pyo3::prelude::*;
 
 use super::cpu::{actuator_params, colliding_geoms, scale_masses};
 use super::model::LoadedModel;
-use super::python::{PyResultExt, python_message};
+use super::python::{PyResultExt, exception_name, python_message};
 use super::setup::{StartStates, prepare_model};
 use pupper_core::backend::ActuatorPd;
 use pupper_core::error::{Error, Result};
@@ -35,11 +35,7 @@ pub struct WarpPhysics<'a, 'py> {
 /// A Python error of the device module as a one-line user error (Warp or
 /// the device missing) or an internal one.
 fn warp_err(py: Python<'_>, e: PyErr) -> Error {
-    let kind = e
-        .get_type(py)
-        .name()
-        .map(|n| n.to_string())
-        .unwrap_or_default();
+    let kind = exception_name(py, &e);
     let msg = python_message(py, &e);
     if kind == "WarpUnavailable" {
         Error::Mujoco(msg)
