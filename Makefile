@@ -2,9 +2,9 @@
 #   make sweep   set everything up, then run the default sweep on the built-in model
 #   make test    set everything up, then run every test (cargo test and pytest)
 # PUPPER_PROFILE=debug builds the module and binary without optimisation.
-# PUPPER_EXTRAS=gpu makes `make setup` install optional extras too (gpu:
-# MuJoCo Warp for --backend warp); `make test` installs every extra, as its
-# tests run them for real.
+# PUPPER_EXTRAS=gpu,ray makes `make setup` install optional extras too (gpu:
+# MuJoCo Warp for --backend warp; ray: Ray for --ray); `make test` installs
+# every extra, as its tests run them for real.
 SHELL := /bin/bash
 ROOT := $(abspath .)
 export PUPPER_PROFILE ?= release
@@ -14,7 +14,7 @@ export MUJOCO_GL ?= egl
 PUPPER := target/$(PUPPER_PROFILE)/pupper
 PY := .venv/bin/python
 
-.PHONY: setup sweep test test-rust test-python wheel bench bench-gpu lint lock clean
+.PHONY: setup sweep test test-rust test-python wheel bench bench-gpu bench-ray lint lock clean
 
 setup:
 	@bash scripts/setup.sh
@@ -23,7 +23,8 @@ sweep: setup
 	$(PUPPER) sweep --grid kp=10,30,60,120 --grid kd=0.5,1,2,5
 
 # every optional extra: the tests run the warp backend (on Warp's CPU device)
-test: export PUPPER_EXTRAS := gpu
+# and --ray (on a two-node Ray cluster over loopback, in its own namespaces)
+test: export PUPPER_EXTRAS := gpu,ray
 test: setup test-rust test-python
 
 test-rust:
@@ -44,6 +45,11 @@ bench: setup
 bench-gpu: export PUPPER_EXTRAS := gpu
 bench-gpu: setup
 	$(PY) benches/bench_gpu.py
+
+# --ray on a loopback cluster of this machine's cores against a local run
+bench-ray: export PUPPER_EXTRAS := ray
+bench-ray: setup
+	$(PY) benches/bench_ray.py
 
 lint:
 	cargo fmt --all -- --check

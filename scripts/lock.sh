@@ -2,7 +2,8 @@
 # Regenerates the lock files: resolves python/requirements.txt in a
 # throw-away venv and pins what it installed (python/requirements.lock);
 # then, for each optional extra E with a python/requirements-E.txt, adds it
-# to the same venv and pins what it added (python/requirements-E.lock).
+# to a fresh venv holding only the base lock and pins what it added
+# (python/requirements-E.lock), so each extra installs on the base alone.
 # Only `name==version` lines are kept, so an editable install, a local path
 # or a URL (the project's own package, say) can never be written into a lock.
 set -euo pipefail
@@ -28,6 +29,9 @@ echo "wrote python/requirements.lock ($(grep -c '==' python/requirements.lock) p
 for req in python/requirements-*.txt; do
   extra=${req#python/requirements-}
   extra=${extra%.txt}
+  rm -rf "$tmp/venv"
+  "$base" -m venv "$tmp/venv"
+  "${pip[@]}" install -r python/requirements.lock
   "${pip[@]}" install -r "$req"
   freeze > "$tmp/all"
   {
@@ -37,6 +41,5 @@ for req in python/requirements-*.txt; do
     # what the extra added, in pip's order
     grep -vxF -f "$tmp/base" "$tmp/all" || true
   } > "python/requirements-$extra.lock"
-  cp "$tmp/all" "$tmp/base"
   echo "wrote python/requirements-$extra.lock ($(grep -c '==' "python/requirements-$extra.lock") packages)"
 done

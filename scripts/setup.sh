@@ -6,9 +6,11 @@
 #   3. the pupper_core Python module (maturin, into .venv), built from this clone
 #   4. the pupper binary (target/$PUPPER_PROFILE/pupper), linked to .venv's Python
 # PUPPER_PROFILE=debug builds without optimisation (quicker to build, slower to
-# run: the fresh-clone check uses it). PUPPER_EXTRAS=gpu (comma-separated)
+# run: the fresh-clone check uses it). PUPPER_EXTRAS=gpu,ray (comma-separated)
 # also installs optional extras, pinned in python/requirements-<extra>.lock:
-# gpu is MuJoCo Warp for `--backend warp`. Re-running it only redoes what changed.
+# gpu is MuJoCo Warp for `--backend warp`, ray is Ray for `--ray` (and, for its
+# tests' loopback cluster, unshare/nsenter/ip/pkill via apt-get if missing).
+# Re-running it only redoes what changed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
@@ -27,6 +29,23 @@ if ! ldconfig -p 2>/dev/null | grep -q 'libEGL.so.1'; then
     apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libegl1 libgl1 libgl1-mesa-dri >/dev/null
   else
     say "warning: no libEGL; rendering will be unavailable (install libegl1 libgl1-mesa-dri)"
+  fi
+fi
+
+# The ray tests run their cluster in namespaces of its own: unshare and
+# nsenter (util-linux), ip (iproute2), pkill (procps).
+if [[ ",${PUPPER_EXTRAS:-}," == *,ray,* ]]; then
+  missing=()
+  for tool in unshare:util-linux nsenter:util-linux ip:iproute2 pkill:procps; do
+    command -v "${tool%%:*}" >/dev/null || missing+=("${tool#*:}")
+  done
+  if [ ${#missing[@]} -gt 0 ]; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+      say "installing ${missing[*]} (apt-get) for the Ray tests' loopback cluster"
+      apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
+    else
+      say "warning: the Ray tests need ${missing[*]} (apt-get install ${missing[*]})"
+    fi
   fi
 fi
 

@@ -18,7 +18,8 @@ STUB = Path(pc.__file__).parent / "_native.pyi"
 NO_CLI_DEFAULT = {"out", "force", "resume", "trace", "sine", "pose", "max_torque",
                   "randomize",  # repeatable: none unless given
                   "device", "chunk_cells",  # None: the backend's own (help says which)
-                  "shard"}  # none: the whole grid
+                  "shard",  # none: the whole grid
+                  "ray"}  # none: run here
 #: Spec fields whose flag has another name on the command line.
 CLI_FLAG = {"push": "--no-push"}
 

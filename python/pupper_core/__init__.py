@@ -23,6 +23,7 @@ if TYPE_CHECKING:
 
 from pupper_core import _native
 from pupper_core._native import (
+    ClusterError,
     ConfigError,
     DisplayError,
     GridError,
@@ -42,6 +43,7 @@ from pupper_core._types import ModelInfo, Recording, SimOptions, StandReport, Sw
 __version__: str = _native.__version__
 
 __all__ = [
+    "ClusterError",
     "ConfigError",
     "DisplayError",
     "GridError",
@@ -206,7 +208,7 @@ def lab(
     last_1s_std_mm, or p95:last_1s_std_mm over replicates). With `out`, the run directory also gets best.csv, the lab's
     figures and (where OpenGL works) the bodies drawn at their best gains;
     `render=True` adds the GIF. Other keywords: seconds, sine, model,
-    force, resume, threads, max_saturation, rank, backend, device, and the
+    force, resume, threads, max_saturation, rank, backend, device, ray, and the
     population (replicates, seed, randomize) as `sweep` takes them (defaults as
     `pupper lab --help`).
     """

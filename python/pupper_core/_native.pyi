@@ -30,7 +30,7 @@ METRICS: list[str]
 ErrorCode = Literal[
     "grid", "config", "model", "model_not_found", "mujoco", "output", "run_not_found",
     "run_exists", "resume_mismatch", "not_found", "permission", "disk_full", "io",
-    "interrupted", "display", "internal",
+    "interrupted", "display", "cluster", "internal",
 ]
 
 class PupperError(Exception):
@@ -57,6 +57,9 @@ class OutputError(PupperError):
 
 class DisplayError(PupperError):
     """Rendering or a viewer is not possible here."""
+
+class ClusterError(PupperError):
+    """Ray is missing, the cluster cannot be reached, or a node cannot run pupper."""
 
 class InternalError(PupperError):
     """A bug in pupper or MuJoCo."""
@@ -165,9 +168,13 @@ def lab(
     randomize: Sequence[str] = ...,
     backend: Literal["cpu", "warp"] = ...,
     device: str | None = ...,
+    ray: str | None = ...,
     progress: Callable[[int, int], object] | None = ...,
 ) -> SweepResult:
     """The chapter's lab; best.csv in `out`. Plots and rendering are the wrapper's."""
+
+def _run_task(job: bytes, task: bytes, threads: int) -> bytes:
+    """A Ray task's cells run on this node (see `pupper_core._ray`)."""
 
 def merge(dirs: Sequence[str | PathLike[str]], out: str | PathLike[str], *, force: bool = ...) -> SweepResult:
     """Shards of one sweep (each run with shard="I/N") put together into `out`."""

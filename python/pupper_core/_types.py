@@ -177,6 +177,10 @@ class SweepOptions(SimOptions, total=False):
     shard: str | None
     """Run only shard "I/N" of the grid's cells (1-based, interleaved); put
     the shards together with `merge`."""
+    ray: str | None
+    """Run the cells as tasks on a Ray cluster: "auto" (RAY_ADDRESS),
+    "ray://HOST:PORT" or "HOST:PORT"; needs `pip install 'pupper_core[ray]'`.
+    Same table as a local run; `threads` is then the CPUs per task."""
     threads: int
     chunk_cells: int | None
     """Most cells per batch; None: 256 on the cpu backend, as many as the

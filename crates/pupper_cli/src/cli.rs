@@ -279,6 +279,17 @@ struct BackendArgs {
     /// the devices Warp sees.
     #[arg(long, value_name = "DEVICE")]
     device: Option<String>,
+    /// Run the cells as tasks on a Ray cluster: auto (the RAY_ADDRESS variable, or the cluster
+    /// this machine is a node of), ray://HOST:PORT (Ray's client port, 10001 by default) or
+    /// HOST:PORT (the head's port, from a node). Each task is a batch of neighbouring cells
+    /// through one node's cores (-j sets the CPUs per task; default: the smallest node's);
+    /// each finished task is written here as it arrives, so Ctrl-C, a dead driver or a lost
+    /// node lose only running tasks (Ray retries those of a dead worker), and --resume
+    /// continues on Ray or locally. Same summary.csv as a local run. Every node needs the same
+    /// pupper_core and mujoco (checked) and model file; needs the optional extra:
+    /// pip install 'pupper_core[ray]' (in a checkout: make setup PUPPER_EXTRAS=ray).
+    #[arg(long, value_name = "ADDRESS")]
+    ray: Option<String>,
 }
 
 impl BackendArgs {
@@ -286,6 +297,7 @@ impl BackendArgs {
         SweepSpec {
             backend: self.backend.clone(),
             device: self.device.clone(),
+            ray: self.ray.clone(),
             ..spec
         }
     }
@@ -737,12 +749,17 @@ fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
     let dir = outcome.out.clone().unwrap_or_default();
     if !outcome.complete {
         eprintln!(
-            "interrupted: kept {} of {} cells in {}; continue with: pupper {} --resume {}",
+            "interrupted: kept {} of {} cells in {}; continue with: pupper {} --resume {}{}",
             outcome.rows.len(),
             outcome.cells_total,
             dir.display(),
             if a.lab { "lab" } else { "sweep" },
-            dir.display()
+            dir.display(),
+            a.spec
+                .ray
+                .as_ref()
+                .map(|r| format!(" --ray {r}"))
+                .unwrap_or_default()
         );
         return Ok(130);
     }

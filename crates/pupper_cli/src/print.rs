@@ -138,6 +138,13 @@ pub fn doctor(r: &PythonReport) -> String {
         }
         (None, None) => {}
     }
+    let _ = writeln!(
+        s,
+        "ray        {}",
+        r.ray.as_deref().unwrap_or(
+            "not installed (--ray needs it: pip install 'pupper_core[ray]', or make setup PUPPER_EXTRAS=ray)"
+        )
+    );
     s
 }
 

@@ -22,6 +22,8 @@ pub enum ErrorKind {
     Interrupted,
     /// Rendering or a viewer cannot be used here.
     Display,
+    /// A Ray cluster: missing, unreachable, or a node unfit to run pupper.
+    Cluster,
     /// Something went wrong inside pupper or MuJoCo: a bug, not a user error.
     Internal,
 }
@@ -57,6 +59,8 @@ pub enum Error {
     Interrupted(String),
     #[error("{0}")]
     Display(String),
+    #[error("{0}")]
+    Cluster(String),
     #[error("cannot {action} {}: {source}{}", path.display(), io_fix(source))]
     Io {
         action: &'static str,
@@ -83,6 +87,7 @@ impl Error {
             | Error::Io { .. } => ErrorKind::Output,
             Error::Interrupted(_) => ErrorKind::Interrupted,
             Error::Display(_) => ErrorKind::Display,
+            Error::Cluster(_) => ErrorKind::Cluster,
             Error::Internal(_) => ErrorKind::Internal,
         }
     }
@@ -91,7 +96,7 @@ impl Error {
     /// match on (Python's `PupperError.kind`): `grid`, `config`, `model`,
     /// `model_not_found`, `mujoco`, `output`, `run_not_found`, `run_exists`,
     /// `resume_mismatch`, `run_busy`, `not_found`, `permission`, `disk_full`, `io`,
-    /// `interrupted`, `display`, `internal`.
+    /// `interrupted`, `display`, `cluster`, `internal`.
     pub fn code(&self) -> &'static str {
         match self {
             Error::Grid(_) => "grid",
@@ -114,6 +119,7 @@ impl Error {
             },
             Error::Interrupted(_) => "interrupted",
             Error::Display(_) => "display",
+            Error::Cluster(_) => "cluster",
             Error::Internal(_) => "internal",
         }
     }

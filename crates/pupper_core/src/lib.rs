@@ -8,6 +8,7 @@
 
 pub mod backend;
 pub mod best;
+pub mod cluster;
 pub mod error;
 pub mod experiment;
 pub mod frames;

@@ -196,6 +196,27 @@ pub struct Manifest {
     /// The shards a `pupper merge` put together.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub merged: Vec<MergedShard>,
+    /// The Ray cluster that ran this run's cells (`--ray`), as last seen.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ray: Option<RayRecord>,
+}
+
+/// Where a `--ray` run's tasks ran.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RayRecord {
+    pub address: String,
+    /// The cluster's live nodes when the run started.
+    pub nodes: Vec<RayNode>,
+    /// Tasks run at once, and the CPUs (batch threads) of each.
+    pub slots: usize,
+    pub threads_per_task: usize,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RayNode {
+    pub host: String,
+    pub address: String,
+    pub cpus: f64,
 }
 
 /// A sharded run's part of the grid and where it ran.

@@ -648,6 +648,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, existing: Existing) -> Result<(PathBu
         started_unix: parts.iter().map(|(_, m)| m.started_unix).min().unwrap_or(0),
         command: std::env::args().collect(),
         shard: None,
+        ray: None,
         merged: parts
             .iter()
             .map(|(d, m)| {
@@ -773,6 +774,7 @@ mod tests {
             command: vec![],
             shard: None,
             merged: vec![],
+            ray: None,
         }
     }
 

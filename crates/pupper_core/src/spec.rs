@@ -10,6 +10,7 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 use crate::backend::Backend;
+use crate::cluster::Address;
 use crate::error::{Error, Result};
 use crate::experiment::{Defaults, RunOptions, SweepConfig};
 use crate::grid::{Axis, AxisValues, DEFAULT_MAX_CELLS, Grid, parse_values};
@@ -101,6 +102,9 @@ pub struct SweepSpec {
     pub resume: bool,
     /// Run only shard `I/N` of the grid's cells (interleaved).
     pub shard: Option<String>,
+    /// Run the cells as tasks on this Ray cluster (`auto`, `ray://HOST:PORT`
+    /// or `HOST:PORT`); None runs them here.
+    pub ray: Option<String>,
 }
 
 impl Default for SweepSpec {
@@ -135,6 +139,7 @@ impl Default for SweepSpec {
             force: false,
             resume: false,
             shard: None,
+            ray: None,
         }
     }
 }
@@ -149,6 +154,8 @@ pub struct Sweep {
     pub existing: Existing,
     /// The part of the grid this run holds; None: all of it.
     pub shard: Option<Shard>,
+    /// The Ray cluster that runs the cells; None: this machine.
+    pub ray: Option<Address>,
 }
 
 fn config_error(text: String) -> Error {
@@ -264,6 +271,7 @@ impl SweepSpec {
             out: self.out.clone(),
             existing,
             shard: self.shard.as_deref().map(Shard::parse).transpose()?,
+            ray: self.ray.as_deref().map(Address::parse).transpose()?,
         })
     }
 

@@ -7,7 +7,10 @@ use pyo3::prelude::*;
 use serde::Serialize;
 
 use crate::bridge;
+use crate::bridge::ray::RayCluster;
+use pupper_core::backend::Backend;
 use pupper_core::best;
+use pupper_core::cluster::{self, Job, Outcome, Task};
 use pupper_core::error::{Error, Result};
 use pupper_core::experiment::{self, CellResult, Hooks, RunOptions, SweepConfig};
 use pupper_core::grid::Cell;
@@ -20,6 +23,70 @@ use pupper_core::rundir::RunWriter;
 use pupper_core::schedule::InitialState;
 use pupper_core::spec::{GridInput, Sweep, SweepSpec};
 use pupper_core::variant::Variant;
+
+/// A cluster worker's part of `--ray`: runs one task's cells of a job
+/// here, as one batch on `threads` threads, and encodes the [`Outcome`].
+/// A worker that cannot give the driver's numbers (another pupper or
+/// mujoco version, another model file) refuses; the refusal, like any
+/// failure, travels back as the outcome, naming this node.
+pub fn run_task(job: &[u8], task: &[u8], threads: usize) -> Result<Vec<u8>> {
+    let outcome = match task_results(job, task, threads) {
+        Ok(results) => Outcome::Done(results),
+        Err(e) => Outcome::Failed {
+            host: pupper_core::rundir::hostname(),
+            user: e.is_user_error(),
+            message: e.to_string(),
+        },
+    };
+    cluster::encode(&outcome)
+}
+
+fn task_results(job: &[u8], task: &[u8], threads: usize) -> Result<Vec<CellResult>> {
+    let job: Job = cluster::decode(job)?;
+    let task: Task = cluster::decode(task)?;
+    let fix = "install the same pupper_core and mujoco on every node (e.g. the wheel `make wheel` builds)";
+    if job.pupper_version != pupper_core::VERSION {
+        return Err(Error::Cluster(format!(
+            "this node has pupper_core {}, the driver {}: {fix}",
+            pupper_core::VERSION,
+            job.pupper_version
+        )));
+    }
+    let cfg = &job.config;
+    bridge::with_model(&cfg.model, true, |model| {
+        if model.mujoco_version() != job.mujoco_version {
+            return Err(Error::Cluster(format!(
+                "this node has mujoco {}, the driver {}: {fix}",
+                model.mujoco_version(),
+                job.mujoco_version
+            )));
+        }
+        if model.info().sha256 != job.model_sha256 {
+            return Err(Error::Cluster(format!(
+                "the model '{}' here is not the driver's (SHA-256 {} here, {} there): put the same file at the same path on every node (a shared filesystem)",
+                cfg.model.display(),
+                &model.info().sha256[..12.min(model.info().sha256.len())],
+                &job.model_sha256[..12.min(job.model_sha256.len())]
+            )));
+        }
+        let physics = bridge::physics(model, &cfg.backend)?;
+        // one batch through the node's cores (a task is the unit to lose)
+        let opts = RunOptions {
+            threads,
+            chunk_cells: Some(task.cells.len()),
+            chunk_seconds: f64::INFINITY,
+            chunk_steps: job.chunk_steps,
+            frame_rate: None,
+        };
+        experiment::run_cells(
+            physics.as_ref(),
+            cfg,
+            &task.cells,
+            opts,
+            &mut experiment::NoHooks,
+        )
+    })
+}
 
 /// What `pupper info` prints.
 pub fn info(source: &ModelSource, variant: &Variant) -> Result<ModelInfo> {
@@ -228,6 +295,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
         out,
         existing,
         shard,
+        ray,
     } = &req.sweep;
     cfg.validate()?;
     // a shard runs its part of the grid; the manifest keeps the whole grid
@@ -241,8 +309,26 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
     bridge::with_model(&cfg.model, true, |model| {
         let info = model.info();
         let note = check_start(info, &cfg.schedule.initial)?;
-        // Warp and its device are checked before anything is written
-        let physics = bridge::physics(model, &cfg.backend)?;
+        // Warp and its device (or the Ray cluster) are checked before
+        // anything is written; on Ray the workers run the physics
+        let (physics, mut cluster) = match ray {
+            None => (Some(bridge::physics(model, &cfg.backend)?), None),
+            Some(address) => {
+                let job = Job {
+                    config: cfg.clone(),
+                    model_sha256: info.sha256.clone(),
+                    pupper_version: pupper_core::VERSION.to_string(),
+                    mujoco_version: model.mujoco_version().to_string(),
+                    chunk_steps: options.chunk_steps,
+                };
+                let gpus = match &cfg.backend {
+                    Backend::Warp { device, .. } if device.starts_with("cuda") => 1.0,
+                    _ => 0.0,
+                };
+                let c = RayCluster::connect(model.mj.py, address, &job, options.threads, gpus)?;
+                (None, Some((c, job)))
+            }
+        };
         let torque_limits = match cfg.defaults.max_torque {
             Some(t) => vec![t; info.nu],
             None => info.torque_limits()?,
@@ -268,7 +354,10 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             cells_done: 0,
             batches: 0,
             complete: false,
-            threads: options.threads,
+            threads: match &cluster {
+                Some((c, _)) => c.record.threads_per_task,
+                None => options.threads,
+            },
             started_unix: std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
                 .map(|d| d.as_secs())
@@ -280,6 +369,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                 host: pupper_core::rundir::hostname(),
             }),
             merged: Vec::new(),
+            ray: cluster.as_ref().map(|(c, _)| c.record.clone()),
         };
         let mut writer = RunWriter::new(out.as_deref(), *existing, manifest)?;
         let done: Vec<usize> = writer.done().collect();
@@ -289,14 +379,15 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             .collect();
         // every timestep's plan is checked before anything is created
         let mut steps_at: std::collections::BTreeMap<u64, u64> = Default::default();
+        let dt_of = |c: &Cell| cfg.setup(c).timestep.unwrap_or(info.timestep).to_bits();
         let mut total = 0u64;
         for c in &todo {
-            let dt = cfg.setup(c).timestep.unwrap_or(info.timestep);
-            let steps = match steps_at.get(&dt.to_bits()) {
+            let dt = dt_of(c);
+            let steps = match steps_at.get(&dt) {
                 Some(&s) => s,
                 None => {
-                    let s = cfg.schedule.plan(dt)?.steps as u64;
-                    steps_at.insert(dt.to_bits(), s);
+                    let s = cfg.schedule.plan(f64::from_bits(dt))?.steps as u64;
+                    steps_at.insert(dt, s);
                     s
                 }
             };
@@ -310,8 +401,26 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                 ui: ui.hooks(),
                 writer: &mut writer,
             };
-            experiment::run_cells(physics.as_ref(), cfg, &todo, *options, &mut hooks)
+            match (&physics, &mut cluster) {
+                (Some(physics), _) => {
+                    experiment::run_cells(physics.as_ref(), cfg, &todo, *options, &mut hooks)
+                        .map(drop)
+                }
+                (None, Some((cluster, job))) => cluster::run_cells(
+                    cluster,
+                    job,
+                    &todo,
+                    options.chunk_cells,
+                    &|c| steps_at.get(&dt_of(c)).copied().unwrap_or(0),
+                    &mut hooks,
+                ),
+                (None, None) => Err(Error::Internal(
+                    "a sweep with neither physics nor cluster".into(),
+                )),
+            }
         };
+        // disconnects from Ray (the tasks of a stop are cancelled already)
+        drop(cluster);
         if let Some(dir) = writer.dir() {
             log.move_into(dir);
         }

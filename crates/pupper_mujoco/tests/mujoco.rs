@@ -172,3 +172,77 @@ fn body_variants_change_the_stance() {
     assert!(z[1] < z[0], "{z:?}");
     assert!(z[3] < z[2], "{z:?}");
 }
+
+/// A cluster worker's task: the same numbers as the local runner, bit for
+/// bit through the wire format; and a worker that would give other numbers
+/// (another pupper or mujoco, another model file) refuses, naming the fix.
+#[test]
+fn a_cluster_task_gives_the_local_numbers_or_refuses() {
+    use pupper_core::cluster::{self, Job, Outcome, Task};
+    init();
+    let cfg = SweepConfig {
+        model: builtin("pupper_v3"),
+        grid: Grid::parse(&["kp=10,60", "kd=0.5,2"]).unwrap(),
+        schedule: Schedule {
+            duration: 2.0,
+            ..Schedule::default()
+        },
+        ..SweepConfig::default()
+    };
+    let local = run(&cfg, RunOptions::default());
+    let (sha, mujoco) = bridge::with_model(&cfg.model, true, |m| {
+        Ok((m.info().sha256.clone(), m.mujoco_version().to_string()))
+    })
+    .unwrap();
+    let job = Job {
+        config: cfg.clone(),
+        model_sha256: sha,
+        pupper_version: pupper_core::VERSION.into(),
+        mujoco_version: mujoco,
+        chunk_steps: RunOptions::default().chunk_steps,
+    };
+    // the last three cells, as a task
+    let task = cluster::encode(&Task {
+        cells: cfg.grid.cells()[1..].to_vec(),
+    })
+    .unwrap();
+    let outcome = |job: &Job| -> Outcome {
+        let bytes = api::run_task(&cluster::encode(job).unwrap(), &task, 2).unwrap();
+        cluster::decode(&bytes).unwrap()
+    };
+    let Outcome::Done(got) = outcome(&job) else {
+        panic!("the task failed")
+    };
+    assert_eq!(got.len(), 3);
+    for (g, l) in got.iter().zip(&local[1..]) {
+        assert_eq!(g.cell, l.cell);
+        assert_eq!(format!("{:?}", g.metrics), format!("{:?}", l.metrics));
+    }
+    let refusal = |job: Job, words: &str| match outcome(&job) {
+        Outcome::Failed { user, message, .. } => {
+            assert!(user && message.contains(words), "{message}");
+        }
+        Outcome::Done(_) => panic!("a worker unlike the driver ran the task"),
+    };
+    refusal(
+        Job {
+            model_sha256: "0123456789abcdef".into(),
+            ..job.clone()
+        },
+        "is not the driver's (SHA-256",
+    );
+    refusal(
+        Job {
+            pupper_version: "0.0.1".into(),
+            ..job.clone()
+        },
+        "the driver 0.0.1: install the same pupper_core",
+    );
+    refusal(
+        Job {
+            mujoco_version: "3.3.0".into(),
+            ..job
+        },
+        "the driver 3.3.0",
+    );
+}

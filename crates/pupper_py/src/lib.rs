@@ -67,6 +67,12 @@ create_exception!(
 );
 create_exception!(
     pupper_core,
+    ClusterError,
+    PupperError,
+    "Ray is missing, the cluster cannot be reached, or a node cannot run pupper."
+);
+create_exception!(
+    pupper_core,
     InternalError,
     PupperError,
     "A bug in pupper or MuJoCo."
@@ -130,6 +136,7 @@ pub(crate) fn to_py(e: Error) -> PyErr {
                 ErrorKind::Output => OutputError::new_err(msg),
                 ErrorKind::Interrupted => PyKeyboardInterrupt::new_err(msg),
                 ErrorKind::Display => DisplayError::new_err(msg),
+                ErrorKind::Cluster => ClusterError::new_err(msg),
                 ErrorKind::Internal => InternalError::new_err(msg),
             },
         };
@@ -439,7 +446,7 @@ fn run_spec(
 /// best.csv (the best gains per body) in `out`. Plots and rendering are the
 /// Python wrapper's.
 #[pyfunction]
-#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::lab::SECONDS, sine=pupper_core::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, rank=None, replicates=1, seed=0, randomize=Vec::new(), backend="cpu".to_string(), device=None, progress=None))]
+#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::lab::SECONDS, sine=pupper_core::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, rank=None, replicates=1, seed=0, randomize=Vec::new(), backend="cpu".to_string(), device=None, ray=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn lab(
     py: Python<'_>,
@@ -459,6 +466,7 @@ fn lab(
     randomize: Vec<String>,
     backend: String,
     device: Option<String>,
+    ray: Option<String>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<result::SweepResult> {
     // the ranges `sweep` takes, with its messages
@@ -488,6 +496,7 @@ fn lab(
         randomize: randomize.clone(),
         backend,
         device,
+        ray,
         ..pupper_core::lab::spec(&variants, &grid.unwrap_or_default(), seconds, sine)
     };
     let metric = rank.unwrap_or_else(|| {
@@ -664,6 +673,20 @@ fn cli_main(py: Python<'_>, argv: Vec<std::ffi::OsString>) -> u8 {
     pupper_cli::main(argv, pupper_cli::Host::Interpreter)
 }
 
+/// A Ray task's work on a worker node (`pupper_core._ray.run_task`): the
+/// task's cells of the job run here, on `threads` threads; the encoded
+/// outcome (results, or why this node refused) goes back to the driver.
+#[pyfunction]
+fn _run_task<'py>(
+    py: Python<'py>,
+    job: &[u8],
+    task: &[u8],
+    threads: usize,
+) -> PyResult<Bound<'py, pyo3::types::PyBytes>> {
+    let out = api::run_task(job, task, threads).map_err(to_py)?;
+    Ok(pyo3::types::PyBytes::new(py, &out))
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
@@ -676,6 +699,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MujocoError", py.get_type::<MujocoError>())?;
     m.add("OutputError", py.get_type::<OutputError>())?;
     m.add("DisplayError", py.get_type::<DisplayError>())?;
+    m.add("ClusterError", py.get_type::<ClusterError>())?;
     m.add("InternalError", py.get_type::<InternalError>())?;
     let builtins = PyModule::import(py, "builtins")?;
     for (name, family, builtin, doc) in DUAL_ERRORS {
@@ -699,5 +723,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sweep_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(builtin_model, m)?)?;
     m.add_function(wrap_pyfunction!(cli_main, m)?)?;
+    m.add_function(wrap_pyfunction!(_run_task, m)?)?;
     Ok(())
 }

@@ -6,6 +6,7 @@ mod helpers;
 mod inspect;
 pub mod model;
 pub mod python;
+pub mod ray;
 mod setup;
 pub mod warp;
 

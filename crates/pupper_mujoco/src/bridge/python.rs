@@ -70,6 +70,8 @@ pub struct PythonReport {
     /// The Warp devices seen, or why there are none.
     pub warp_devices: Vec<String>,
     pub warp_problem: Option<String>,
+    /// Ray's version, when installed (`--ray`).
+    pub ray: Option<String>,
 }
 
 pub fn doctor() -> Result<PythonReport> {
@@ -94,6 +96,7 @@ pub fn doctor() -> Result<PythonReport> {
             warp: None,
             warp_devices: Vec::new(),
             warp_problem: None,
+            ray: None,
         };
         if let Ok(np) = PyModule::import(py, "numpy") {
             report.numpy = np
@@ -131,6 +134,10 @@ pub fn doctor() -> Result<PythonReport> {
                 }
                 Err(e) => report.warp_problem = Some(python_message(py, &e)),
             }
+            report.ray = PyModule::import(py, "pupper_core._ray")
+                .and_then(|r| r.getattr("version")?.call0()?.extract())
+                .ok()
+                .flatten();
         }
         Ok(report)
     })
