@@ -36,6 +36,7 @@ fi
 # nsenter (util-linux), ip (iproute2), pkill (procps).
 if [[ ",${PUPPER_EXTRAS:-}," == *,ray,* ]]; then
   missing=()
+  PATH="$PATH:/usr/sbin:/sbin"
   for tool in unshare:util-linux nsenter:util-linux ip:iproute2 pkill:procps; do
     command -v "${tool%%:*}" >/dev/null || missing+=("${tool#*:}")
   done

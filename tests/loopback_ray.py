@@ -52,6 +52,7 @@ class LoopbackCluster:
         )
         script = f"""
 set -e
+export PATH="$PATH:/usr/sbin:/sbin"  # ip, where a user's PATH lacks them
 ip link set lo up
 export RAY_USAGE_STATS_ENABLED=0
 {ray} start --head --port {HEAD_PORT} --include-dashboard=false {common} >{self.tmp}/start.log 2>&1

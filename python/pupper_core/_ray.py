@@ -117,36 +117,18 @@ class Driver:
         self._owns = not ray.is_initialized()
         if self._owns:
             _probe(address)
-            quiet = logging.getLogger("ray")
-            level = quiet.level
-            # Ray warns at connect about signal handlers it leaves to us
-            quiet.setLevel(logging.ERROR)
             extra: dict[str, Any] = {}
             text = os.environ.get("RAY_RUNTIME_ENV")
             if text and not address.startswith("ray://"):  # Ray's client reads it itself
-                # what the tasks' workers get: e.g. pupper_core's wheel
+                # what the tasks' workers get: e.g. a conda env with pupper_core
                 try:
                     extra["runtime_env"] = json.loads(text)
                 except ValueError as e:
                     raise ClusterFailure(
                         f"RAY_RUNTIME_ENV is not JSON ({e}): give a runtime_env as JSON, "
-                        """e.g. '{"py_modules": ["dist/pupper_core-....whl"]}'"""
+                        """e.g. '{"conda": "pupper"}'"""
                     ) from None
-            try:
-                ray.init(
-                    address=address,
-                    logging_level=logging.WARNING,
-                    log_to_driver=False,
-                    **extra,
-                )
-            except Exception as e:  # Ray raises ConnectionError, ValueError, RuntimeError...
-                raise ClusterUnreachable(
-                    f"cannot connect to the Ray cluster at {address!r} ({_one_line(e)}): "
-                    "start one with `ray start --head` (see README), or check the address "
-                    "(auto reads RAY_ADDRESS)"
-                ) from None
-            finally:
-                quiet.setLevel(level)
+            self._connect(address, extra)
         self._nodes = [n for n in ray.nodes() if n.get("Alive")]
         cpus = [float(n.get("Resources", {}).get("CPU", 0.0)) for n in self._nodes]
         most = int(max(cpus, default=0.0))
@@ -184,6 +166,29 @@ class Driver:
         self._remote = ray.remote(run_task).options(
             num_cpus=per, num_gpus=gpus, max_retries=RETRIES
         )
+
+    def _connect(self, address: str, extra: dict[str, Any]) -> None:
+        ray = self._ray
+        for attempt in (1, 2):
+            try:
+                ray.init(
+                    address=address,
+                    logging_level=logging.WARNING,
+                    log_to_driver=False,
+                    **extra,
+                )
+                return
+            except Exception as e:  # Ray raises ConnectionError, ValueError, RuntimeError...
+                ray.shutdown()
+                # the head's client server starts a process per connection,
+                # which has been seen failing once on a fresh node: try again
+                if attempt == 1 and "Ray client server failed" in str(e):
+                    continue
+                raise ClusterUnreachable(
+                    f"cannot connect to the Ray cluster at {address!r} ({_one_line(e)}): "
+                    "start one with `ray start --head` (see README), or check the address "
+                    "(auto reads RAY_ADDRESS)"
+                ) from None
 
     def _check(self) -> None:
         """A worker must import pupper_core and mujoco of the driver's
