@@ -107,6 +107,25 @@ for where, ray in (("ray", {ADDRESS!r}), ("local", None)):
                ("summary.csv", "replicates.csv", "traces.csv"))
 
 
+def test_a_notebook_connection_is_used_only_when_asked(in_cluster, tmp_path):
+    """Python already connected to Ray (a notebook's ray.init): ray="auto"
+    runs on that connection and leaves it open; another address is refused
+    (pc.ClusterError, one line) rather than silently ignored."""
+    code = f"""
+import logging, ray, pupper_core as pc
+ray.init({ADDRESS!r}, logging_level=logging.ERROR)
+res = pc.sweep({{"kp": [10, 60]}}, seconds=1, ray="auto", progress=False)
+print("rows", len(res.table["id"]), "still", ray.is_initialized())
+try:
+    pc.sweep({{"kp": [10]}}, seconds=1, ray="127.0.0.1:6380", progress=False)
+except pc.ClusterError as e:
+    print("refused", e.kind, e)
+"""
+    p = in_cluster("-c", code, python=True)
+    assert "rows 2 still True" in p.stdout, p.stdout + p.stderr
+    assert "refused cluster this Python is already connected" in p.stdout, p.stdout
+
+
 def test_lab_on_ray_equals_a_local_lab(run, in_cluster, tmp_path):
     """`pupper lab --ray`: three bodies from their own stand poses, torque
     mode under the sine force; same table and best gains as a local lab."""

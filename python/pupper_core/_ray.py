@@ -58,6 +58,12 @@ def version() -> str | None:
     return str(ray.__version__)
 
 
+def _last_line(e: BaseException) -> str:
+    """A traceback's last line: what happened."""
+    lines = [ln.strip() for ln in str(e).splitlines() if ln.strip()]
+    return (lines[-1] if lines else type(e).__name__)[:300]
+
+
 def _one_line(e: BaseException) -> str:
     return " ".join(str(e).split()) or type(e).__name__
 
@@ -113,8 +119,23 @@ class Driver:
         ray = _ray()
         self._ray = ray
         self._pending: dict[Any, int] = {}
+        self._failure: Exception | None = None
         # a notebook that connected itself keeps its connection
         self._owns = not ray.is_initialized()
+        if not self._owns and address != "auto":
+            raise ClusterUnreachable(
+                f"this Python is already connected to a Ray cluster, so ray={address!r} "
+                "cannot be reached from it: pass ray='auto' to run on that connection, "
+                "or call ray.shutdown() first"
+            )
+        try:
+            self._start(address, job, threads, gpus)
+        except BaseException:
+            self.close()
+            raise
+
+    def _start(self, address: str, job: bytes, threads: int, gpus: float) -> None:
+        ray = self._ray
         if self._owns:
             _probe(address)
             extra: dict[str, Any] = {}
@@ -133,7 +154,6 @@ class Driver:
         cpus = [float(n.get("Resources", {}).get("CPU", 0.0)) for n in self._nodes]
         most = int(max(cpus, default=0.0))
         if most < 1:
-            self.close()
             raise ClusterUnreachable(
                 f"the Ray cluster at {address!r} has no node with a CPU: "
                 "start its nodes with --num-cpus 1 or more"
@@ -143,7 +163,6 @@ class Driver:
             per = 1
             slots = int(sum(float(n.get("Resources", {}).get("GPU", 0.0)) for n in self._nodes) // gpus)
             if slots < 1:
-                self.close()
                 raise ClusterUnreachable(
                     f"--backend warp on a CUDA device asks each task for a GPU, but the Ray "
                     f"cluster at {address!r} has none: use --device cpu, or add GPU nodes"
@@ -152,7 +171,6 @@ class Driver:
             # a task takes a node's cores: as many as the smallest node has
             per = threads if threads > 0 else int(min(c for c in cpus if c >= 1))
             if per > most:
-                self.close()
                 raise ClusterUnreachable(
                     f"--threads {threads} asks each task for more CPUs than any node of the "
                     f"Ray cluster has (at most {most}): give --threads {most} or fewer, "
@@ -198,16 +216,17 @@ class Driver:
         try:
             theirs = ray.get(ray.remote(versions).options(num_cpus=0).remote(), timeout=300)
         except ray.exceptions.RayError as e:
-            self.close()
             if "No module named" in str(e):
                 raise ClusterFailure(
                     "a Ray worker cannot import pupper_core and mujoco: install them on every "
                     "node, into the Python that runs `ray start` (pip install the wheel "
                     "`make wheel` writes to dist/; see README)"
                 ) from None
-            raise
+            raise ClusterFailure(
+                f"no Ray worker could start a first task ({type(e).__name__}: "
+                f"{_last_line(e)}): check the cluster (`ray status`)"
+            ) from None
         if tuple(theirs) != versions():
-            self.close()
             raise ClusterFailure(
                 f"a Ray worker has pupper_core {theirs[0]} and mujoco {theirs[1]}, this driver "
                 f"{versions()[0]} and {versions()[1]}: install the same on every node (the "
@@ -235,6 +254,9 @@ class Driver:
     def wait(self, timeout: float) -> list[tuple[int, bytes]]:
         """Tasks finished within `timeout` seconds (at least one, unless
         none finished): (key, encoded outcome)."""
+        if self._failure is not None:
+            failure, self._failure = self._failure, None
+            raise failure
         if not self._pending:
             return []
         ray = self._ray
@@ -242,16 +264,28 @@ class Driver:
         ready, _ = ray.wait(refs, num_returns=1, timeout=timeout)
         if ready:
             ready, _ = ray.wait(refs, num_returns=len(refs), timeout=0)
-        return [(self._pending.pop(ref), self._get(ref)) for ref in ready]
+        out: list[tuple[int, bytes]] = []
+        for ref in ready:
+            key = self._pending.pop(ref)
+            try:
+                out.append((key, self._get(ref)))
+            except Exception as e:
+                # the tasks finished beside a failed one are handed over first
+                self._failure = self._failure or e
+        if not out and self._failure is not None:
+            failure, self._failure = self._failure, None
+            raise failure
+        return out
 
     def _get(self, ref: Any) -> bytes:
         ray = self._ray
         try:
             return bytes(ray.get(ref))
         except ray.exceptions.RayError as e:
-            # a traceback's last line says what happened
-            lines = [ln.strip() for ln in str(e).splitlines() if ln.strip()]
-            last = (lines[-1] if lines else type(e).__name__)[:300]
+            last = _last_line(e)
+            if type(getattr(e, "cause", None)).__name__ == "PanicException":
+                # a bug in pupper on the worker: not the user's to fix
+                raise RuntimeError(f"a pupper task panicked on the Ray cluster: {last}") from None
             if "No module named 'pupper_core'" in str(e):
                 raise ClusterFailure(
                     "a Ray worker cannot import pupper_core: install it on every node, into "

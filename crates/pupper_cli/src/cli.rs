@@ -282,7 +282,8 @@ struct BackendArgs {
     /// Run the cells as tasks on a Ray cluster: auto (the RAY_ADDRESS variable, or the cluster
     /// this machine is a node of), ray://HOST:PORT (Ray's client port, 10001 by default) or
     /// HOST:PORT (the head's port, from a node). Each task is a batch of neighbouring cells
-    /// through one node's cores (-j sets the CPUs per task; default: the smallest node's);
+    /// through one node's cores (-j sets the CPUs per task, default the smallest node's; on
+    /// warp with a CUDA device a task takes one GPU instead);
     /// each finished task is written here as it arrives, so Ctrl-C, a dead driver or a lost
     /// node lose only running tasks (Ray retries those of a dead worker), and --resume
     /// continues on Ray or locally. Same summary.csv as a local run. Every node needs the same

@@ -169,58 +169,33 @@ pub fn run_cells(
     let replicates = job.config.replicate_count();
     let all = tasks(cells, capacity, replicates, chunk_cells);
     let in_flight = (IN_FLIGHT_PER_SLOT * capacity.slots).max(1);
+    let mut state = InFlight {
+        running: vec![None; all.len()],
+        sent: 0,
+        left: all.len(),
+        steps,
+        replicates: replicates as u64,
+    };
     let mut next = 0;
-    let mut running: Vec<Option<Vec<Cell>>> = vec![None; all.len()];
-    let mut left = all.len();
-    let mut sent_now = 0;
     let result = (|| -> Result<()> {
-        while left > 0 {
-            while next < all.len() && sent_now < in_flight {
+        while state.left > 0 {
+            if hooks.should_stop() {
+                // what finished meanwhile is kept
+                state.take(cluster.wait(Duration::ZERO)?, hooks)?;
+                return Err(Error::Interrupted("stopped".into()));
+            }
+            while next < all.len() && state.sent < in_flight {
                 cluster.submit(
                     next,
                     encode(&Task {
                         cells: all[next].clone(),
                     })?,
                 )?;
-                running[next] = Some(all[next].clone());
+                state.running[next] = Some(all[next].clone());
                 next += 1;
-                sent_now += 1;
+                state.sent += 1;
             }
-            if hooks.should_stop() {
-                return Err(Error::Interrupted("stopped".into()));
-            }
-            for (id, bytes) in cluster.wait(POLL)? {
-                let cells = running.get_mut(id).and_then(Option::take).ok_or_else(|| {
-                    Error::Internal(format!(
-                        "the cluster returned task {id} twice, or one never sent"
-                    ))
-                })?;
-                let results = match decode::<Outcome>(&bytes)? {
-                    Outcome::Done(r) => r,
-                    Outcome::Failed {
-                        host,
-                        user: true,
-                        message,
-                    } => return Err(Error::Cluster(format!("on node {host}: {message}"))),
-                    Outcome::Failed { host, message, .. } => {
-                        return Err(Error::Internal(format!("on node {host}: {message}")));
-                    }
-                };
-                let same = results.len() == cells.len()
-                    && results
-                        .iter()
-                        .zip(&cells)
-                        .all(|(r, c)| r.cell.index == c.index);
-                if !same {
-                    return Err(Error::Internal(format!(
-                        "task {id} came back with other cells than it was sent"
-                    )));
-                }
-                hooks.progress(cells.iter().map(steps).sum::<u64>() * replicates as u64);
-                hooks.chunk_done(&results)?;
-                left -= 1;
-                sent_now -= 1;
-            }
+            state.take(cluster.wait(POLL)?, hooks)?;
         }
         Ok(())
     })();
@@ -228,6 +203,67 @@ pub fn run_cells(
         cluster.cancel();
     }
     result
+}
+
+/// The tasks of a run between submit and hand-over.
+struct InFlight<'a> {
+    /// Each task's cells while it runs.
+    running: Vec<Option<Vec<Cell>>>,
+    /// Tasks sent and not back yet.
+    sent: usize,
+    /// Tasks not handed over yet.
+    left: usize,
+    steps: &'a dyn Fn(&Cell) -> u64,
+    replicates: u64,
+}
+
+impl InFlight<'_> {
+    /// Hands finished tasks over; a failed one is reported after the
+    /// finished ones beside it are written, so none of them is lost.
+    fn take(&mut self, done: Vec<(usize, Vec<u8>)>, hooks: &mut dyn Hooks) -> Result<()> {
+        let mut failed = None;
+        for (id, bytes) in done {
+            let cells = self
+                .running
+                .get_mut(id)
+                .and_then(Option::take)
+                .ok_or_else(|| {
+                    Error::Internal(format!(
+                        "the cluster returned task {id} twice, or one never sent"
+                    ))
+                })?;
+            self.sent -= 1;
+            let results = match decode::<Outcome>(&bytes)? {
+                Outcome::Done(r) => r,
+                Outcome::Failed {
+                    host,
+                    user,
+                    message,
+                } => {
+                    let text = format!("on node {host}: {message}");
+                    failed.get_or_insert(match user {
+                        true => Error::Cluster(text),
+                        false => Error::Internal(text),
+                    });
+                    continue;
+                }
+            };
+            let same = results.len() == cells.len()
+                && results
+                    .iter()
+                    .zip(&cells)
+                    .all(|(r, c)| r.cell.index == c.index);
+            if !same {
+                return Err(Error::Internal(format!(
+                    "task {id} came back with other cells than it was sent"
+                )));
+            }
+            hooks.progress(cells.iter().map(self.steps).sum::<u64>() * self.replicates);
+            hooks.chunk_done(&results)?;
+            self.left -= 1;
+        }
+        failed.map_or(Ok(()), Err)
+    }
 }
 
 #[cfg(test)]
@@ -275,7 +311,8 @@ mod tests {
         submitted: Vec<usize>,
         most_in_flight: usize,
         cancelled: bool,
-        fail: Option<Outcome>,
+        /// (task id, its outcome) for a task that fails.
+        fail: Option<(usize, Outcome)>,
         newest_first: bool,
     }
 
@@ -312,8 +349,8 @@ mod tests {
                     false => self.queued.remove(0),
                 };
                 let outcome = match &self.fail {
-                    Some(f) => f.clone(),
-                    None => Outcome::Done(task.cells.iter().map(result).collect()),
+                    Some((bad, f)) if *bad == id => f.clone(),
+                    _ => Outcome::Done(task.cells.iter().map(result).collect()),
                 };
                 out.push((id, encode(&outcome)?));
             }
@@ -448,27 +485,28 @@ mod tests {
         };
         let e = run_cells(&mut fake, &job(), &cells(10), Some(2), &|_| 1, &mut kept).unwrap_err();
         assert!(matches!(e, Error::Interrupted(_)));
-        assert_eq!(kept.chunks.len(), 2);
+        // two before the stop, and the one that finished meanwhile
+        assert_eq!(kept.chunks.len(), 3);
         assert!(fake.cancelled);
     }
 
     #[test]
     fn a_worker_refusal_is_one_user_error_naming_the_node() {
         let mut fake = Fake::new(1, 1);
-        fake.fail = Some(Outcome::Failed {
-            host: "node7".into(),
-            user: true,
-            message: "model file 'm.xml' does not exist".into(),
-        });
-        let e = run_cells(
-            &mut fake,
-            &job(),
-            &cells(3),
-            None,
-            &|_| 1,
-            &mut Kept::default(),
-        )
-        .unwrap_err();
+        // task 1 fails; task 0, back in the same wait, is still written
+        fake.per_wait = 2;
+        fake.fail = Some((
+            1,
+            Outcome::Failed {
+                host: "node7".into(),
+                user: true,
+                message: "model file 'm.xml' does not exist".into(),
+            },
+        ));
+        let mut kept = Kept::default();
+        let e = run_cells(&mut fake, &job(), &cells(3), Some(1), &|_| 1, &mut kept).unwrap_err();
+        assert_eq!(kept.chunks.len(), 1);
+        assert_eq!(kept.chunks[0][0].cell.index, 0);
         assert!(matches!(e, Error::Cluster(_)));
         assert_eq!(
             e.to_string(),

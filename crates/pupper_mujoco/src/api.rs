@@ -309,25 +309,11 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
     bridge::with_model(&cfg.model, true, |model| {
         let info = model.info();
         let note = check_start(info, &cfg.schedule.initial)?;
-        // Warp and its device (or the Ray cluster) are checked before
-        // anything is written; on Ray the workers run the physics
-        let (physics, mut cluster) = match ray {
-            None => (Some(bridge::physics(model, &cfg.backend)?), None),
-            Some(address) => {
-                let job = Job {
-                    config: cfg.clone(),
-                    model_sha256: info.sha256.clone(),
-                    pupper_version: pupper_core::VERSION.to_string(),
-                    mujoco_version: model.mujoco_version().to_string(),
-                    chunk_steps: options.chunk_steps,
-                };
-                let gpus = match &cfg.backend {
-                    Backend::Warp { device, .. } if device.starts_with("cuda") => 1.0,
-                    _ => 0.0,
-                };
-                let c = RayCluster::connect(model.mj.py, address, &job, options.threads, gpus)?;
-                (None, Some((c, job)))
-            }
+        // Warp and its device are checked before anything is written; on
+        // Ray the workers run the physics
+        let physics = match ray {
+            None => Some(bridge::physics(model, &cfg.backend)?),
+            Some(_) => None,
         };
         let torque_limits = match cfg.defaults.max_torque {
             Some(t) => vec![t; info.nu],
@@ -354,10 +340,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             cells_done: 0,
             batches: 0,
             complete: false,
-            threads: match &cluster {
-                Some((c, _)) => c.record.threads_per_task,
-                None => options.threads,
-            },
+            threads: options.threads,
             started_unix: std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
                 .map(|d| d.as_secs())
@@ -369,7 +352,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                 host: pupper_core::rundir::hostname(),
             }),
             merged: Vec::new(),
-            ray: cluster.as_ref().map(|(c, _)| c.record.clone()),
+            ray: None,
         };
         let mut writer = RunWriter::new(out.as_deref(), *existing, manifest)?;
         let done: Vec<usize> = writer.done().collect();
@@ -392,6 +375,31 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                 }
             };
             total += steps * cfg.replicate_count() as u64;
+        }
+        // the cluster last: the user's own mistakes (grid, run directory)
+        // are named first, and a stop while connecting writes nothing
+        let mut cluster = match ray {
+            None => None,
+            Some(address) => {
+                let job = Job {
+                    config: cfg.clone(),
+                    model_sha256: info.sha256.clone(),
+                    pupper_version: pupper_core::VERSION.to_string(),
+                    mujoco_version: model.mujoco_version().to_string(),
+                    chunk_steps: options.chunk_steps,
+                };
+                let gpus = match &cfg.backend {
+                    Backend::Warp { device, .. } if device.starts_with("cuda") => 1.0,
+                    _ => 0.0,
+                };
+                let c = RayCluster::connect(model.mj.py, address, &job, options.threads, gpus)?;
+                writer.manifest.threads = c.record.threads_per_task;
+                writer.manifest.ray = Some(c.record.clone());
+                Some((c, job))
+            }
+        };
+        if ui.hooks().should_stop() {
+            return Err(Error::Interrupted("before the run started".into()));
         }
         ui.start(todo.len(), total);
         writer.create()?;

@@ -16,6 +16,9 @@ use pupper_core::output::{RayNode, RayRecord};
 /// The Python module that talks to Ray.
 const MODULE: &str = "pupper_core._ray";
 
+/// (host name, address, CPUs) of a node, as the driver reports it.
+type NodeRow = (String, String, f64);
+
 /// A connection to a Ray cluster, ready to run a job's tasks.
 pub struct RayCluster<'py> {
     driver: Bound<'py, PyAny>,
@@ -62,11 +65,16 @@ impl<'py> RayCluster<'py> {
             .getattr("Driver")
             .and_then(|d| d.call1((address.as_str(), PyBytes::new(py, &job), threads, gpus)))
             .map_err(|e| ray_err(py, e))?;
-        let call = |name: &str| driver.call_method0(name).map_err(|e| ray_err(py, e));
-        let (slots, per_task): (usize, usize) =
-            call("capacity")?.extract().map_err(|e| ray_err(py, e))?;
-        let nodes: Vec<(String, String, f64)> =
-            call("nodes")?.extract().map_err(|e| ray_err(py, e))?;
+        let asked = (|| -> PyResult<((usize, usize), Vec<NodeRow>)> {
+            Ok((
+                driver.call_method0("capacity")?.extract()?,
+                driver.call_method0("nodes")?.extract()?,
+            ))
+        })();
+        let ((slots, per_task), nodes) = asked.map_err(|e| {
+            let _ = driver.call_method0("close");
+            ray_err(py, e)
+        })?;
         Ok(RayCluster {
             capacity: Capacity {
                 slots,
