@@ -76,6 +76,16 @@ def run(pupper_bin: Path, tmp_path: Path):
     return _run
 
 
+def hidden(tmp_path: Path, *modules: str) -> dict[str, str]:
+    """Environment in which importing `modules` fails (a sitecustomize puts
+    None in sys.modules for them): a machine without an optional package."""
+    d = tmp_path / "hide"
+    d.mkdir(exist_ok=True)
+    lines = "".join(f"sys.modules[{m!r}] = None\n" for m in modules)
+    (d / "sitecustomize.py").write_text("import sys\n" + lines)
+    return {"PYTHONPATH": str(d)}
+
+
 def read_csv(path: Path) -> tuple[list[str], list[dict[str, str]]]:
     """summary.csv's header and rows (dicts of strings), checking every row is complete."""
     text = Path(path).read_text()

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import clean_env, read_csv
+from conftest import clean_env, hidden
 
 pytest.importorskip("ray", reason="the ray extra is not installed: make test installs it")
 
@@ -214,12 +214,9 @@ def test_errors_are_one_line_and_write_nothing(run, in_cluster, tmp_path):
 
 
 def test_without_ray_installed_one_line_names_the_extra(run, tmp_path):
-    hide = tmp_path / "hide"
-    hide.mkdir()
-    (hide / "sitecustomize.py").write_text("import sys\nsys.modules['ray'] = None\n")
     out = tmp_path / "never"
     p = run("sweep", "--grid", "kp=10", "--ray", ADDRESS, "-o", out,
-            env={"PYTHONPATH": str(hide)}, check=2)
+            env=hidden(tmp_path, "ray"), check=2)
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "pupper_core[ray]" in lines[0], p.stderr
     assert not out.exists()
@@ -229,10 +226,7 @@ def test_nodes_without_pupper_core_are_refused_before_anything_is_written(pupper
     """Workers that cannot import pupper_core (hidden from the nodes by a
     sitecustomize): one line saying what to install where, exit 2, no run
     directory."""
-    hide = tmp_path / "hide"
-    hide.mkdir()
-    (hide / "sitecustomize.py").write_text("import sys\nsys.modules['pupper_core'] = None\n")
-    c = start_cluster(env={"PYTHONPATH": str(hide)})
+    c = start_cluster(env=hidden(tmp_path, "pupper_core"))
     try:
         out = tmp_path / "never"
         p = subprocess.run([*c.enter(), str(pupper_bin), "sweep", "--grid", "kp=10", "--ray",

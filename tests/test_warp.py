@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import as_float, read_csv
+from conftest import as_float, hidden, read_csv
 
 pytest.importorskip("warp", reason="the gpu extra is not installed: make test installs it")
 pc = pytest.importorskip("pupper_core")
@@ -163,18 +163,16 @@ def test_bad_backend_input(run, tmp_path, args, words):
 def test_missing_warp_says_what_to_install(run, tmp_path):
     """Without MuJoCo Warp (hidden here by a sitecustomize that blocks its
     import), --backend warp fails in one line naming the extra, exit 2."""
-    hide = tmp_path / "hide"
-    hide.mkdir()
-    (hide / "sitecustomize.py").write_text("import sys\nsys.modules['warp'] = None\n")
+    env = hidden(tmp_path, "warp")
     out = tmp_path / "never"
-    p = run("sweep", *WARP, "-o", out, env={"PYTHONPATH": str(hide)}, check=2)
+    p = run("sweep", *WARP, "-o", out, env=env, check=2)
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1, p.stderr
     assert "pupper_core[gpu]" in lines[0] and "'warp'" in lines[0], lines[0]
     assert not out.exists()
     # the cpu backend does not need it
     run("sweep", "--grid", "kp=5", "--seconds", "0.5", "--no-push", "-q", "-o", tmp_path / "cpu",
-        env={"PYTHONPATH": str(hide)}, check=0)
+        env=env, check=0)
     # and Python raises the same line
     code = ("import sys; sys.modules['warp'] = None\nimport pupper_core as pc\n"
             "try:\n    pc.sweep(backend='warp', device='cpu', progress=False)\n"
