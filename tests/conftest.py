@@ -86,6 +86,13 @@ def hidden(tmp_path: Path, *modules: str) -> dict[str, str]:
     return {"PYTHONPATH": str(d)}
 
 
+def same_files(got: Path, want: Path, names=("summary.csv",)) -> None:
+    """The files `names` of two run directories are equal byte for byte."""
+    for n in names:
+        a, b = (got / n).read_bytes(), (want / n).read_bytes()
+        assert a == b, f"{got / n} differs from {want / n} ({len(a)} vs {len(b)} bytes)"
+
+
 def read_csv(path: Path) -> tuple[list[str], list[dict[str, str]]]:
     """summary.csv's header and rows (dicts of strings), checking every row is complete."""
     text = Path(path).read_text()

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import clean_env, hidden
+from conftest import clean_env, hidden, same_files
 
 pytest.importorskip("ray", reason="the ray extra is not installed: make test installs it")
 
@@ -71,11 +71,6 @@ def own_lines(stderr: str) -> list[str]:
 
 def manifest(d: Path) -> dict:
     return json.loads((d / "manifest.json").read_text())
-
-
-def same_files(a: Path, b: Path, names=("summary.csv",)) -> None:
-    for n in names:
-        assert (a / n).read_bytes() == (b / n).read_bytes(), f"{n} differs between {a} and {b}"
 
 
 def test_default_sweep_on_ray_equals_a_local_run(run, in_cluster, tmp_path):

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import REPO, clean_env, read_csv
+from conftest import REPO, clean_env, read_csv, same_files
 
 # 64 traced cells of 3 s, 4 per batch, one thread: a few seconds of work.
 TRACED = ["sweep", "--grid", "kp=10:120:16", "--grid", "kd=0.5,1,2,5", "--seconds", "3",
@@ -53,9 +53,8 @@ def traced_reference(pupper_bin, tmp_path_factory) -> Path:
 
 
 def same_bytes(got: Path, want: Path) -> None:
-    for name in ("summary.csv", "traces.csv"):
-        a, b = (got / name).read_bytes(), (want / name).read_bytes()
-        assert a == b, f"{got / name} differs from the uninterrupted run's ({len(a)} vs {len(b)} bytes)"
+    """Equal to the uninterrupted run's summary and traces."""
+    same_files(got, want, ("summary.csv", "traces.csv"))
 
 
 # ---------------------------------------------------------------- kills

@@ -185,13 +185,11 @@ pub fn run_cells(
                 return Err(Error::Interrupted("stopped".into()));
             }
             while next < all.len() && state.sent < in_flight {
-                cluster.submit(
-                    next,
-                    encode(&Task {
-                        cells: all[next].clone(),
-                    })?,
-                )?;
-                state.running[next] = Some(all[next].clone());
+                let task = Task {
+                    cells: all[next].clone(),
+                };
+                cluster.submit(next, encode(&task)?)?;
+                state.running[next] = Some(task.cells);
                 next += 1;
                 state.sent += 1;
             }

@@ -707,7 +707,8 @@ fn trace_lines(out: &mut String, id: &str, samples: &[(f64, f64)]) {
     }
 }
 
-fn short(sha: &str) -> &str {
+/// The first 12 hex digits of a SHA-256, as messages show it.
+pub fn short(sha: &str) -> &str {
     &sha[..sha.len().min(12)]
 }
 

@@ -65,8 +65,8 @@ fn task_results(job: &[u8], task: &[u8], threads: usize) -> Result<Vec<CellResul
             return Err(Error::Cluster(format!(
                 "the model '{}' here is not the driver's (SHA-256 {} here, {} there): put the same file at the same path on every node (a shared filesystem)",
                 cfg.model.display(),
-                &model.info().sha256[..12.min(model.info().sha256.len())],
-                &job.model_sha256[..12.min(job.model_sha256.len())]
+                pupper_core::rundir::short(&model.info().sha256),
+                pupper_core::rundir::short(&job.model_sha256)
             )));
         }
         let physics = bridge::physics(model, &cfg.backend)?;
