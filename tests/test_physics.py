@@ -73,7 +73,7 @@ def test_threads_and_chunks_never_change_the_numbers(run, tmp_path):
 
 
 def test_diverging_cell_beside_healthy_ones(run, tmp_path):
-    common = ["--grid", "timestep=0.01", "--max-torque", "1e6", "--seconds", "3", "-q"]
+    common = ["--grid", "timestep=0.01", "--max-torque", "1e6", "--seconds", "4", "-q"]
     run("sweep", "--grid", "kp=5,1e6", *common, "-o", tmp_path / "both", check=0)
     run("sweep", "--grid", "kp=5", *common, "-o", tmp_path / "alone", check=0)
     _, both = read_csv(tmp_path / "both" / "summary.csv")

@@ -132,7 +132,7 @@ def test_lab_on_ray_equals_a_local_lab(run, in_cluster, tmp_path):
 
 def test_ray_client_address(run, in_cluster, cluster, tmp_path):
     """ray://HOST:PORT goes through Ray's client (the head's port 10001)."""
-    args = ["--grid", "kp=10,120", "--seconds", "1", "-q"]
+    args = ["--grid", "kp=10,120", "--seconds", "2", "--no-push", "-q"]
     p = in_cluster("sweep", *args, "--ray", "ray://127.0.0.1:10001", "-o", tmp_path / "client",
                    check=None)
     # the head's client server logs, should it have failed

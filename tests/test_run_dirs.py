@@ -300,7 +300,11 @@ def test_a_relative_model_resumes_from_another_directory(run, tmp_path):
     p = run("sweep", "--resume", here / "run", "-q", cwd=tmp_path, check=0)
     m = json.loads((here / "run" / "manifest.json").read_text())
     assert Path(m["config"]["model"]["path"]).is_absolute(), m["config"]["model"]
+    # a comment is the same robot; a mass in the file the scene includes is not
     (here / "m" / "scene.xml").write_text((here / "m" / "scene.xml").read_text() + "\n<!-- edited -->\n")
+    run("sweep", "--resume", here / "run", "-q", cwd=tmp_path, check=0)
+    robot = here / "m" / "pupper_v3.xml"
+    robot.write_text(robot.read_text().replace('mass="1.506"', 'mass="1.606"', 1))
     p = run("sweep", "--resume", here / "run", "-q", cwd=tmp_path, check=2)
     assert "changed since the run started" in p.stderr and "scene.xml" in p.stderr, p.stderr
 
@@ -340,12 +344,16 @@ def _dog(tmp_path: Path) -> Path:
 
 def test_a_model_without_keyframe_stands_and_sweeps(run, tmp_path):
     model = _dog(tmp_path)
-    p = run("stand", "--model", model, "--seconds", "2", "--json", check=0)
+    # its motors have no PD gains of their own: pupper asks for them
+    p = run("stand", "--model", model, "--seconds", "2", "--json")
+    assert p.returncode == 2 and "give --kp and --kd" in p.stderr, p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1, p.stderr
+    p = run("stand", "--model", model, "--seconds", "2", "--json", "--kp", "5", "--kd", "0.1", check=0)
     rep = json.loads(p.stdout)
     assert rep["status"] == "ok" and 0.1 < rep["final_z"] < 0.14, rep
     assert "default pose" in p.stderr and "note:" in p.stderr
-    p = run("sweep", "--model", model, "--mode", "torque", "--grid", "kp=10,30", "--seconds", "2",
-            "-o", "run", "-q", check=0)
+    p = run("sweep", "--model", model, "--mode", "torque", "--grid", "kp=10,30", "--kd", "0.1",
+            "--seconds", "2", "-o", "run", "-q", check=0)
     _, rows = read_csv(tmp_path / "run" / "summary.csv")
     assert [r["status"] for r in rows] == ["ok", "ok"]
     # torque limits are the model's own (its motors' control range), not Pupper's 3 N·m
@@ -353,7 +361,8 @@ def test_a_model_without_keyframe_stands_and_sweeps(run, tmp_path):
     assert m["torque_limits"] == [2.0] * 12 and m["config"]["defaults"]["max_torque"] is None
     assert all(float(r["peak_torque"]) <= 2.0 for r in rows), rows
     # servo mode drives motor actuators as PD servos too: stiffer gains stand taller
-    p = run("sweep", "--model", model, "--grid", "kp=2,30", "--seconds", "2", "-o", "servo", "-q", check=0)
+    p = run("sweep", "--model", model, "--grid", "kp=2,30", "--kd", "0.1", "--seconds", "2",
+            "-o", "servo", "-q", check=0)
     _, rows = read_csv(tmp_path / "servo" / "summary.csv")
     assert float(rows[1]["final_z"]) > float(rows[0]["final_z"]) + 0.005, rows
 
@@ -363,8 +372,8 @@ def test_motors_without_ranges_run_unclipped_and_say_so(run, tmp_path):
     robot = (tmp_path / "dog.xml").read_text().replace(' ctrlrange="-2 2"', "")
     assert "ctrlrange" not in robot
     (tmp_path / "dog.xml").write_text(robot)
-    p = run("sweep", "--model", model, "--mode", "torque", "--grid", "kp=10,30", "--seconds", "1",
-            "-o", "run", "-q", check=0)
+    p = run("sweep", "--model", model, "--mode", "torque", "--grid", "kp=10,30", "--kd", "0.1",
+            "--seconds", "1", "-o", "run", "-q", check=0)
     assert "not clipped" in p.stderr and "--max-torque" in p.stderr, p.stderr
     _, rows = read_csv(tmp_path / "run" / "summary.csv")
     assert [r["status"] for r in rows] == ["ok", "ok"]

@@ -19,7 +19,9 @@ NO_CLI_DEFAULT = {"out", "force", "resume", "trace", "sine", "pose", "max_torque
                   "randomize",  # repeatable: none unless given
                   "device", "chunk_cells",  # None: the backend's own (help says which)
                   "shard",  # none: the whole grid
-                  "ray"}  # none: run here
+                  "ray",  # none: run here
+                  "kp", "kd",  # none: each actuator's own (help says so)
+                  "depth"}  # none: scaled to the model's legs (help says so)
 #: Spec fields whose flag has another name on the command line.
 CLI_FLAG = {"push": "--no-push"}
 

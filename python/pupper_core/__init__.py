@@ -12,10 +12,12 @@ same inputs give the same summary.csv.
 
 from __future__ import annotations
 
+import atexit as _atexit
 import functools
 import inspect
 import os
 import sys
+import threading as _threading
 from typing import TYPE_CHECKING, Any, Callable, Literal, Mapping, Sequence
 
 if TYPE_CHECKING:
@@ -39,6 +41,21 @@ from pupper_core._native import (
     SweepResult,
 )
 from pupper_core._types import ModelInfo, Recording, SimOptions, StandReport, SweepOptions
+
+# A sweep still running in a thread when the interpreter exits stops at
+# its next check (finished cells kept) before Python tears threads down.
+_atexit.register(_native._shutdown)
+
+
+def _stop_after_ctrl_c() -> None:
+    """Python waits for non-daemon threads before exiting: when the main
+    thread ended on Ctrl-C, their sweeps stop too instead of running on."""
+    if isinstance(getattr(sys, "last_value", None), KeyboardInterrupt):
+        _native._shutdown()
+
+
+if hasattr(_threading, "_register_atexit"):  # CPython >= 3.9: before the joins
+    _threading._register_atexit(_stop_after_ctrl_c)
 
 __version__: str = _native.__version__
 
@@ -208,7 +225,9 @@ def lab(
     last_1s_std_mm, or p95:last_1s_std_mm over replicates). With `out`, the run directory also gets best.csv, the lab's
     figures and (where OpenGL works) the bodies drawn at their best gains;
     `render=True` adds the GIF. Other keywords: seconds, sine, model,
-    force, resume, threads, max_saturation, rank, backend, device, ray, and the
+    force, resume, threads, max_saturation, rank, backend, device, ray, depth
+    (the feet's depth below the hips in m; default the chapter's 0.14 m scaled
+    to the model's legs), and the
     population (replicates, seed, randomize) as `sweep` takes them (defaults as
     `pupper lab --help`).
     """

@@ -169,9 +169,13 @@ def lab(
     backend: Literal["cpu", "warp"] = ...,
     device: str | None = ...,
     ray: str | None = ...,
+    depth: float | None = ...,
     progress: Callable[[int, int], object] | None = ...,
 ) -> SweepResult:
     """The chapter's lab; best.csv in `out`. Plots and rendering are the wrapper's."""
+
+def _shutdown() -> None:
+    """At interpreter exit: stops running sweeps and waits for them (atexit)."""
 
 def _run_task(job: bytes, task: bytes, threads: int) -> bytes:
     """A Ray task's cells run on this node (see `pupper_core._ray`)."""

@@ -75,19 +75,45 @@ def _host_port(address: str) -> tuple[str, str]:
     return host.strip("[]"), port
 
 
+#: The HTTP/2 client preface and an empty SETTINGS frame: what a gRPC
+#: client sends first. Ray's head (its GCS) and its client server are gRPC
+#: servers, which answer with a SETTINGS frame of their own.
+_H2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + b"\x00\x00\x00\x04\x00\x00\x00\x00\x00"
+#: Seconds the probe waits for an answer.
+PROBE_SECONDS = 5.0
+
+
 def _probe(address: str) -> None:
-    """Fails at once when nothing listens at the address: Ray itself keeps
-    retrying a dead head for minutes."""
+    """Fails at once when nothing listens at the address, or when what
+    listens is not a gRPC server (a web server, say): Ray itself keeps
+    retrying either for minutes."""
     host, port = _host_port(address)
     if not host or not port.isdigit():
         return  # auto without RAY_ADDRESS: Ray looks for a local cluster itself
     try:
-        with socket.create_connection((host, int(port)), timeout=10):
-            pass
+        with socket.create_connection((host, int(port)), timeout=PROBE_SECONDS) as s:
+            s.settimeout(PROBE_SECONDS)
+            s.sendall(_H2_PREFACE)
+            reply = b""
+            while len(reply) < 9:
+                chunk = s.recv(9 - len(reply))
+                if not chunk:
+                    break
+                reply += chunk
+    except socket.timeout:
+        reply = b""
     except OSError as e:
         raise ClusterUnreachable(
             f"nothing answers at {address} ({e.strerror or _one_line(e)}): start the "
             f"cluster's head there (ray start --head --port {port}), or check the address"
+        ) from None
+    # a frame header: 3 bytes of length, then the type; 0x04 is SETTINGS
+    if len(reply) < 9 or reply[3] != 0x04:
+        said = reply.split(b"\r\n", 1)[0].decode("latin-1").strip()
+        what = f"it answered {said[:60]!r}" if said else "it answered nothing a Ray head would"
+        raise ClusterUnreachable(
+            f"{address} is not a Ray cluster ({what}): give the head's address "
+            f"(`ray start --head` prints it; its port is 6379 unless set, 10001 for ray://)"
         ) from None
 
 

@@ -75,12 +75,15 @@ class StandReport(TypedDict):
     mode: Literal["servo", "torque"]
     kp: float
     kd: float
+    """The gains the cell ran at (the first actuator's when they differ)."""
+    gains_from: Literal["given", "model"]
+    gains: str
     seconds: float
     final_z: float
     """Base height at the end (m)."""
     last_1s_std_mm: float
     max_tilt_deg: float
-    status: Literal["ok", "fell", "diverged"]
+    status: Literal["ok", "saturated", "fell", "diverged"]
     notes: NotRequired[list[str]]
     """What you should know, e.g. that the start fell back to the default pose."""
 
@@ -107,20 +110,25 @@ class SimOptions(TypedDict, total=False):
     variant: Literal["original", "long-leg", "heavy"]
     mode: Literal["servo", "torque"]
     seconds: float
-    kp: float
-    kd: float
+    kp: float | None
+    """Kp of every actuator; None: each actuator's own, from the model."""
+    kd: float | None
     max_torque: float | None
     keyframe: str
     pose: Sequence[float] | Literal["auto"] | None
     """Start and target joint angles (rad, actuator order), or "auto": a stand
     pose searched on each cell's own body."""
+    depth: float | None
+    """With pose="auto": the feet's depth below the hips (m); None: the
+    chapter's 0.14 m scaled to the model's legs."""
 
 
 class RecordedSetup(TypedDict):
     """A recorded cell's physical setting, as the runner resolved it."""
 
-    kp: float
-    kd: float
+    kp: list[float]
+    """Each actuator's Kp, in ctrl order."""
+    kd: list[float]
     max_torque: float | None
     push_force: list[float]
     """World-frame push force (N) while the push acts."""
@@ -139,7 +147,7 @@ class Recording(TypedDict):
     values: dict[str, float | str]
     """The cell's grid values by axis name."""
     setup: RecordedSetup
-    status: Literal["ok", "fell", "diverged"]
+    status: Literal["ok", "saturated", "fell", "diverged"]
     event_time: float
     model: Any
     """The compiled `mujoco.MjModel` the cell ran on (its body variant)."""

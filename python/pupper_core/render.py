@@ -41,6 +41,7 @@ __all__ = [
     "builtin_model_path",
     "gl_available",
     "frame",
+    "scene_option",
     "record",
     "record_run",
     "draw",
@@ -296,6 +297,24 @@ def _new_renderer(model: "mujoco.MjModel", width: int, height: int) -> "mujoco.R
         ) from e
 
 
+#: Geom groups MuJoCo draws by default (its viewer's and Renderer's).
+_SHOWN_GROUPS = (0, 1, 2)
+
+
+def scene_option(model: "mujoco.MjModel") -> "mujoco.MjvOption":
+    """What to draw of ``model``: MuJoCo's defaults, plus every geom group
+    when the robot has no geom in a group drawn by default (a model whose
+    collision geoms sit in a hidden group and that has no visual geoms
+    would otherwise be drawn as nothing but its sites)."""
+    import mujoco
+
+    opt = mujoco.MjvOption()
+    robot = model.geom_bodyid != 0
+    if not np.any(robot & np.isin(model.geom_group, _SHOWN_GROUPS)):
+        opt.geomgroup[:] = 1
+    return opt
+
+
 def frame(
     model: "mujoco.MjModel",
     data: "mujoco.MjData",
@@ -309,7 +328,7 @@ def frame(
     May enlarge ``model.vis.global_.offwidth/offheight`` to fit the image.
     """
     with _new_renderer(model, width, height) as r:
-        r.update_scene(data, camera=_camera_arg(model, camera))
+        r.update_scene(data, camera=_camera_arg(model, camera), scene_option=scene_option(model))
         return r.render().copy()
 
 
@@ -384,10 +403,11 @@ def _draw(
         with _new_renderer(m, width, height) as renderer:
             renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = bool(shadows)
             cam = _camera_arg(m, camera)
+            shown = scene_option(m)
             for q in rec["qpos"]:
                 d.qpos[:] = q
                 mujoco.mj_forward(m, d)
-                renderer.update_scene(d, camera=cam)
+                renderer.update_scene(d, camera=cam, scene_option=shown)
                 drawn.frames.append(renderer.render().copy())
                 drawn.base_z.append(float(d.xpos[body, 2]))
         out.append(drawn)
@@ -565,7 +585,12 @@ def _shared_palette(frames: Sequence["PILImage.Image"]) -> list["PILImage.Image"
 def _labels(rec: "Recording") -> tuple[str, str]:
     """A panel's title (the cell's name) and its parameter line."""
     setup = rec["setup"]
-    params = f"Kp {setup['kp']:g}  Kd {setup['kd']:g}"
+
+    def gain(values: list[float]) -> str:
+        lo, hi = min(values), max(values)
+        return f"{lo:g}" if lo == hi else f"{lo:g}..{hi:g}"
+
+    params = f"Kp {gain(setup['kp'])}  Kd {gain(setup['kd'])}"
     extras = [value if isinstance(value, str) else f"{axis} {value:g}"
               for axis, value in rec["values"].items() if axis not in ("kp", "kd")]
     if extras:
@@ -707,14 +732,16 @@ def write_lab_effects(run_dir: str | os.PathLike[str], gif: bool = False, fps: f
     """`pupper lab`: each body at its best gains (best.csv), re-simulated by
     the sweep's runner and drawn side by side on its own body:
     ``plots/lab_best.png`` (final frames), with ``gif=True`` also
-    ``plots/lab_best.gif``, and the frame table ``plots/lab_best.csv``."""
+    ``plots/lab_best.gif``, and the frame table ``plots/lab_best.csv``.
+    Nothing (an empty list) when no body has best gains: none stood, or the
+    run was too short to rank them."""
     import csv
 
     run = Path(run_dir)
     with open(run / "best.csv", newline="") as f:
         picks = [int(r["index"]) for r in csv.DictReader(f) if r["index"]]
     if not picks:
-        raise ValueError(f"{run}/best.csv has no body that stood: nothing to render")
+        return []
     recs = record_run(run, picks, fps=fps)
     paths = write_effects(recs, run / "plots", stem="lab_best", shadows=False, gif=gif)
     return [p for p in paths if p is not None]

@@ -31,6 +31,32 @@ const AFTER: &str = "Examples:
 Exit status: 0 success, 2 bad input (one line on stderr says what and how to fix it),
 130 interrupted (finished cells are kept), 1 internal error.";
 
+/// Writes to standard output. A stdout that cannot take the text (a full
+/// disk) is a one-line error, never a panic; a closed pipe (`| head`) just
+/// ends the output.
+fn out(text: &str) -> Result<()> {
+    use std::io::Write;
+    let mut o = std::io::stdout().lock();
+    match o.write_all(text.as_bytes()).and_then(|()| o.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        r => r.map_err(|source| Error::Io {
+            action: "write to",
+            path: PathBuf::from("standard output"),
+            source,
+        }),
+    }
+}
+
+/// `print!` through [`out`].
+macro_rules! outp {
+    ($($t:tt)*) => { out(&format!($($t)*))? };
+}
+
+/// `println!` through [`out`].
+macro_rules! outln {
+    ($($t:tt)*) => { out(&format!("{}\n", format_args!($($t)*)))? };
+}
+
 #[derive(Parser, Debug)]
 #[command(name = "pupper", version, about = ABOUT, after_help = AFTER)]
 pub struct Cli {
@@ -45,9 +71,12 @@ enum Command {
     Info(BodyArgs),
     /// Reset to a keyframe (or a pose), stand with PD gains and no push; report final base height, last-second steadiness and tilt.
     Stand(StandArgs),
-    /// Find a stand pose for a body: abduction 0, hip and knee on a grid inside the joint ranges,
-    /// feet 0.14 m (x leg scale, up to 1.5) below the hips, measured on the compiled model.
-    Pose(BodyArgs),
+    /// Find a stand pose for a body by the chapter's rule: abduction 0, hip and knee on a grid
+    /// inside the joint ranges, the feet under the hips at a depth of 0.14 m on Pupper v3's legs
+    /// (scaled to another model's leg length, and by the leg scale up to 1.5 for longer variants),
+    /// with a slight preference for a thigh 0.70 rad from vertical; measured on the compiled model.
+    /// Prints the depth aimed at and where each foot ended.
+    Pose(PoseArgs),
     /// Run a grid of settings as one batched simulation; write summary.csv and manifest.json into a run directory.
     Sweep(Box<SweepArgs>),
     /// The chapter's lab: every body variant from its own stand pose, a Kp x Kd grid in torque
@@ -112,6 +141,16 @@ struct BodyArgs {
     json: bool,
 }
 
+#[derive(Args, Debug)]
+struct PoseArgs {
+    #[command(flatten)]
+    body: BodyArgs,
+    /// Aim the feet this far below the hips (m) instead of the chapter's 0.14 m scaled to the
+    /// model's legs.
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    depth: Option<f64>,
+}
+
 impl BodyArgs {
     /// Runs `find` on the body and prints its answer as text or JSON.
     fn show<T: serde::Serialize>(
@@ -124,9 +163,9 @@ impl BodyArgs {
             pupper_core::variant::variant(&self.variant)?,
         )?;
         if self.json {
-            println!("{}", print::json(&found)?);
+            outln!("{}", print::json(&found)?);
         } else {
-            print!("{}", text(&found));
+            outp!("{}", text(&found));
         }
         Ok(())
     }
@@ -187,12 +226,14 @@ struct SimArgs {
     /// Simulated seconds (per cell).
     #[arg(long, default_value_t = SweepSpec::default().seconds, value_name = "S", allow_negative_numbers = true)]
     seconds: f64,
-    /// Proportional gain (N·m/rad), for cells whose grid has no kp axis.
-    #[arg(long, default_value_t = SweepSpec::default().kp, allow_negative_numbers = true)]
-    kp: f64,
-    /// Derivative gain (N·m·s/rad), for cells whose grid has no kd axis.
-    #[arg(long, default_value_t = SweepSpec::default().kd, allow_negative_numbers = true)]
-    kd: f64,
+    /// Proportional gain (N·m/rad) of every actuator, for cells whose grid has no kp axis
+    /// [default: each actuator's own, as the model declares it; Pupper v3: 5]
+    #[arg(long, allow_negative_numbers = true)]
+    kp: Option<f64>,
+    /// Derivative gain (N·m·s/rad) of every actuator, for cells whose grid has no kd axis
+    /// [default: each actuator's own, as the model declares it; Pupper v3: 0.1]
+    #[arg(long, allow_negative_numbers = true)]
+    kd: Option<f64>,
     /// Torque limit (N·m) of every actuator, in both modes [default: each actuator's own
     /// force range, else its control range; Pupper v3's motors: 3]
     #[arg(long, value_name = "NM", allow_negative_numbers = true)]
@@ -205,6 +246,10 @@ struct SimArgs {
     /// just above the floor.
     #[arg(long, value_name = "Q1,Q2,...|auto", allow_hyphen_values = true)]
     pose: Option<String>,
+    /// With --pose auto: aim the feet this far below the hips (m) [default: the chapter's
+    /// 0.14 m on Pupper v3's legs, scaled to the model's leg length]
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    depth: Option<f64>,
 }
 
 impl SimArgs {
@@ -220,6 +265,7 @@ impl SimArgs {
             max_torque: self.max_torque,
             keyframe: self.keyframe.clone(),
             pose: self.pose.as_deref().map(spec::parse_pose).transpose()?,
+            depth: self.depth,
             ..SweepSpec::default()
         })
     }
@@ -308,8 +354,8 @@ impl BackendArgs {
 #[command(
     after_help = "Without --grid the gains are kp=10,30,60,120 x kd=0.5,1,2,5; --grid replaces them \
 (any sweep axis; a variant axis there replaces --variants). The best gains per body follow the \
---best-by rule of `pupper sweep`: status ok (with replicates: none fell or diverged), saturation \
-under --max-saturation, lowest --rank, ties to the first cell."
+--best-by rule of `pupper sweep`: the cell stood (with replicates: none fell or diverged), saturation \
+under --max-saturation, lowest --rank, ties within 0.001 mm to the smaller dip, then the first cell."
 )]
 struct LabArgs {
     #[command(flatten)]
@@ -330,6 +376,10 @@ struct LabArgs {
         allow_hyphen_values = true
     )]
     sine: String,
+    /// Aim each body's stand pose at this depth of the feet below the hips (m) [default: the
+    /// chapter's 0.14 m on Pupper v3's legs, scaled to each body's leg length]
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    depth: Option<f64>,
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
     #[arg(long, default_value_t = pupper_core::best::MAX_SATURATION, value_name = "FRACTION")]
     max_saturation: f64,
@@ -340,6 +390,9 @@ struct LabArgs {
     /// Run directory (default runs/<time>-lab).
     #[arg(long, short = 'o', value_name = "DIR", conflicts_with = "resume")]
     out: Option<PathBuf>,
+    /// Overwrite pupper's files in an existing --out directory.
+    #[arg(long, requires = "out")]
+    force: bool,
     /// Continue an interrupted lab in DIR (alone: with the manifest's inputs).
     #[arg(long, value_name = "DIR")]
     resume: Option<PathBuf>,
@@ -378,10 +431,17 @@ a log range start:stop:count:log (1:100:5:log).
 Axes: kp, kd, push_force (N, world z), max_torque (N·m), friction (feet and floor), timestep (s),
 leg_scale, torso_mass_scale, variant (body names: original, long-leg, heavy; numeric scale axes
 multiply a body's scales). Cells are the product of the axes, the last axis varying fastest.
-Metrics per cell: final_z (m), last_1s_std_mm, push_dip_mm (mean z 0.5 s before the push minus
-the minimum from push start to push end + 1.5 s), settle_time_s (after the push, until base z stays
-within ±1 mm of its pre-push mean), max_tilt_deg, peak_torque (N·m), saturation_frac,
-tracking_rms (rad), status (ok, fell, diverged), event_time (s, when it fell or diverged)."
+Metrics per cell: final_z (m), last_1s_std_mm (the last 1 s, which must lie after the landing at
+1 s), push_dip_mm (mean z 0.5 s before the push minus the minimum from push start to push end +
+1.5 s), settle_time_s (from the push's start until base z stays within 2 % of the dip of its final
+height), max_tilt_deg and peak_torque (N·m) after the landing (from 1 s, or the push if earlier),
+saturation_frac (share of actuator-steps at the torque limit), tracking_rms (rad), status, and
+event_time (s, when it fell or diverged). A metric the run is too short for is left empty, with a
+note. Status: ok; saturated (stood, at the torque limit in 5 % or more of actuator-steps); fell (the
+base below 30 % of the robot's stance height, i.e. its base height with the lowest foot on the
+floor in the start pose, or tilted past 60 deg, at any moment; or collapsed: mean height over the
+last 1 s below 60 % of the stance, or mean tilt there past 30 deg); diverged (the physics blew up).
+Ties: cells within 0.001 mm on a *_mm metric are tied, and the smaller push dip decides."
 )]
 struct SweepArgs {
     #[command(flatten)]
@@ -447,10 +507,11 @@ struct SweepArgs {
     #[arg(long)]
     render: bool,
     /// Pick the best cell of each group of these axes (e.g. kd, or leg_scale,torso_mass_scale):
-    /// printed a line per group and written to DIR/best.csv. Rule: among cells whose status
-    /// is ok (with replicates: none fell or diverged), whose metric is a number and whose
-    /// saturation_frac (with replicates: p95:saturation_frac) is under --max-saturation, the
-    /// lowest --rank wins; ties go to the first cell in grid order.
+    /// printed a line per group and written to DIR/best.csv. Rule: among cells that stood
+    /// (status ok or saturated; with replicates: none fell or diverged), whose metric is a number
+    /// and whose saturation_frac (with replicates: p95:saturation_frac) is under
+    /// --max-saturation, the lowest --rank wins; cells within 0.001 mm of it on a *_mm metric
+    /// are tied and the smaller push dip decides, then the first cell in grid order.
     #[arg(long, value_name = "AXIS[,AXIS]", value_delimiter = ',')]
     best_by: Option<Vec<String>>,
     /// The metric --best-by ranks by (lower is better): a summary.csv column. With replicates,
@@ -507,6 +568,9 @@ struct RenderArgs {
     /// Output PNG.
     #[arg(long, short = 'o', default_value = "pupper.png", value_name = "FILE")]
     out: PathBuf,
+    /// Overwrite FILE if it exists (only ever a PNG: any other file is refused).
+    #[arg(long)]
+    force: bool,
     /// Image width in pixels.
     #[arg(long, default_value_t = 640)]
     width: u32,
@@ -515,19 +579,47 @@ struct RenderArgs {
     height: u32,
 }
 
+/// `render -o FILE`: a new file, or with `force` an existing PNG; never
+/// anything else (a directory, a file that is not a PNG).
+fn check_png_target(path: &std::path::Path, force: bool) -> Result<()> {
+    let shown = path.display();
+    let Ok(meta) = std::fs::symlink_metadata(path) else {
+        return Ok(());
+    };
+    if !meta.is_file() {
+        return Err(Error::Output(format!(
+            "'{shown}' exists and is not a file: give -o a new .png path"
+        )));
+    }
+    let mut head = [0u8; 8];
+    let is_png = std::fs::File::open(path)
+        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut head))
+        .is_ok()
+        && head == *b"\x89PNG\r\n\x1a\n";
+    match (is_png, force) {
+        (false, _) => Err(Error::Output(format!(
+            "'{shown}' exists and is not a PNG: pupper never writes over it; give -o a new .png path"
+        ))),
+        (true, false) => Err(Error::RunExists(format!(
+            "'{shown}' exists: add --force to overwrite it, or give -o a new path"
+        ))),
+        (true, true) => Ok(()),
+    }
+}
+
 pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
     match cli.command {
         Command::Info(a) => a.show(api::info, print::info)?,
-        Command::Pose(a) => a.show(api::pose, print::pose)?,
+        Command::Pose(a) => a.body.show(|m, v| api::pose(m, v, a.depth), print::pose)?,
         Command::Stand(a) => {
             let r = api::stand(&a.sim.spec()?)?;
             for n in &r.notes {
                 eprintln!("note: {n}");
             }
             if a.json {
-                println!("{}", print::json(&r)?);
+                outln!("{}", print::json(&r)?);
             } else {
-                print!("{}", print::stand(&r));
+                outp!("{}", print::stand(&r));
             }
         }
         Command::Sweep(a) => return sweep(*a, stop),
@@ -545,7 +637,7 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
                 ),
             };
             let (dir, m) = pupper_core::rundir::merge(&a.dirs, &out, existing)?;
-            println!(
+            outln!(
                 "merged {} shards ({} cells) into {}",
                 m.merged.len(),
                 m.cells_total,
@@ -555,9 +647,9 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
         Command::Doctor { json } => {
             let r = bridge::doctor()?;
             if json {
-                println!("{}", print::json(&r)?);
+                outln!("{}", print::json(&r)?);
             } else {
-                print!("{}", print::doctor(&r));
+                outp!("{}", print::doctor(&r));
             }
             if let Some(p) = r.problem {
                 return Err(Error::Mujoco(p));
@@ -567,6 +659,7 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
             // the spec checks the values; the runner simulates, Python draws
             let spec = a.sim.spec()?;
             spec.build()?;
+            check_png_target(&a.out, a.force)?;
             let out = bridge::call_helper(
                 "pupper_core.render",
                 "render_png",
@@ -585,7 +678,7 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
                     "pose": spec.pose,
                 }),
             )?;
-            println!("wrote {}", out.first().cloned().unwrap_or_default());
+            outln!("wrote {}", out.first().cloned().unwrap_or_default());
         }
         Command::View { model } => {
             let source = model.source()?;
@@ -658,6 +751,8 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
     let spec = SweepSpec {
         model: a.model.model.clone(),
         threads: a.threads,
+        depth: a.depth,
+        force: a.force,
         ..a.backend.apply(a.population.apply(pupper_core::lab::spec(
             &a.variants,
             &a.grid.grid,
@@ -688,7 +783,10 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
 }
 
 fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
-    let command: Vec<String> = std::env::args().collect();
+    // as text for the manifest: a path that is not UTF-8 keeps its other bytes
+    let command: Vec<String> = std::env::args_os()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect();
     let sweep = match &a.resume {
         // `--resume DIR` alone: the manifest's inputs
         Some(dir) if a.resume_alone => {
@@ -764,19 +862,27 @@ fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
         );
         return Ok(130);
     }
-    if a.json {
-        println!("{}", print::json(&print::rows_json(&outcome))?);
-    } else if !a.lab {
-        print!("{}", print::sweep(&outcome));
+    if !a.json && !a.lab {
+        outp!("{}", print::sweep(&outcome));
     }
+    let mut best = None;
     if let Some(rule) = &a.rule {
         let groups = api::write_best(&outcome, rule)?;
-        if a.lab && !a.json {
-            print!("{}", print::lab(&outcome, rule, &groups));
-        } else if !a.json {
-            print!("{}", print::best(&outcome, rule, &groups));
+        if a.json {
+            best = Some(print::best_json(&outcome, rule, &groups));
+        } else if a.lab {
+            outp!("{}", print::lab(&outcome, rule, &groups));
+        } else {
+            outp!("{}", print::best(&outcome, rule, &groups));
         }
         eprintln!("wrote {}", dir.join(output::BEST).display());
+    }
+    if a.json {
+        let mut doc = print::rows_json(&outcome);
+        if let (Some(b), Some(m)) = (best, doc.as_object_mut()) {
+            m.insert("best".into(), b);
+        }
+        outln!("{}", print::json(&doc)?);
     }
     let dir_s = dir.display().to_string();
     if a.plot {
@@ -802,6 +908,9 @@ fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
             &[dir_s],
             &serde_json::json!({ "gif": a.render }),
         ) {
+            Ok(paths) if paths.is_empty() => {
+                eprintln!("note: no body has best gains (see best.csv): nothing to draw")
+            }
             Ok(paths) => paths.iter().for_each(|p| eprintln!("wrote {p}")),
             Err(Error::Display(why)) if !a.render => eprintln!("note: no rendering here ({why})"),
             Err(e) => return Err(e),

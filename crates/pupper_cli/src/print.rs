@@ -95,16 +95,23 @@ pub fn info(m: &ModelInfo) -> String {
 }
 
 pub fn stand(r: &StandReport) -> String {
+    // a quantity the run was too short to measure (see the note) is "-"
+    let num = |v: f64, d: usize| {
+        if v.is_nan() {
+            "-".to_string()
+        } else {
+            format!("{v:.d$}")
+        }
+    };
     format!(
-        "stand  {} ({} mode, kp {} kd {}, {} s, no push)\n  final z          {:.4} m\n  last-1s std      {:.3} mm\n  max tilt         {:.2} deg\n  status           {}\n",
+        "stand  {} ({} mode, {}, {} s, no push)\n  final z          {} m\n  last-1s std      {} mm\n  max tilt         {} deg\n  status           {}\n",
         r.model,
         r.mode.as_str(),
-        r.kp,
-        r.kd,
+        r.gains,
         r.seconds,
-        r.final_z,
-        r.last_1s_std_mm,
-        r.max_tilt_deg,
+        num(r.final_z, 4),
+        num(r.last_1s_std_mm, 3),
+        num(r.max_tilt_deg, 2),
         r.status.as_str()
     )
 }
@@ -244,21 +251,46 @@ pub fn sweep(o: &SweepOutcome) -> String {
         }
         let _ = writeln!(s, "{}", line.trim_end());
     }
-    // the steadiest healthy cell
-    if let (Some(si), Some(st)) = (col("last_1s_std_mm"), col("status")) {
-        let best = o
-            .rows
-            .iter()
-            .filter(|r| r[st] == "ok")
-            .filter_map(|r| r[si].parse::<f64>().ok().map(|v| (v, r)))
-            .min_by(|a, b| a.0.total_cmp(&b.0));
-        if let Some((v, r)) = best {
+    // the steadiest cell by the --best-by rule (it stood, under 5 %
+    // saturation; nanometres are a tie the smaller dip breaks)
+    if let (Some(si), Some(_)) = (col("last_1s_std_mm"), col("status")) {
+        let rule = pupper_core::best::Rule::new("last_1s_std_mm", &[]);
+        let group = pupper_core::best::best(&o.header, &o.rows, &rule)
+            .ok()
+            .and_then(|g| g.into_iter().next());
+        if let Some((i, g)) = group.and_then(|g| g.best.map(|i| (i, g))) {
+            let r = &o.rows[i];
             let label = if r[2].is_empty() {
                 r[1].clone()
             } else {
                 format!("{} ({})", r[2], r[1])
             };
-            let _ = writeln!(s, "\nsteadiest: {label}, last-1s std {v:.4} mm");
+            let v: f64 = r[si].parse().unwrap_or(f64::NAN);
+            let _ = write!(s, "\nsteadiest: {label}, last-1s std {v:.4} mm");
+            match (&g.tie_break, col("push_dip_mm")) {
+                (Some(_), Some(di)) => {
+                    let _ = writeln!(
+                        s,
+                        " ({} cells within {} mm of the lowest std: the smallest push dip, {} mm, decides)",
+                        g.tied,
+                        pupper_core::best::TIE_MM,
+                        r[di]
+                            .parse::<f64>()
+                            .map_or("-".into(), |d| format!("{d:.2}"))
+                    );
+                }
+                _ if g.tied > 1 => {
+                    let _ = writeln!(
+                        s,
+                        " ({} cells within {} mm of the lowest std: the first in grid order)",
+                        g.tied,
+                        pupper_core::best::TIE_MM
+                    );
+                }
+                _ => {
+                    let _ = writeln!(s);
+                }
+            }
         }
     }
     if replicated {
@@ -267,7 +299,12 @@ pub fn sweep(o: &SweepOutcome) -> String {
     let bad = o
         .rows
         .iter()
-        .filter(|r| col("status").is_some_and(|i| r[i] != "ok"))
+        .filter(|r| col("status").is_some_and(|i| r[i] == "fell" || r[i] == "diverged"))
+        .count();
+    let saturated = o
+        .rows
+        .iter()
+        .filter(|r| col("status").is_some_and(|i| r[i] == "saturated"))
         .count();
     let shaky = o
         .rows
@@ -278,6 +315,13 @@ pub fn sweep(o: &SweepOutcome) -> String {
         let _ = writeln!(
             s,
             "{shaky} cell(s) had replicates that fell or diverged: see failure_fraction, and replicates.csv"
+        );
+    }
+    if saturated > 0 {
+        let _ = writeln!(
+            s,
+            "{saturated} cell(s) saturated: at the torque limit in {}% or more of actuator-steps (sat %), so never the steadiest",
+            pupper_core::metrics::SATURATED * 100.0
         );
     }
     if bad > 0 {
@@ -333,29 +377,64 @@ fn steadiest_robust(s: &mut String, o: &SweepOutcome) {
 
 /// The summary rows as JSON objects, numbers as numbers.
 pub fn rows_json(o: &SweepOutcome) -> serde_json::Value {
-    let rows: Vec<serde_json::Value> = o
-        .rows
-        .iter()
-        .map(|r| {
-            let mut m = serde_json::Map::new();
-            for (h, v) in o.header.iter().zip(r) {
-                let val = match (h.as_str(), v.parse::<f64>()) {
-                    ("id" | "name" | "status", _) => serde_json::Value::String(v.clone()),
-                    ("index", _) => v
-                        .parse::<u64>()
-                        .map_or(serde_json::Value::Null, |i| serde_json::json!(i)),
-                    (_, Ok(x)) => serde_json::json!(x),
-                    _ => serde_json::Value::Null,
-                };
-                m.insert(h.clone(), val);
-            }
-            serde_json::Value::Object(m)
-        })
-        .collect();
+    let rows: Vec<serde_json::Value> = o.rows.iter().map(|r| row_json(&o.header, r)).collect();
     serde_json::json!({
         "out": o.out,
         "complete": o.complete,
         "cells": rows,
+    })
+}
+
+/// A summary row as a JSON object: numbers as numbers, an empty field
+/// (a metric not measured) as null, text (ids, names, body names, status)
+/// as strings.
+fn row_json(header: &[String], r: &[String]) -> serde_json::Value {
+    let mut m = serde_json::Map::new();
+    for (h, v) in header.iter().zip(r) {
+        let val = match (h.as_str(), v.parse::<f64>()) {
+            ("id" | "name" | "status", _) => serde_json::Value::String(v.clone()),
+            ("index", _) => v
+                .parse::<u64>()
+                .map_or(serde_json::Value::Null, |i| serde_json::json!(i)),
+            (_, Ok(x)) if x.is_finite() => serde_json::json!(x),
+            _ if v.is_empty() => serde_json::Value::Null,
+            _ => serde_json::Value::String(v.clone()),
+        };
+        m.insert(h.clone(), val);
+    }
+    serde_json::Value::Object(m)
+}
+
+/// The best cell of each group as JSON: the group's key, the rule, how
+/// many cells were eligible or tied, and the best row (null when none).
+pub fn best_json(
+    o: &SweepOutcome,
+    rule: &pupper_core::best::Rule,
+    groups: &[pupper_core::best::Group],
+) -> serde_json::Value {
+    let groups: Vec<serde_json::Value> = groups
+        .iter()
+        .map(|g| {
+            let key: serde_json::Map<String, serde_json::Value> = g
+                .key
+                .iter()
+                .map(|(k, v)| (k.clone(), serde_json::Value::String(v.clone())))
+                .collect();
+            serde_json::json!({
+                "group": key,
+                "cells": g.cells,
+                "eligible": g.eligible,
+                "tied": g.tied,
+                "tie_break": g.tie_break,
+                "cell": g.best.map(|i| row_json(&o.header, &o.rows[i])),
+            })
+        })
+        .collect();
+    serde_json::json!({
+        "metric": rule.metric,
+        "by": rule.by,
+        "max_saturation": rule.max_saturation,
+        "groups": groups,
     })
 }
 
@@ -399,22 +478,31 @@ pub fn best(
 
 pub fn pose(p: &pupper_core::pose::StandPose) -> String {
     let mut s = String::new();
+    let why = match p.depth_from {
+        "given" => "as given".to_string(),
+        _ => format!(
+            "the chapter's 0.14 m scaled to legs of {:.3} m",
+            p.leg_length
+        ),
+    };
     let _ = writeln!(
         s,
-        "stand pose: hip {:.3} rad, knee {:.3} rad (first leg's convention), feet {:.3} m below the hips",
-        p.hfe, p.kfe, -p.target_z
+        "stand pose: hip {:.3} rad, knee {:.3} rad (first leg's convention), thigh {:.3} rad from vertical",
+        p.hfe, p.kfe, p.thigh_angle
+    );
+    let _ = writeln!(
+        s,
+        "target: feet {:.4} m below the hips ({why})",
+        -p.target_z
     );
     let _ = writeln!(
         s,
         "base height {:.4} m (lowest foot just above the floor)",
         p.base_z
     );
+    let _ = writeln!(s, "reached, each foot from its hip:");
     for (name, x, z) in &p.feet {
-        let _ = writeln!(
-            s,
-            "  {name:<16} foot x {:+.4} m  z {:+.4} m from the hip",
-            x, z
-        );
+        let _ = writeln!(s, "  {name:<16} depth {:.4} m  x {:+.4} m", -z, x);
     }
     let t: Vec<String> = p.targets.iter().map(|v| format!("{v:.4}")).collect();
     let _ = writeln!(s, "targets (actuator order): {}", t.join(","));

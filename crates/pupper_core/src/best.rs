@@ -1,13 +1,17 @@
 //! The best cell of each group of a sweep's table, by one documented rule:
 //!
-//! 1. A cell is eligible when its status is `ok` (it neither fell nor
-//!    diverged), the metric is a number, and its `saturation_frac` (the
+//! 1. A cell is eligible when it stood (status `ok`, or `saturated` under a
+//!    raised bound), the metric is a number, and its `saturation_frac` (the
 //!    share of actuator-steps at the torque limit) is below the threshold.
 //!    In a replicated sweep: no replicate fell or diverged
 //!    (`failure_fraction` 0), and `p95:saturation_frac` is below it.
 //! 2. Among the eligible cells of a group, the lowest metric wins (the
 //!    highest with `minimize = false`).
-//! 3. Ties go to the cell that comes first in grid order.
+//! 3. Cells within [`TIE_MM`] of the winner on a `*_mm` metric (exactly
+//!    equal on others) are tied: the smallest push dip among them wins
+//!    (the same statistic of it in a replicated sweep), when the table has
+//!    one and the metric is not the dip itself.
+//! 4. Remaining ties go to the cell that comes first in grid order.
 //!
 //! Groups are the distinct values of the `by` columns, in order of first
 //! appearance; without `by` the whole table is one group.
@@ -18,7 +22,14 @@ use crate::output::{STATISTICS, aggregated};
 
 /// The default saturation threshold: cells whose actuators sit at their
 /// torque limit in 5 % or more of the steps are not trusted as "best".
-pub const MAX_SATURATION: f64 = 0.05;
+pub const MAX_SATURATION: f64 = crate::metrics::SATURATED;
+/// Cells whose `*_mm` metric lies within this many mm of the group's best
+/// are tied (nanometres of last-second std are no difference): the smaller
+/// push dip decides, then grid order.
+pub const TIE_MM: f64 = 0.001;
+
+/// A group's eligible cells: (row index, metric value), in grid order.
+type Eligible = Vec<(usize, f64)>;
 
 /// How to pick.
 #[derive(Debug, Clone, PartialEq)]
@@ -51,6 +62,10 @@ pub struct Group {
     /// Cells in the group, and how many were eligible.
     pub cells: usize,
     pub eligible: usize,
+    /// Eligible cells tied with the best on the metric (1: none).
+    pub tied: usize,
+    /// The column that broke the tie, when one did.
+    pub tie_break: Option<String>,
 }
 
 fn column(header: &[String], name: &str) -> Option<usize> {
@@ -121,7 +136,22 @@ pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<
     let failures = column(header, "failure_fraction");
     let saturation =
         column(header, "saturation_frac").or_else(|| column(header, "p95:saturation_frac"));
-    let mut groups: Vec<(Vec<String>, Group, f64)> = Vec::new();
+    let tolerance = if rule.metric.ends_with("_mm") {
+        TIE_MM
+    } else {
+        0.0
+    };
+    // the dip of the same statistic breaks ties
+    let (stat, name) = match rule.metric.split_once(':') {
+        Some((s, m)) => (format!("{s}:"), m),
+        None => (String::new(), rule.metric.as_str()),
+    };
+    let dip = (name != "push_dip_mm")
+        .then(|| column(header, &format!("{stat}push_dip_mm")))
+        .flatten();
+    let number = |r: &Vec<String>, c: usize| r[c].parse::<f64>().unwrap_or(f64::NAN);
+    // each group's eligible cells, in grid order
+    let mut groups: Vec<(Vec<String>, Group, Eligible)> = Vec::new();
     for (i, r) in rows.iter().enumerate() {
         let key: Vec<String> = by.iter().map(|&c| r[c].clone()).collect();
         let at = match groups.iter().position(|(k, _, _)| *k == key) {
@@ -132,35 +162,60 @@ pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<
                     best: None,
                     cells: 0,
                     eligible: 0,
+                    tied: 0,
+                    tie_break: None,
                 };
-                groups.push((key, g, f64::NAN));
+                groups.push((key, g, Vec::new()));
                 groups.len() - 1
             }
         };
-        let (_, g, best_value) = &mut groups[at];
+        let (_, g, eligible) = &mut groups[at];
         g.cells += 1;
-        let v: f64 = r[metric].parse().unwrap_or(f64::NAN);
-        let sat: f64 = saturation.map_or(0.0, |c| r[c].parse().unwrap_or(f64::NAN));
-        let ok = match (status, failures) {
-            (Some(c), _) => r[c] == "ok",
+        let v = number(r, metric);
+        let sat: f64 = saturation.map_or(0.0, |c| number(r, c));
+        let stood = match (status, failures) {
+            (Some(c), _) => r[c] == "ok" || r[c] == "saturated",
             (None, Some(c)) => r[c].parse::<f64>() == Ok(0.0),
             (None, None) => false,
         };
-        if !(ok && v.is_finite() && sat < rule.max_saturation) {
-            continue;
-        }
-        g.eligible += 1;
-        let better = match g.best {
-            None => true,
-            Some(_) if rule.minimize => v < *best_value,
-            Some(_) => v > *best_value,
-        };
-        if better {
-            g.best = Some(i);
-            *best_value = v;
+        if stood && v.is_finite() && sat < rule.max_saturation {
+            eligible.push((i, v));
         }
     }
-    Ok(groups.into_iter().map(|(_, g, _)| g).collect())
+    let sense = if rule.minimize { 1.0 } else { -1.0 };
+    Ok(groups
+        .into_iter()
+        .map(|(_, mut g, eligible)| {
+            g.eligible = eligible.len();
+            let Some(top) = eligible
+                .iter()
+                .map(|&(_, v)| sense * v)
+                .min_by(f64::total_cmp)
+            else {
+                return g;
+            };
+            let tied: Vec<usize> = eligible
+                .iter()
+                .filter(|&&(_, v)| sense * v <= top + tolerance)
+                .map(|&(i, _)| i)
+                .collect();
+            g.tied = tied.len();
+            g.best = tied.first().copied();
+            if let (Some(d), true) = (dip, tied.len() > 1) {
+                // the smallest dip (a cell without one last), then grid order
+                let key = |i: usize| {
+                    let v = number(&rows[i], d);
+                    if v.is_nan() { f64::INFINITY } else { v }
+                };
+                g.best = tied
+                    .iter()
+                    .copied()
+                    .min_by(|&a, &b| key(a).total_cmp(&key(b)).then(a.cmp(&b)));
+                g.tie_break = Some(header[d].clone());
+            }
+            g
+        })
+        .collect())
 }
 
 /// `best.csv`: per group, its `by` values, how many cells it has and how
@@ -312,6 +367,39 @@ mod tests {
             ..Rule::new("last_1s_std_mm", &["kd".into()])
         };
         assert_eq!(best(&h, &rows, &highest).unwrap()[0].best, Some(0));
+    }
+
+    #[test]
+    fn nanometres_are_a_tie_the_smaller_dip_decides() {
+        let (h, mut rows) = table(&[
+            ("60", "1", "0.0000094", "0", "ok"),
+            ("120", "1", "0.0000057", "0", "ok"), // lowest by 4 nm
+            ("120", "2", "0.0004", "0", "ok"),    // within 1 um: tied
+            ("120", "5", "0.002", "0.7", "saturated"),
+            ("30", "1", "0.0015", "0", "ok"), // 1.5 um: not tied
+        ]);
+        let dip = h.iter().position(|c| c == "push_dip_mm").unwrap();
+        for (r, d) in rows.iter_mut().zip(["1.16", "0.99", "0.94", "0.5", "0.2"]) {
+            r[dip] = d.into();
+        }
+        let g = best(&h, &rows, &Rule::new("last_1s_std_mm", &[])).unwrap();
+        assert_eq!((g[0].best, g[0].tied, g[0].eligible), (Some(2), 3, 4));
+        assert_eq!(g[0].tie_break.as_deref(), Some("push_dip_mm"));
+        // ranked by the dip itself: no tolerance, no tie-break
+        let by_dip = best(&h, &rows, &Rule::new("push_dip_mm", &[])).unwrap();
+        assert_eq!((by_dip[0].best, by_dip[0].tied), (Some(4), 1));
+        assert_eq!(by_dip[0].tie_break, None);
+        // a saturated cell is eligible only under a raised bound
+        let loose = Rule {
+            max_saturation: 0.8,
+            ..Rule::new("push_dip_mm", &[])
+        };
+        let g = best(&h, &rows, &loose).unwrap();
+        assert_eq!((g[0].best, g[0].eligible), (Some(4), 5));
+        // exactly equal values on a metric without a tolerance: grid order
+        let (h, rows) = table(&[("10", "1", "0.5", "0", "ok"), ("30", "1", "0.5", "0", "ok")]);
+        let g = best(&h, &rows, &Rule::new("final_z", &[])).unwrap();
+        assert_eq!((g[0].best, g[0].tied), (Some(0), 2));
     }
 
     #[test]

@@ -11,7 +11,7 @@ use crate::frames::{FrameRecorder, Frames, frame_count};
 use crate::grid::{Axis, Cell, Grid};
 use crate::layout::Layout;
 use crate::metrics::{Metrics, Recorder, Status};
-use crate::model::ModelSource;
+use crate::model::{ModelInfo, ModelSource};
 use crate::pd;
 use crate::physics::{CellSetup, Force, Mode, Physics};
 use crate::quat;
@@ -21,8 +21,9 @@ use crate::schedule::Schedule;
 /// Values used for any axis the grid does not vary.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Defaults {
-    pub kp: f64,
-    pub kd: f64,
+    /// None: each actuator's own gains, as the model declares them.
+    pub kp: Option<f64>,
+    pub kd: Option<f64>,
     /// None: each actuator's own limit (the model's force or control range).
     #[serde(default)]
     pub max_torque: Option<f64>,
@@ -40,8 +41,8 @@ fn one() -> f64 {
 impl Default for Defaults {
     fn default() -> Self {
         Defaults {
-            kp: 5.0,
-            kd: 0.1,
+            kp: None,
+            kd: None,
             max_torque: None,
             leg_scale: 1.0,
             torso_mass_scale: 1.0,
@@ -119,6 +120,7 @@ impl SweepConfig {
         self.schedule.validate()?;
         let d = &self.defaults;
         for (flag, v) in [("kp", d.kp), ("kd", d.kd)] {
+            let Some(v) = v else { continue };
             if !(v.is_finite() && v >= 0.0) {
                 return Err(Error::Config(format!(
                     "--{flag} {v} is negative or not finite: gains must be >= 0"
@@ -155,8 +157,8 @@ impl SweepConfig {
     }
 
     /// The physical setting of one replicate of a cell, with its draws.
-    pub fn setup_replicate(&self, cell: &Cell, d: &Draws) -> CellSetup {
-        let mut s = self.setup(cell);
+    pub fn setup_replicate(&self, cell: &Cell, d: &Draws, info: &ModelInfo) -> CellSetup {
+        let mut s = self.setup(cell, info);
         s.torso_mass_factor = d.torso_mass;
         s.leg_mass_factor = d.leg_mass;
         s.motor_gain = d.motor_gain.clone();
@@ -170,8 +172,25 @@ impl SweepConfig {
         s
     }
 
-    /// The physical setting of one cell.
-    pub fn setup(&self, cell: &Cell) -> CellSetup {
+    /// Checks that every gain a cell may need has a value: the model's own
+    /// gains stand in for a gain neither the grid nor the defaults give.
+    pub fn check_gains(&self, info: &ModelInfo) -> Result<()> {
+        let given = |axis: Axis, d: Option<f64>| d.is_some() || self.grid.has_axis(axis);
+        if given(Axis::Kp, self.defaults.kp) && given(Axis::Kd, self.defaults.kd) {
+            return Ok(());
+        }
+        match info.actuators.iter().find(|a| a.own_gains().is_none()) {
+            Some(a) => Err(Error::Config(format!(
+                "actuator '{}' of model '{}' has no PD gains of its own (it is not a position servo), so there is no default to run it at: give --kp and --kd",
+                a.name, info.name
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// The physical setting of one cell on a model (whose actuators give
+    /// the gains the grid and the defaults leave open).
+    pub fn setup(&self, cell: &Cell, info: &ModelInfo) -> CellSetup {
         let get = |a: Axis, d: f64| cell.get(a).unwrap_or(d);
         let body = match cell.get(Axis::Variant) {
             Some(i) => {
@@ -193,9 +212,19 @@ impl SweepConfig {
             (None, Some(p)) => p,
             (None, None) => [0.0; 3],
         };
+        let own = |i: usize| -> Vec<f64> {
+            info.actuators
+                .iter()
+                .map(|a| a.own_gains().map_or(0.0, |g| g[i]))
+                .collect()
+        };
+        let gain = |axis: Axis, default: Option<f64>, i: usize| match cell.get(axis).or(default) {
+            Some(v) => vec![v; info.nu],
+            None => own(i),
+        };
         CellSetup {
-            kp: get(Axis::Kp, self.defaults.kp),
-            kd: get(Axis::Kd, self.defaults.kd),
+            kp: gain(Axis::Kp, self.defaults.kp, 0),
+            kd: gain(Axis::Kd, self.defaults.kd, 1),
             max_torque: cell.get(Axis::MaxTorque).or(self.defaults.max_torque),
             push_force,
             friction: cell.get(Axis::Friction),
@@ -264,6 +293,7 @@ pub fn run_cells(
     hooks: &mut dyn Hooks,
 ) -> Result<Vec<CellResult>> {
     cfg.validate()?;
+    cfg.check_gains(physics.info())?;
     if let Some(fps) = opts.frame_rate {
         frame_count(cfg.schedule.duration, fps)?;
     }
@@ -271,7 +301,7 @@ pub fn run_cells(
     let model_dt = physics.info().timestep;
     let mut groups: Vec<(u64, Vec<&Cell>)> = Vec::new();
     for c in cells {
-        let dt = cfg.setup(c).timestep.unwrap_or(model_dt);
+        let dt = cfg.setup(c, physics.info()).timestep.unwrap_or(model_dt);
         match groups.iter_mut().find(|(b, _)| *b == dt.to_bits()) {
             Some((_, g)) => g.push(c),
             None => groups.push((dt.to_bits(), vec![c])),
@@ -448,12 +478,13 @@ fn run_chunk(
     // every replicate of every cell, cell by cell
     let mut sims: Vec<SimPlan> = Vec::with_capacity(cells.len() * per_cell);
     let mut sensing: Vec<Sensing> = Vec::with_capacity(cells.len() * per_cell);
-    let mut recorders: Vec<Recorder> = Vec::with_capacity(cells.len() * per_cell);
+    // each simulation's own schedule (its push window, its trace)
+    let mut schedules: Vec<Schedule> = Vec::with_capacity(cells.len() * per_cell);
     let mut setups: Vec<CellSetup> = Vec::with_capacity(cells.len() * per_cell);
     for (ci, c) in cells.iter().enumerate() {
         for r in 0..per_cell {
             let d = reps.draws(&c.id, r as u32, info.nu);
-            let setup = cfg.setup_replicate(c, &d);
+            let setup = cfg.setup_replicate(c, &d, info);
             // a replicate's own push start moves its push window; only
             // replicate 0 keeps a trace
             let mut own = schedule.clone();
@@ -467,7 +498,7 @@ fn run_chunk(
                 Some(_) => own.plan(dt)?.push,
                 None => plan.push.clone(),
             };
-            recorders.push(Recorder::new(&own, dt));
+            schedules.push(own);
             sensing.push(Sensing {
                 delay: d.delay,
                 noise: reps.noise(&c.id, r as u32),
@@ -486,6 +517,11 @@ fn run_chunk(
         .map(|s| s.torque_limits(info))
         .collect::<Result<_>>()?;
     let mut batch = physics.start(&setups, cfg.mode, &schedule.initial, opts.threads)?;
+    let recorders: Vec<Recorder> = schedules
+        .iter()
+        .enumerate()
+        .map(|(sim, own)| Recorder::new(own, dt, batch.stance(sim)))
+        .collect();
     // torque mode's PD in Rust, one control step per call; otherwise the
     // actuators hold the PD and calls advance open-loop
     let host_pd = cfg.mode == Mode::Torque && !batch.actuator_pd();
@@ -654,7 +690,7 @@ fn run_chunk(
                                     None => q,
                                 };
                                 let (tau, sat) =
-                                    pd::torque(s.kp, s.kd, targets[sim][a], q, v, lim[a]);
+                                    pd::torque(s.kp(a), s.kd(a), targets[sim][a], q, v, lim[a]);
                                 ctrl[a] = tau;
                                 // what the motor delivers: its gain times the
                                 // command, clamped at its force range

@@ -110,30 +110,15 @@ impl ModelSource {
             ModelSource::Path(p) => p.display().to_string(),
         }
     }
+}
 
-    /// SHA-256 of the MJCF text: a file's main text (included files are not
-    /// hashed), or a built-in's name, main text and included texts.
-    pub fn sha256(&self) -> Result<String> {
-        let bytes = match self.builtin() {
-            Some(b) => {
-                let mut all = format!("{}\n{}", b.name, b.main);
-                for (name, text) in b.includes {
-                    all.push_str(&format!("\n{name}\n{text}"));
-                }
-                all.into_bytes()
-            }
-            None => match self {
-                ModelSource::Path(p) => std::fs::read(p).map_err(|e| Error::io("read", p, e))?,
-                ModelSource::Builtin(n) => {
-                    return Err(Error::Model(format!("unknown built-in model '{n}'")));
-                }
-            },
-        };
-        Ok(Sha256::digest(&bytes)
-            .iter()
-            .map(|b| format!("{b:02x}"))
-            .collect())
-    }
+/// The SHA-256 of `bytes`, as 64 hex digits (what manifests record of the
+/// compiled model).
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }
 
 /// One leg's geometry at the default pose, measured on the compiled model
@@ -153,6 +138,9 @@ pub struct LegInfo {
     pub hip_to_foot: f64,
     /// First size of the foot geom (a sphere's radius).
     pub foot_radius: f64,
+    /// Index of the foot geom.
+    #[serde(default)]
+    pub foot_geom: usize,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -237,6 +225,14 @@ impl ActuatorInfo {
     /// Kp of an affine position servo (gain), Kd (−biasprm[2]).
     pub fn kp_kd(&self) -> (f64, f64) {
         (self.gainprm[0], -self.biasprm[2])
+    }
+
+    /// [Kp, Kd] when the actuator is a position servo (an affine bias that
+    /// pulls towards the control: `biasprm[1] == -gainprm[0]`, Kp > 0);
+    /// None for a motor, whose gains pupper must be given.
+    pub fn own_gains(&self) -> Option<[f64; 2]> {
+        let (kp, kd) = self.kp_kd();
+        (kp > 0.0 && self.biasprm[1] == -kp && kd.is_finite() && kd >= 0.0).then_some([kp, kd])
     }
 }
 
@@ -336,6 +332,32 @@ impl ModelInfo {
     /// when it is not the one asked for: a model without `home` starts from
     /// its first keyframe, or from its default pose when it has none, as
     /// the chapter's scripts do. Another missing name is an error.
+    /// One line when joint targets (in actuator order) lie outside their
+    /// joints' ranges: such a servo pushes its joint against the limit for
+    /// the whole run.
+    pub fn targets_outside_ranges(&self, targets: &[f64]) -> Option<String> {
+        let outside: Vec<String> = self
+            .actuators
+            .iter()
+            .zip(targets)
+            .filter_map(|(a, &t)| {
+                let j = &self.joints[a.joint?];
+                let [lo, hi] = j.range?;
+                (!(lo..=hi).contains(&t))
+                    .then(|| format!("{} {t:.3} not in [{lo:.3}, {hi:.3}]", j.name))
+            })
+            .collect();
+        let first = outside.first()?;
+        let more = match outside.len() {
+            1 => String::new(),
+            n => format!(" and {} more", n - 1),
+        };
+        Some(format!(
+            "{} joint target(s) lie outside their joint's range ({first}{more}): those servos press against the limit for the whole run; give a keyframe or --pose inside the ranges, or --pose auto",
+            outside.len()
+        ))
+    }
+
     pub fn start_keyframe(&self, name: &str) -> Result<(Option<usize>, Option<String>)> {
         match self.keyframe(name) {
             Ok((k, _)) => Ok((Some(k), None)),

@@ -109,11 +109,7 @@ pub fn replicate_row(cell: &Cell, replicate: usize, drawn: &[f64], m: &Metrics) 
 pub fn robust_row(cell: &Cell, runs: &[&Metrics]) -> Vec<String> {
     let mut r = vec![cell.index.to_string(), cell.id.clone(), cell.name.clone()];
     r.extend(cell.values.iter().map(|(a, v)| a.text(*v)));
-    let up: Vec<&Metrics> = runs
-        .iter()
-        .copied()
-        .filter(|m| m.status == crate::metrics::Status::Ok)
-        .collect();
+    let up: Vec<&Metrics> = runs.iter().copied().filter(|m| m.status.stood()).collect();
     r.push(runs.len().to_string());
     let failed = (runs.len() - up.len()) as f64 / runs.len().max(1) as f64;
     r.push(fmt_f64(failed));
@@ -478,12 +474,28 @@ pub fn read_run(dir: &Path) -> Result<RunTables> {
     };
     // traces of the cells kept (not of one whose replicates are cut short)
     let traces = read_traces(dir, &rows)?;
+    let mut manifest = manifest;
+    let traced = manifest.config.schedule.trace_every > 0;
+    if traced {
+        rows.retain(|i, _| traces.contains_key(i));
+    }
+    // a run whose files lost rows is not complete, whatever its manifest
+    // says: --resume recomputes what is missing
+    if rows.len() < manifest.cells_done {
+        manifest.complete = false;
+        manifest.cells_done = rows.len();
+    }
+    let traces: Vec<Trace> = traces
+        .into_iter()
+        .filter(|(i, _)| rows.contains_key(i))
+        .map(|(_, t)| t)
+        .collect();
     Ok(RunTables {
         replicate_header,
         replicate_rows,
         header: header_of(&manifest.config),
         rows: rows.into_values().collect(),
-        traces: traces.into_values().collect(),
+        traces,
         manifest,
     })
 }
@@ -542,12 +554,12 @@ mod tests {
         let a = SweepConfig::default();
         let mut b = a.clone();
         b.schedule.trace_every = 10;
-        b.defaults.kp = 30.0;
+        b.defaults.kp = Some(30.0);
         let d = config_diff(&a, &b);
         assert_eq!(
             d,
             [
-                "defaults.kp: 5.0 then, 30.0 now",
+                "defaults.kp: null then, 30.0 now",
                 "schedule.trace_every: 0 then, 10 now"
             ]
         );

@@ -32,8 +32,10 @@ impl Mode {
 /// One cell's physical setting, resolved from the grid and the defaults.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CellSetup {
-    pub kp: f64,
-    pub kd: f64,
+    /// Each actuator's Kp and Kd, in actuator order: the grid's or the
+    /// defaults' value, else the actuator's own gains from the model.
+    pub kp: Vec<f64>,
+    pub kd: Vec<f64>,
     /// One torque limit (N·m) for every actuator; None: each actuator's own.
     pub max_torque: Option<f64>,
     /// Push force (N) along the push direction's z, i.e. the push's world z.
@@ -55,6 +57,16 @@ pub struct CellSetup {
 }
 
 impl CellSetup {
+    /// Actuator `a`'s Kp.
+    pub fn kp(&self, a: usize) -> f64 {
+        self.kp.get(a).copied().unwrap_or(0.0)
+    }
+
+    /// Actuator `a`'s Kd.
+    pub fn kd(&self, a: usize) -> f64 {
+        self.kd.get(a).copied().unwrap_or(0.0)
+    }
+
     /// The gain factor of actuator `a`.
     pub fn gain(&self, a: usize) -> f64 {
         self.motor_gain.get(a).copied().unwrap_or(1.0)
@@ -120,6 +132,9 @@ pub trait SimBatch {
     }
     /// Simulation `sim`'s joint targets, in ctrl order.
     fn targets(&self, sim: usize) -> &[f64];
+    /// Simulation `sim`'s stance height: the base height at which its
+    /// lowest foot touches the floor in its start pose (m).
+    fn stance(&self, sim: usize) -> f64;
     /// The current qpos of simulation `sim`.
     fn qpos(&self, sim: usize) -> Result<Vec<f64>>;
     /// Open-loop advance of simulations `ids` (sorted) by `nstep` steps,

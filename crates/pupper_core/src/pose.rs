@@ -5,8 +5,18 @@
 //! Abduction stays at 0; hip flexion (HFE) and knee (KFE) are searched on a
 //! grid inside every leg's joint range, rotating the leg's measured thigh
 //! and calf vectors about the joints' real axes. The score is the chapter's:
-//! `(z - target)^2 + 0.25 x^2 + 0.002 (HFE - 0.70)^2`, with the foot at
-//! `(x, z)` from the hip and `target = -0.14 clamp(leg_scale, 1, 1.5)` m.
+//! `(z - target)^2 + 0.25 x^2 + 0.002 (phi - 0.70)^2`, with the foot at
+//! `(x, z)` from the hip. The chapter writes its last term on a skeleton
+//! whose thigh hangs straight down at HFE = 0, so there HFE *is* `phi`, the
+//! thigh's angle from the downward vertical, positive towards the side the
+//! knee juts when it bends: the term prefers a symmetric bend. On another
+//! geometry the joint's zero means something else (Pupper v3's zero is
+//! already a crouch), so `phi` is measured on the compiled legs, never read
+//! off the joint value.
+//!
+//! The depth aimed at is the chapter's 0.14 m on Pupper v3's legs, scaled to
+//! a model's own leg length (thigh + calf) and, as the chapter does for its
+//! variants, by `clamp(leg_scale, 1, 1.5)`; `--depth` sets it outright.
 //! Angles are searched in the first leg's convention (Pupper: the right
 //! legs', as the chapter's table is written) and mirrored onto each leg by
 //! the direction of its own joint axes.
@@ -22,7 +32,15 @@ use crate::model::{LegInfo, ModelInfo};
 const COARSE: f64 = 0.02;
 const FINE: f64 = 0.001;
 /// Gap left between the lowest foot and the floor at the start (m).
-const CLEARANCE: f64 = 0.002;
+pub const CLEARANCE: f64 = 0.002;
+/// The chapter's stand depth of the feet below the hips (m), on Pupper v3.
+pub const CHAPTER_DEPTH: f64 = 0.14;
+/// Thigh + calf of Pupper v3 (hip flexion axis to knee axis, knee axis to
+/// the foot's centre), measured on models/pupper_v3: the legs the chapter's
+/// depth was chosen for.
+pub const PUPPER_LEG_LENGTH: f64 = 0.174_290_195_309_120_43;
+/// The thigh angle the chapter's last score term prefers (rad).
+const PREFERRED_THIGH: f64 = 0.70;
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StandPose {
@@ -33,8 +51,17 @@ pub struct StandPose {
     /// HFE and KFE in the first leg's convention (rad).
     pub hfe: f64,
     pub kfe: f64,
+    /// The first leg's thigh angle from the downward vertical, positive
+    /// towards the side the knee juts (rad): the angle the score prefers
+    /// near 0.70.
+    pub thigh_angle: f64,
     /// Foot height below the hip that was aimed at (m, negative).
     pub target_z: f64,
+    /// Where the depth came from: `scaled` (the chapter's, to this leg
+    /// length) or `given`.
+    pub depth_from: &'static str,
+    /// The first leg's thigh + calf length (m).
+    pub leg_length: f64,
     /// Each leg's foot position relative to its hip at the pose: (x, z) m.
     pub feet: Vec<(String, f64, f64)>,
 }
@@ -94,8 +121,48 @@ fn in_reference(range: Option<[f64; 2]>, s: f64) -> [f64; 2] {
     if s > 0.0 { [lo, hi] } else { [-hi, -lo] }
 }
 
-/// The stand pose of a compiled body; `leg_scale` sets the target height.
-pub fn stand_pose(info: &ModelInfo, leg_scale: f64) -> Result<StandPose> {
+fn norm(a: V3) -> f64 {
+    dot(a, a).sqrt()
+}
+
+fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// The signed angle (rad) from `a` to `b` about the unit axis `u`, both
+/// projected onto the plane normal to `u`.
+fn angle_about(a: V3, b: V3, u: V3) -> f64 {
+    let along = |v: V3| {
+        let k = dot(v, u);
+        [v[0] - k * u[0], v[1] - k * u[1], v[2] - k * u[2]]
+    };
+    let (a, b) = (along(a), along(b));
+    dot(u, cross(a, b)).atan2(dot(a, b))
+}
+
+/// The depth (m, positive) of the feet below the hips a body aims at: the
+/// chapter's 0.14 m scaled from Pupper v3's legs to the model's own (its
+/// unscaled length, `leg_length / leg_scale`), times the chapter's
+/// `clamp(leg_scale, 1, 1.5)` for longer-legged variants.
+pub fn scaled_depth(leg_length: f64, leg_scale: f64) -> f64 {
+    let own = leg_length / leg_scale;
+    CHAPTER_DEPTH * (own / PUPPER_LEG_LENGTH) * leg_scale.clamp(1.0, 1.5)
+}
+
+/// The first leg's thigh + calf length (m).
+pub fn leg_length(info: &ModelInfo) -> Option<f64> {
+    info.legs
+        .first()
+        .map(|l| norm(sub(l.knee, l.hip)) + norm(sub(l.foot, l.knee)))
+}
+
+/// The stand pose of a compiled body; `leg_scale` scales the target depth,
+/// unless `depth` (m below the hips) is given.
+pub fn stand_pose(info: &ModelInfo, leg_scale: f64, depth: Option<f64>) -> Result<StandPose> {
     let Some(first) = info.legs.first() else {
         return Err(Error::Model(format!(
             "model '{}' has no legs pupper can pose (a chain of abduction, hip and knee hinges under the base ending in a colliding foot): give --pose angles instead of auto",
@@ -123,10 +190,17 @@ pub fn stand_pose(info: &ModelInfo, leg_scale: f64) -> Result<StandPose> {
             info.name
         )));
     }
-    let target_z = -0.14 * leg_scale.clamp(1.0, 1.5);
+    let leg_length = norm(sub(first.knee, first.hip)) + norm(sub(first.foot, first.knee));
+    let (target_z, depth_from) = match depth {
+        Some(d) => (-d, "given"),
+        None => (-scaled_depth(leg_length, leg_scale), "scaled"),
+    };
+    let thigh_angle = thigh_angle_of(first, kr);
     let score = |h: f64, k: f64| {
         let p = foot(first, h, k);
-        (p[2] - target_z).powi(2) + 0.25 * p[0] * p[0] + 0.002 * (h - 0.70).powi(2)
+        (p[2] - target_z).powi(2)
+            + 0.25 * p[0] * p[0]
+            + 0.002 * (thigh_angle(h) - PREFERRED_THIGH).powi(2)
     };
     let (_, h0, k0) = grid_min(hr, kr, COARSE, &score);
     let near = |r: [f64; 2], c: f64| [(c - COARSE).max(r[0]), (c + COARSE).min(r[1])];
@@ -164,9 +238,30 @@ pub fn stand_pose(info: &ModelInfo, leg_scale: f64) -> Result<StandPose> {
         base_z: base_z0 + CLEARANCE - lowest,
         hfe,
         kfe,
+        thigh_angle: thigh_angle(hfe),
         target_z,
+        depth_from,
+        leg_length,
         feet,
     })
+}
+
+/// The thigh's angle from the downward vertical as a function of HFE (in
+/// the first leg's convention), signed so that it is positive towards the
+/// side the knee juts: opposite to the way the calf turns from the thigh's
+/// line when the knee bends. Which way the knee bends is read from its
+/// range `kr`: the end that folds the calf furthest from straight.
+fn thigh_angle_of(leg: &LegInfo, kr: [f64; 2]) -> impl Fn(f64) -> f64 + use<> {
+    let u = leg.hip_axis;
+    let thigh = sub(leg.knee, leg.hip);
+    let calf = sub(leg.foot, leg.knee);
+    let fold = |k: f64| angle_about(thigh, rotate(calf, leg.knee_axis, k), u);
+    let (lo, hi) = (fold(kr[0]), fold(kr[1]));
+    let bend = if hi.abs() >= lo.abs() { hi } else { lo };
+    let sign = if bend > 0.0 { -1.0 } else { 1.0 };
+    // HFE turns the thigh about the hip axis: the angle grows with it
+    let at_zero = angle_about([0.0, 0.0, -1.0], thigh, u);
+    move |h: f64| sign * (at_zero + h)
 }
 
 /// The lowest `score` on a grid of spacing `step` over two ranges (ties:
@@ -246,6 +341,7 @@ mod tests {
                 knee_axis: [0.0, y, 0.0],
                 hip_to_foot: 0.2,
                 foot_radius: 0.01,
+                foot_geom: 0,
             });
         }
         let mut info = ModelInfo::for_test("biped", joints, actuators);
@@ -257,8 +353,9 @@ mod tests {
     #[test]
     fn feet_reach_the_target_and_left_mirrors_right() {
         let info = biped();
-        let p = stand_pose(&info, 1.0).unwrap();
+        let p = stand_pose(&info, 1.0, Some(0.14)).unwrap();
         assert_eq!(p.target_z, -0.14);
+        assert_eq!(p.depth_from, "given");
         for (_, x, z) in &p.feet {
             assert!((z - -0.14).abs() < 0.005, "{z}");
             assert!(x.abs() < 0.01, "{x}");
@@ -274,18 +371,75 @@ mod tests {
     }
 
     #[test]
-    fn longer_legs_aim_lower_up_to_one_and_a_half() {
+    fn the_depth_scales_with_the_legs_and_longer_variants_aim_lower_up_to_one_and_a_half() {
+        // Pupper's own legs aim at the chapter's 0.14 m
+        assert!((scaled_depth(PUPPER_LEG_LENGTH, 1.0) - 0.14).abs() < 1e-15);
+        // legs twice as long: twice as deep
+        assert!((scaled_depth(2.0 * PUPPER_LEG_LENGTH, 1.0) - 0.28).abs() < 1e-12);
+        // a variant's legs are measured scaled: the chapter's clamp applies
+        let l = PUPPER_LEG_LENGTH;
+        assert!((scaled_depth(1.5 * l, 1.5) - 0.21).abs() < 1e-12);
+        assert!((scaled_depth(3.0 * l, 3.0) - 0.21).abs() < 1e-12);
+        assert!((scaled_depth(0.5 * l, 0.5) - 0.14).abs() < 1e-12);
+        // the biped's legs are 0.2 m
         let info = biped();
-        assert!((stand_pose(&info, 1.5).unwrap().target_z - -0.21).abs() < 1e-12);
-        assert!((stand_pose(&info, 3.0).unwrap().target_z - -0.21).abs() < 1e-12);
-        assert!((stand_pose(&info, 0.5).unwrap().target_z - -0.14).abs() < 1e-12);
+        let p = stand_pose(&info, 1.0, None).unwrap();
+        assert_eq!(p.depth_from, "scaled");
+        assert!((p.leg_length - 0.2).abs() < 1e-12);
+        assert!((p.target_z + 0.14 * 0.2 / PUPPER_LEG_LENGTH).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_preferred_bend_is_the_thighs_angle_from_vertical_not_the_joint_value() {
+        // the same biped with its thighs already pitched 0.5 rad forward at
+        // joint zero (knee and foot moved by the rotation): the pose found
+        // must be the same leg shape, 0.5 rad less on the hip joint
+        let straight = biped();
+        let mut tilted = biped();
+        // pitched the same way in the world (the right leg's +0.5)
+        for leg in &mut tilted.legs {
+            let hip = leg.hip;
+            let turn = |p: V3| add(hip, rotate(sub(p, hip), [0.0, -1.0, 0.0], 0.5));
+            leg.knee = turn(leg.knee);
+            leg.foot = turn(leg.foot);
+        }
+        let a = stand_pose(&straight, 1.0, Some(0.14)).unwrap();
+        let b = stand_pose(&tilted, 1.0, Some(0.14)).unwrap();
+        assert!((a.thigh_angle - b.thigh_angle).abs() < 2e-3, "{a:?} {b:?}");
+        assert!((a.hfe - (b.hfe + 0.5)).abs() < 2e-3, "{a:?} {b:?}");
+        for ((_, xa, za), (_, xb, zb)) in a.feet.iter().zip(&b.feet) {
+            assert!(
+                (xa - xb).abs() < 1e-3 && (za - zb).abs() < 1e-3,
+                "{a:?} {b:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_thigh_angle_is_positive_towards_the_knee() {
+        // the chapter's skeleton: thigh and calf hang down at zero and the
+        // knee bends to negative angles (range [-2.3, -0.25]); a symmetric
+        // bend of the chapter (0.70, -1.40) has thigh angle +0.70
+        let leg = &biped().legs[0];
+        let f = thigh_angle_of(leg, [-2.3, -0.25]);
+        let p = foot(leg, 0.7, -1.4);
+        let knee_x = rotate(sub(leg.knee, leg.hip), leg.hip_axis, 0.7)[0];
+        assert!(
+            p[0].abs() < 1e-12,
+            "a symmetric bend ends under the hip: {p:?}"
+        );
+        assert!((f(0.7).abs() - 0.7).abs() < 1e-12);
+        assert!(f(0.7) > 0.0 && knee_x.abs() > 0.05);
+        // a knee that bends the other way flips the sign
+        let g = thigh_angle_of(leg, [0.25, 2.3]);
+        assert!((g(0.7) + f(0.7)).abs() < 1e-12);
     }
 
     #[test]
     fn a_model_without_legs_is_named() {
         let mut info = biped();
         info.legs.clear();
-        let e = stand_pose(&info, 1.0).unwrap_err().to_string();
+        let e = stand_pose(&info, 1.0, None).unwrap_err().to_string();
         assert!(e.contains("no legs") && e.contains("--pose"), "{e}");
     }
 

@@ -646,7 +646,9 @@ pub fn merge(dirs: &[PathBuf], out: &Path, existing: Existing) -> Result<(PathBu
         complete: false,
         wall_seconds: 0.0,
         started_unix: parts.iter().map(|(_, m)| m.started_unix).min().unwrap_or(0),
-        command: std::env::args().collect(),
+        command: std::env::args_os()
+            .map(|a| a.to_string_lossy().into_owned())
+            .collect(),
         shard: None,
         ray: None,
         merged: parts
@@ -678,12 +680,33 @@ pub fn merge(dirs: &[PathBuf], out: &Path, existing: Existing) -> Result<(PathBu
                 d.display()
             )));
         }
+        // every file of the shard holds every cell its summary promises
+        let lacking = |file: &str, have: &dyn Fn(&usize) -> bool| -> Result<()> {
+            let gone: Vec<&str> = rows
+                .iter()
+                .filter(|(i, _)| !have(i))
+                .map(|(_, r)| r[1].as_str())
+                .collect();
+            match gone.first() {
+                None => Ok(()),
+                Some(first) => Err(bad(format!(
+                    "'{}' has {} of {} cells without their rows in {file} (first: '{first}'): the file was cut or edited; recompute them with pupper sweep --resume {}, then merge again",
+                    d.display(),
+                    gone.len(),
+                    rows.len(),
+                    d.display()
+                ))),
+            }
+        };
         if w.replicated() {
             let reps = read_replicates(d, &w.rep_header, config.replicate_count(), &rows)?;
+            lacking(crate::output::REPLICATES, &|i| reps.contains_key(i))?;
             w.reps.extend(reps);
         }
         if w.want_traces {
-            w.traces.extend(read_traces(d, &rows)?);
+            let traces = read_traces(d, &rows)?;
+            lacking(crate::output::TRACES, &|i| traces.contains_key(i))?;
+            w.traces.extend(traces);
         }
         w.rows.extend(rows);
     }

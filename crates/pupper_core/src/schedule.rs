@@ -23,8 +23,23 @@ pub enum InitialState {
     /// the base starts where the first keyframe (or the model default) puts it.
     Pose(Vec<f64>),
     /// A stand pose searched on each cell's own body (see `pose`), with the
-    /// base at the height that puts the feet just above the floor.
+    /// base at the height that puts the feet just above the floor; the feet
+    /// aim at the chapter's depth scaled to the body's legs.
     Auto,
+    /// The same search, aiming the feet this far below the hips (m).
+    AutoDepth(f64),
+}
+
+impl InitialState {
+    /// For a searched stand pose, the depth asked for (None: scaled to the
+    /// legs); None for a keyframe or given angles.
+    pub fn auto_depth(&self) -> Option<Option<f64>> {
+        match self {
+            InitialState::Auto => Some(None),
+            InitialState::AutoDepth(d) => Some(Some(*d)),
+            _ => None,
+        }
+    }
 }
 
 /// A force on a body, in world coordinates, over a time window.
@@ -65,6 +80,14 @@ fn z_axis() -> [f64; 3] {
     [0.0, 0.0, 1.0]
 }
 
+/// Below this fraction of its stance height, at any moment, a robot fell
+/// (Pupper v3 from `home`: 0.3 x 0.132 m = 4 cm).
+pub const FALL_FRACTION: f64 = 0.3;
+/// Below this fraction of its stance height on average over the last
+/// window, a robot has collapsed (legs folded under it): a fall too, so it
+/// is never the steadiest (Pupper v3 from `home`: 7.9 cm).
+pub const COLLAPSE_FRACTION: f64 = 0.6;
+
 /// Most steps one cell may take (about an hour of MuJoCo time per cell).
 pub const MAX_STEPS: usize = 100_000_000;
 
@@ -87,13 +110,51 @@ pub struct Schedule {
     pub window: f64,
     /// Keep every n-th sample of the base-z trace (0: no trace).
     pub trace_every: usize,
-    /// A base lower than this (m) counts as a fall.
-    pub fall_height: f64,
+    /// A base lower than this fraction of the robot's stance height, at
+    /// any moment, counts as a fall.
+    #[serde(default = "fall_fraction")]
+    pub fall_fraction: f64,
+    /// A base whose mean height over the last window is below this
+    /// fraction of the stance height has collapsed: it counts as a fall.
+    #[serde(default = "collapse_fraction")]
+    pub collapse_fraction: f64,
     /// A tilt larger than this (deg) counts as a fall.
     pub fall_tilt_deg: f64,
-    /// Band (m) around the pre-push height within which the base counts as settled.
-    pub settle_band: f64,
+    /// Seconds by which a robot dropped from its start has landed: max
+    /// tilt and peak torque are measured from here (or from the push, if
+    /// it comes first), and the last window must lie after it.
+    #[serde(default = "landing")]
+    pub landing: f64,
+    /// The settle band, as a fraction of the push dip (the step-response
+    /// convention's 2 %).
+    #[serde(default = "settle_fraction")]
+    pub settle_fraction: f64,
 }
+
+fn fall_fraction() -> f64 {
+    FALL_FRACTION
+}
+
+fn collapse_fraction() -> f64 {
+    COLLAPSE_FRACTION
+}
+
+fn landing() -> f64 {
+    LANDING
+}
+
+fn settle_fraction() -> f64 {
+    SETTLE_FRACTION
+}
+
+/// Seconds a robot dropped from its keyframe needs to land (Pupper v3 from
+/// `home`, 16 cm: about 0.3 s, and still by 1 s).
+pub const LANDING: f64 = 1.0;
+/// The settle band: 2 % of the push dip, as a step response's settling
+/// time uses 2 % of the step.
+pub const SETTLE_FRACTION: f64 = 0.02;
+/// The narrowest settle band (m): a dip of a few nanometres is no dip.
+pub const SETTLE_FLOOR: f64 = 1e-6;
 
 impl Default for Schedule {
     fn default() -> Self {
@@ -104,9 +165,11 @@ impl Default for Schedule {
             sine: None,
             window: 1.0,
             trace_every: 0,
-            fall_height: 0.04,
+            fall_fraction: FALL_FRACTION,
+            collapse_fraction: COLLAPSE_FRACTION,
             fall_tilt_deg: 60.0,
-            settle_band: 0.001,
+            landing: LANDING,
+            settle_fraction: SETTLE_FRACTION,
         }
     }
 }
@@ -162,10 +225,72 @@ impl Schedule {
         {
             return bad("the pose has a non-finite angle", "use finite radians");
         }
-        if !(self.fall_height.is_finite() && self.fall_tilt_deg.is_finite()) {
+        if let InitialState::AutoDepth(d) = self.initial
+            && !(d.is_finite() && d > 0.0)
+        {
+            return bad(
+                &format!("stand depth {d} m is not positive"),
+                "give --depth the feet's depth below the hips in metres, e.g. 0.14",
+            );
+        }
+        if !(self.fall_fraction.is_finite()
+            && self.collapse_fraction.is_finite()
+            && self.fall_tilt_deg.is_finite()
+            && self.landing.is_finite()
+            && self.settle_fraction.is_finite())
+        {
             return bad("fall thresholds are not finite", "use finite numbers");
         }
         Ok(())
+    }
+
+    /// When tilt and torque start being measured: after the landing, or
+    /// from the push if it comes first.
+    pub fn measure_from(&self) -> f64 {
+        match &self.push {
+            Some(p) => self.landing.min(p.start),
+            None => self.landing,
+        }
+    }
+
+    /// When the push dip is known: the push's end plus the 1.5 s in which
+    /// its minimum is sought.
+    pub fn dip_end(&self) -> Option<f64> {
+        self.push
+            .as_ref()
+            .map(|p| p.start + p.duration + crate::stats::DIP_AFTER)
+    }
+
+    /// What a run of this length cannot measure, one line each (empty for
+    /// a long enough run): those metrics are left empty and its cells are
+    /// never ranked by them.
+    pub fn shortfalls(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let need = self.landing + self.window;
+        if self.duration < need - 1e-9 {
+            out.push(format!(
+                "--seconds {} leaves no {} s window after the landing ({} s): last_1s_std_mm is left empty and no cell is ranked steadiest; use --seconds {need} or more",
+                self.duration, self.window, self.landing
+            ));
+        }
+        if let (Some(end), Some(p)) = (self.dip_end(), &self.push)
+            && self.duration < end - 1e-9
+        {
+            out.push(format!(
+                "--seconds {} ends before the push at {} s and the {} s after it are over: push_dip_mm and settle_time_s are left empty; use --seconds {end} or more, or --push-at earlier",
+                self.duration,
+                p.start,
+                crate::stats::DIP_AFTER + p.duration
+            ));
+        }
+        if self.duration <= self.measure_from() {
+            out.push(format!(
+                "--seconds {} ends before the landing is over ({} s): max_tilt_deg and peak_torque are left empty",
+                self.duration,
+                self.measure_from()
+            ));
+        }
+        out
     }
 
     /// The steps of one cell at `dt`: how many a `while time < duration`

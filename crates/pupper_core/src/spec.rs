@@ -60,9 +60,10 @@ pub struct SweepSpec {
     pub mode: Mode,
     /// Simulated seconds per cell.
     pub seconds: f64,
-    /// Gains and torque limit for cells whose grid has no such axis.
-    pub kp: f64,
-    pub kd: f64,
+    /// Gains for cells whose grid has no such axis; None: each actuator's
+    /// own gains from the model (Pupper v3: Kp 5, Kd 0.1).
+    pub kp: Option<f64>,
+    pub kd: Option<f64>,
     /// None: each actuator's own limit (Pupper v3: 3 N·m).
     pub max_torque: Option<f64>,
     /// The timed push on the base.
@@ -75,6 +76,9 @@ pub struct SweepSpec {
     /// Start from this keyframe, or from `pose` when given.
     pub keyframe: String,
     pub pose: Option<PoseInput>,
+    /// With the `auto` pose: the feet's depth below the hips (m); None: the
+    /// chapter's 0.14 m scaled to the model's legs.
+    pub depth: Option<f64>,
     /// Keep base-z traces, every `trace_every`-th step.
     pub trace: bool,
     pub trace_every: usize,
@@ -115,8 +119,8 @@ impl Default for SweepSpec {
             variant: "original".into(),
             mode: Mode::Servo,
             seconds: 10.0,
-            kp: 5.0,
-            kd: 0.1,
+            kp: None,
+            kd: None,
             max_torque: None,
             push: true,
             push_force: -25.0,
@@ -125,6 +129,7 @@ impl Default for SweepSpec {
             sine: None,
             keyframe: "home".into(),
             pose: None,
+            depth: None,
             trace: false,
             trace_every: 10,
             replicates: 1,
@@ -196,6 +201,11 @@ impl SweepSpec {
                 "resume needs the run directory to continue: give out (or --resume DIR)".into(),
             ));
         }
+        if self.depth.is_some() && !matches!(self.pose, Some(PoseInput::Auto(_))) {
+            return Err(config_error(
+                "depth sets how deep the searched stand pose puts the feet: give it with --pose auto (pupper lab always searches)".into(),
+            ));
+        }
         let grid = self.grid()?;
         grid.check_size(self.max_cells)?;
         let randomize = self
@@ -215,7 +225,10 @@ impl SweepSpec {
         let schedule = Schedule {
             duration: self.seconds,
             initial: match &self.pose {
-                Some(PoseInput::Auto(_)) => InitialState::Auto,
+                Some(PoseInput::Auto(_)) => match self.depth {
+                    Some(d) => InitialState::AutoDepth(d),
+                    None => InitialState::Auto,
+                },
                 Some(PoseInput::Angles(p)) => InitialState::Pose(p.clone()),
                 None => InitialState::Keyframe(self.keyframe.clone()),
             },
@@ -379,10 +392,16 @@ mod tests {
     fn every_check_names_the_flag() {
         let e = |spec: SweepSpec| spec.build().unwrap_err().to_string();
         let d = SweepSpec::default;
-        assert!(e(SweepSpec { kp: -1.0, ..d() }).contains("--kp"));
         assert!(
             e(SweepSpec {
-                kd: f64::NAN,
+                kp: Some(-1.0),
+                ..d()
+            })
+            .contains("--kp")
+        );
+        assert!(
+            e(SweepSpec {
+                kd: Some(f64::NAN),
                 ..d()
             })
             .contains("--kd")
@@ -443,7 +462,7 @@ mod tests {
     #[test]
     fn keyword_names_are_the_fields() {
         let s: SweepSpec = serde_json::from_str(r#"{"kp": 30, "mode": "torque"}"#).unwrap();
-        assert_eq!((s.kp, s.mode, s.kd), (30.0, Mode::Torque, 0.1));
+        assert_eq!((s.kp, s.mode, s.kd), (Some(30.0), Mode::Torque, None));
         assert!(serde_json::from_str::<SweepSpec>(r#"{"kq": 1}"#).is_err());
     }
 

@@ -24,6 +24,15 @@ impl Tail {
         self.buf.push_back(x);
     }
 
+    /// Mean of what is held (NaN when empty).
+    pub fn mean(&self) -> f64 {
+        let (a, b) = self.buf.as_slices();
+        if self.buf.is_empty() {
+            return f64::NAN;
+        }
+        (a.iter().sum::<f64>() + b.iter().sum::<f64>()) / self.buf.len() as f64
+    }
+
     /// Standard deviation of what is held (fewer than `n` if the stream was short).
     pub fn std(&self) -> f64 {
         let (a, b) = self.buf.as_slices();
@@ -116,52 +125,73 @@ impl PushDip {
     }
 }
 
-/// Streamed settle time: the time after `from` at which the series last was
-/// outside `reference ± band`. `None` if it is still outside at the end.
+/// Settling time after a push, by the step-response convention
+/// (python-control's `step_info`, MATLAB's `stepinfo`): seconds from the
+/// push's start until the base stays within a band of `fraction` x the dip
+/// (at least `floor`, m) around its final height (the mean of the last
+/// window: where it came to rest, which after feet slipped under the push
+/// is not always where it stood before). The heights from the push on are
+/// held as f32 offsets from the first of them (4 bytes a step) until both
+/// are known.
 #[derive(Debug, Clone)]
 pub struct Settle {
-    from: f64,
-    band: f64,
-    last_out: Option<f64>,
-    out_now: bool,
-    seen: bool,
+    start: f64,
+    fraction: f64,
+    floor: f64,
+    /// Post-step time of the first held sample.
+    first: f64,
+    origin: f64,
+    held: Vec<f32>,
 }
 
 impl Settle {
-    pub fn new(from: f64, band: f64) -> Settle {
+    pub fn new(start: f64, fraction: f64, floor: f64) -> Settle {
         Settle {
-            from,
-            band,
-            last_out: None,
-            out_now: false,
-            seen: false,
+            start,
+            fraction,
+            floor,
+            first: f64::NAN,
+            origin: f64::NAN,
+            held: Vec::new(),
         }
     }
 
+    /// A sample at post-step time `t`.
     #[inline]
-    pub fn push(&mut self, t: f64, z: f64, reference: f64) {
-        if t < self.from {
+    pub fn push(&mut self, t: f64, z: f64) {
+        if t < self.start {
             return;
         }
-        self.seen = true;
-        // NaN counts as outside
-        use std::cmp::Ordering::{Equal, Less};
-        self.out_now = !matches!(
-            (z - reference).abs().partial_cmp(&self.band),
-            Some(Less | Equal)
-        );
-        if self.out_now {
-            self.last_out = Some(t);
+        if self.held.is_empty() {
+            self.first = t;
+            self.origin = z;
         }
+        self.held.push((z - self.origin) as f32);
     }
 
-    /// Seconds from `from` until the series stayed inside the band; `None`
-    /// if it ends outside, or never reached `from`.
-    pub fn value(&self) -> Option<f64> {
-        if self.out_now || !self.seen {
+    /// Seconds from the push's start until the series stayed within the
+    /// band around `final_z`, for a push that dipped `dip` m, with samples
+    /// `dt` apart; `None` without samples, with a non-finite final height,
+    /// or when the last sample is still outside the band.
+    pub fn value(&self, final_z: f64, dip: f64, dt: f64) -> Option<f64> {
+        let band = (self.fraction * dip).max(self.floor);
+        if self.held.is_empty() || !final_z.is_finite() || !band.is_finite() {
             return None;
         }
-        Some(self.last_out.map_or(0.0, |t| t - self.from))
+        let target = final_z - self.origin;
+        // NaN counts as outside
+        use std::cmp::Ordering::{Equal, Less};
+        let inside = |d: f32| {
+            matches!(
+                (d as f64 - target).abs().partial_cmp(&band),
+                Some(Less | Equal)
+            )
+        };
+        match self.held.iter().rposition(|&d| !inside(d)) {
+            None => Some(0.0),
+            Some(i) if i + 1 == self.held.len() => None,
+            Some(i) => Some((self.first + i as f64 * dt - self.start).max(0.0)),
+        }
     }
 }
 
@@ -241,26 +271,30 @@ mod tests {
     }
 
     #[test]
-    fn settle_time() {
-        let mut s = Settle::new(2.0, 0.001);
-        for (t, z) in [
-            (1.0, 0.5),
-            (2.1, 0.11),
-            (2.5, 0.1195),
-            (2.7, 0.12),
-            (3.0, 0.1201),
-        ] {
-            s.push(t, z, 0.12);
-        }
-        assert!((s.value().unwrap() - 0.1).abs() < 1e-12);
-        s.push(3.1, 0.2, 0.12);
-        assert_eq!(s.value(), None);
-        let mut never_left = Settle::new(0.0, 0.001);
-        never_left.push(0.5, 0.12, 0.12);
-        assert_eq!(never_left.value(), Some(0.0));
-        // a run that ends before `from` has no settle time
-        let mut short = Settle::new(2.0, 0.001);
-        short.push(1.0, 0.12, 0.12);
-        assert_eq!(short.value(), None);
+    fn settle_time_is_from_the_push_within_a_band_of_the_dip_around_the_final_height() {
+        // push at 2 s, samples 0.1 s apart; a 2 % band
+        let settle = |zs: &[f64], final_z: f64, dip: f64| {
+            let mut s = Settle::new(2.0, 0.02, 1e-6);
+            s.push(1.9, 0.5); // before the push: ignored
+            for (i, &z) in zs.iter().enumerate() {
+                s.push(2.0 + 0.1 * i as f64, z);
+            }
+            s.value(final_z, dip, 0.1)
+        };
+        // dips 10 mm, comes back to rest 0.5 mm lower than it stood
+        let zs = [0.12, 0.11, 0.1150, 0.1192, 0.1196, 0.1195, 0.1195];
+        // band 0.2 mm around 0.1195: 0.1192 (at 2.3 s) is the last one out
+        let v = settle(&zs, 0.1195, 0.01).unwrap();
+        assert!((v - 0.3).abs() < 1e-6, "{v}");
+        // a 1 mm dip: band 0.02 mm, 0.1196 (2.4 s) is out too
+        let v = settle(&zs, 0.1195, 0.001).unwrap();
+        assert!((v - 0.4).abs() < 1e-6, "{v}");
+        // still out at the end: never settled
+        assert_eq!(settle(&[0.12, 0.11, 0.13], 0.12, 0.01), None);
+        // no dip: the floor is the band, and a still series settled at once
+        assert_eq!(settle(&[0.12, 0.1200001], 0.12, 0.0), Some(0.0));
+        // no sample from the push on, or no final height: none
+        assert_eq!(Settle::new(2.0, 0.02, 1e-6).value(0.12, 0.01, 0.1), None);
+        assert_eq!(settle(&zs, f64::NAN, 0.01), None);
     }
 }

@@ -103,9 +103,16 @@ pub fn info(source: &ModelSource, variant: &Variant) -> Result<ModelInfo> {
 }
 
 /// `pupper pose`: the stand pose of a model's (variant's) compiled body.
-pub fn pose(source: &ModelSource, variant: &Variant) -> Result<StandPose> {
+pub fn pose(source: &ModelSource, variant: &Variant, depth: Option<f64>) -> Result<StandPose> {
+    if let Some(d) = depth
+        && !(d.is_finite() && d > 0.0)
+    {
+        return Err(pupper_core::error::Error::Config(format!(
+            "--depth {d} is not a positive length: give the feet's depth below the hips in metres, e.g. 0.14"
+        )));
+    }
     let info = info(source, variant)?;
-    pupper_core::pose::stand_pose(&info, variant.leg_scale)
+    pupper_core::pose::stand_pose(&info, variant.leg_scale, depth)
 }
 
 /// The compiled `MjModel` of a model source, for Python callers.
@@ -118,8 +125,13 @@ pub fn compiled(source: &ModelSource) -> Result<Py<PyAny>> {
 pub struct StandReport {
     pub model: String,
     pub mode: Mode,
+    /// The gains the cell ran at (the first actuator's when they differ).
     pub kp: f64,
     pub kd: f64,
+    /// `given` (--kp/--kd) or `model` (each actuator's own gains).
+    pub gains_from: &'static str,
+    /// The gains as text: one value, or the range over the actuators.
+    pub gains: String,
     pub seconds: f64,
     pub final_z: f64,
     pub last_1s_std_mm: f64,
@@ -141,7 +153,7 @@ pub fn stand(spec: &SweepSpec) -> Result<StandReport> {
     };
     let sweep = spec.build()?;
     let cfg = &sweep.config;
-    let (results, note) = bridge::with_model(&cfg.model, true, |model| {
+    let (results, note, setup) = bridge::with_model(&cfg.model, true, |model| {
         let note = check_start(model.info(), &cfg.schedule.initial)?;
         let cells = cfg.grid.cells();
         let physics = bridge::physics(model, &cfg.backend)?;
@@ -152,23 +164,39 @@ pub fn stand(spec: &SweepSpec) -> Result<StandReport> {
             sweep.options,
             &mut experiment::NoHooks,
         )?;
-        Ok((r, note))
+        let setup = cfg.setup(&cells[0], model.info());
+        Ok((r, note, setup))
     })?;
     let m = &results[0].metrics;
+    let span = |v: &[f64]| {
+        let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        if lo == hi {
+            format!("{lo}")
+        } else {
+            format!("{lo}..{hi}")
+        }
+    };
+    let gains_from = match (cfg.defaults.kp, cfg.defaults.kd) {
+        (Some(_), Some(_)) => "given",
+        _ => "model",
+    };
     Ok(StandReport {
         model: match spec.variant.as_str() {
             "original" => cfg.model.display(),
             body => format!("{} ({body})", cfg.model.display()),
         },
         mode: cfg.mode,
-        kp: cfg.defaults.kp,
-        kd: cfg.defaults.kd,
+        kp: setup.kp(0),
+        kd: setup.kd(0),
+        gains_from,
+        gains: format!("kp {} kd {}", span(&setup.kp), span(&setup.kd)),
         seconds: cfg.schedule.duration,
         final_z: m.final_z,
         last_1s_std_mm: m.last_1s_std_mm,
         max_tilt_deg: m.max_tilt_deg,
         status: m.status,
-        notes: note.into_iter().collect(),
+        notes: note.into_iter().chain(cfg.schedule.shortfalls()).collect(),
     })
 }
 
@@ -195,7 +223,7 @@ pub fn record(cfg: &SweepConfig, cells: &[Cell], fps: f64) -> Result<Vec<Recordi
         results
             .into_iter()
             .map(|result| {
-                let setup = cfg.setup(&result.cell);
+                let setup = cfg.setup(&result.cell, model.info());
                 let body = model.variant(setup.leg_scale, setup.torso_mass_scale)?;
                 Ok(Recording {
                     result,
@@ -226,15 +254,40 @@ pub fn record_run(dir: &std::path::Path, indices: &[usize], fps: f64) -> Result<
     record(&cfg, &cells, fps)
 }
 
-/// The checks of where cells start that need the model; a note when the
-/// start is a fallback (no `home` keyframe).
-fn check_start(info: &ModelInfo, initial: &InitialState) -> Result<Option<String>> {
-    match initial {
-        InitialState::Pose(p) => info.check_pose(p).map(|()| None),
-        InitialState::Keyframe(k) => info.start_keyframe(k).map(|(_, note)| note),
-        // a body pupper cannot pose is refused before anything is written
-        InitialState::Auto => pupper_core::pose::stand_pose(info, 1.0).map(|_| None),
+/// The checks of where cells start that need the model; notes when the
+/// start is a fallback (no `home` keyframe) or asks a joint to go past its
+/// range.
+fn check_start(info: &ModelInfo, initial: &InitialState) -> Result<Vec<String>> {
+    let mut notes = Vec::new();
+    let targets = match initial {
+        InitialState::Pose(p) => {
+            info.check_pose(p)?;
+            Some(p.clone())
+        }
+        InitialState::Keyframe(k) => {
+            let (key, note) = info.start_keyframe(k)?;
+            notes.extend(note);
+            let layout = pupper_core::layout::Layout::floating(info).ok();
+            match (key, layout) {
+                (Some(k), _) if info.keyframes[k].ctrl.len() == info.nu => {
+                    Some(info.keyframes[k].ctrl.clone())
+                }
+                (Some(k), Some(l)) => Some(l.joint_targets(&info.keyframes[k].qpos)),
+                (None, Some(l)) => Some(l.joint_targets(&info.qpos0)),
+                _ => None,
+            }
+        }
+        // a body pupper cannot pose is refused before anything is written;
+        // the search keeps inside the ranges
+        InitialState::Auto | InitialState::AutoDepth(_) => {
+            pupper_core::pose::stand_pose(info, 1.0, initial.auto_depth().flatten())?;
+            None
+        }
+    };
+    if let Some(t) = targets {
+        notes.extend(info.targets_outside_ranges(&t));
     }
+    Ok(notes)
 }
 
 /// A validated sweep and the command line that asked for it (for the manifest).
@@ -362,7 +415,12 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             .collect();
         // every timestep's plan is checked before anything is created
         let mut steps_at: std::collections::BTreeMap<u64, u64> = Default::default();
-        let dt_of = |c: &Cell| cfg.setup(c).timestep.unwrap_or(info.timestep).to_bits();
+        let dt_of = |c: &Cell| {
+            cfg.setup(c, info)
+                .timestep
+                .unwrap_or(info.timestep)
+                .to_bits()
+        };
         let mut total = 0u64;
         for c in &todo {
             let dt = dt_of(c);
@@ -454,7 +512,11 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             complete: writer.manifest.complete,
             wall_seconds: started.elapsed().as_secs_f64(),
             mujoco_version: writer.manifest.mujoco_version.clone(),
-            notes: note.into_iter().chain(unclipped).collect(),
+            notes: note
+                .into_iter()
+                .chain(unclipped)
+                .chain(cfg.schedule.shortfalls())
+                .collect(),
         })
     })
 }

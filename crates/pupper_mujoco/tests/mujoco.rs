@@ -73,8 +73,9 @@ fn small_sweep(mode: Mode, threads: usize, chunk_cells: usize) -> Vec<CellResult
     let cfg = SweepConfig {
         model: builtin("pupper_v3"),
         grid: Grid::parse(&["kp=10,60", "kd=0.5,2"]).unwrap(),
+        // 4 s: the push at 2 s and the 1.5 s after it fit
         schedule: Schedule {
-            duration: 3.0,
+            duration: 4.0,
             ..Schedule::default()
         },
         mode,

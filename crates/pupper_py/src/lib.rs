@@ -298,6 +298,44 @@ fn stand<'py>(
     to_dict(py, &api::stand(&spec).map_err(to_py)?)
 }
 
+/// Set when the interpreter exits (`_shutdown`, from an `atexit` hook): a
+/// sweep still running in another thread then stops at its next check,
+/// keeps what it finished, and leaves Rust before Python finalizes (a
+/// daemon thread woken inside Rust after that would be torn down mid-call).
+static SHUTDOWN: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+/// Sweeps running now, in any thread.
+static ACTIVE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+/// The longest the exit waits for running sweeps to stop (s).
+const SHUTDOWN_WAIT: f64 = 30.0;
+
+/// Counts a running sweep while it lives.
+struct Active;
+
+impl Active {
+    fn new() -> Active {
+        ACTIVE.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        Active
+    }
+}
+
+impl Drop for Active {
+    fn drop(&mut self) {
+        ACTIVE.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+    }
+}
+
+/// The interpreter is exiting: asks running sweeps to stop and waits (the
+/// GIL released) until they have left Rust, at most `SHUTDOWN_WAIT` s.
+#[pyfunction]
+fn _shutdown(py: Python<'_>) {
+    use std::sync::atomic::Ordering;
+    SHUTDOWN.store(true, Ordering::SeqCst);
+    let started = Instant::now();
+    while ACTIVE.load(Ordering::SeqCst) > 0 && started.elapsed().as_secs_f64() < SHUTDOWN_WAIT {
+        py.detach(|| std::thread::sleep(Duration::from_millis(10)));
+    }
+}
+
 /// Progress to a Python callable, throttled; Ctrl-C through check_signals.
 struct PyUi<'py> {
     py: Python<'py>,
@@ -345,6 +383,14 @@ impl Hooks for PyUi<'_> {
         if self.failed.is_some() {
             return true;
         }
+        if SHUTDOWN.load(std::sync::atomic::Ordering::SeqCst) {
+            self.interrupt.get_or_insert_with(|| {
+                PyKeyboardInterrupt::new_err(
+                    "the interpreter is exiting: sweep stopped; finished cells are kept (resume=True continues a run directory)",
+                )
+            });
+            return true;
+        }
         if let Err(e) = self.py.check_signals() {
             self.interrupt = Some(e);
             return true;
@@ -388,6 +434,12 @@ fn run_spec(
     let sweep = spec.build().map_err(to_py)?;
     if let Some(rule) = rule {
         best::best(&output::header_of(&sweep.config), &[], rule).map_err(to_py)?;
+    }
+    let _active = Active::new();
+    if SHUTDOWN.load(std::sync::atomic::Ordering::SeqCst) {
+        return Err(PyKeyboardInterrupt::new_err(
+            "the interpreter is exiting: no new sweep starts",
+        ));
     }
     let req = SweepRequest {
         sweep,
@@ -446,7 +498,7 @@ fn run_spec(
 /// best.csv (the best gains per body) in `out`. Plots and rendering are the
 /// Python wrapper's.
 #[pyfunction]
-#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::lab::SECONDS, sine=pupper_core::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, rank=None, replicates=1, seed=0, randomize=Vec::new(), backend="cpu".to_string(), device=None, ray=None, progress=None))]
+#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::lab::SECONDS, sine=pupper_core::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, rank=None, replicates=1, seed=0, randomize=Vec::new(), backend="cpu".to_string(), device=None, ray=None, depth=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn lab(
     py: Python<'_>,
@@ -467,6 +519,7 @@ fn lab(
     backend: String,
     device: Option<String>,
     ray: Option<String>,
+    depth: Option<f64>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<result::SweepResult> {
     // the ranges `sweep` takes, with its messages
@@ -497,6 +550,7 @@ fn lab(
         backend,
         device,
         ray,
+        depth,
         ..pupper_core::lab::spec(&variants, &grid.unwrap_or_default(), seconds, sine)
     };
     let metric = rank.unwrap_or_else(|| {
@@ -569,8 +623,8 @@ fn recording_dict<'py>(py: Python<'py>, r: Recording, fps: f64) -> PyResult<Boun
     d.set_item("values", values)?;
     let s = &r.setup;
     let setup = PyDict::new(py);
-    setup.set_item("kp", s.kp)?;
-    setup.set_item("kd", s.kd)?;
+    setup.set_item("kp", s.kp.clone())?;
+    setup.set_item("kd", s.kd.clone())?;
     setup.set_item("max_torque", s.max_torque)?;
     setup.set_item("push_force", s.push_force.to_vec())?;
     setup.set_item("friction", s.friction)?;
@@ -712,6 +766,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     }
     m.add_function(wrap_pyfunction!(info, m)?)?;
     m.add_function(wrap_pyfunction!(stand, m)?)?;
+    m.add_function(wrap_pyfunction!(_shutdown, m)?)?;
     m.add_function(wrap_pyfunction!(sweep, m)?)?;
     m.add_function(wrap_pyfunction!(read_manifest, m)?)?;
     m.add_function(wrap_pyfunction!(load_run, m)?)?;

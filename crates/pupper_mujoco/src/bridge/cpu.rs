@@ -83,6 +83,8 @@ pub struct MujocoBatch<'a, 'py> {
     off: Offsets,
     /// Joint targets per simulation, in ctrl order.
     targets: Vec<Vec<f64>>,
+    /// Stance height per simulation.
+    stance: Vec<f64>,
     nsim: usize,
     /// Row of the base body in xfrc_applied.
     force_body: usize,
@@ -252,6 +254,7 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
                 }
             }
         }
+        let stance = starts.stance;
         let targets: Vec<Vec<f64>> = starts.starts.into_iter().map(|(t, _)| t).collect();
         let warned = vec![0; n];
         let mut me = MujocoBatch {
@@ -262,6 +265,7 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
             warned,
             off,
             targets,
+            stance,
             nsim: n,
             force_body: layout.base.body,
             nbody: info.nbody,
@@ -348,7 +352,10 @@ pub(super) fn actuator_params(mode: Mode, c: &CellSetup, a: usize) -> ([f64; 3],
     let g = c.gain(a);
     match mode {
         // g = 1 gives the nominal values exactly (1 * x == x)
-        Mode::Servo => ([g * c.kp, 0.0, 0.0], [0.0, -(g * c.kp), -(g * c.kd)]),
+        Mode::Servo => (
+            [g * c.kp(a), 0.0, 0.0],
+            [0.0, -(g * c.kp(a)), -(g * c.kd(a))],
+        ),
         Mode::Torque => ([g, 0.0, 0.0], [0.0, 0.0, 0.0]),
     }
 }
@@ -476,6 +483,10 @@ impl SimBatch for MujocoBatch<'_, '_> {
 
     fn targets(&self, sim: usize) -> &[f64] {
         &self.targets[sim]
+    }
+
+    fn stance(&self, sim: usize) -> f64 {
+        self.stance[sim]
     }
 
     fn qpos(&self, sim: usize) -> Result<Vec<f64>> {

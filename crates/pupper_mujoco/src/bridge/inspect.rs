@@ -137,7 +137,7 @@ impl<'py> Mujoco<'py> {
         Ok(ModelInfo {
             name,
             source: source.display(),
-            sha256: source.sha256()?,
+            sha256: self.fingerprint(model).internal()?,
             nq,
             nv,
             nu,
@@ -156,6 +156,30 @@ impl<'py> Mujoco<'py> {
                 .internal()?,
             legs,
         })
+    }
+
+    /// SHA-256 of the compiled model as MuJoCo saves it (MJB): the robot
+    /// that runs, whatever files it was read from. An edit to a file the
+    /// MJCF includes changes it; a comment or a moved directory does not.
+    fn fingerprint(&self, model: &Bound<'py, PyAny>) -> PyResult<String> {
+        let py = self.py;
+        let size: usize = self
+            .module
+            .getattr("mj_sizeModel")?
+            .call1((model,))?
+            .extract()?;
+        let kw = pyo3::types::PyDict::new(py);
+        kw.set_item("dtype", "uint8")?;
+        let buf = py
+            .import("numpy")?
+            .getattr("zeros")?
+            .call((size,), Some(&kw))?;
+        self.module
+            .getattr("mj_saveModel")?
+            .call1((model, py.None(), &buf))?;
+        let bytes = buf.call_method0("tobytes")?;
+        let bytes = bytes.cast::<pyo3::types::PyBytes>()?.as_bytes();
+        Ok(pupper_core::model::sha256_hex(bytes))
     }
 
     /// The legs of a model at its default pose: below the base (body 1),
@@ -201,10 +225,9 @@ impl<'py> Mujoco<'py> {
                     _ => break,
                 }
             }
-            let foot = (0..gbody.len()).find(|&g| gbody[g] == b && (ctype[g] != 0 || caff[g] != 0));
-            let (Some(foot_geom), true) = (foot, hinges.len() >= 3) else {
+            if hinges.len() < 3 {
                 continue;
-            };
+            }
             // By their axes, not their order: abduction turns about the
             // body's forward (x) axis, hip flexion and knee about its side (y).
             let Some(haa) = hinges
@@ -220,6 +243,19 @@ impl<'py> Mujoco<'py> {
                 .filter(|&j| j != haa && axis[j][1].abs() > 0.9)
                 .collect();
             let [hfe, kfe, ..] = pitch[..] else { continue };
+            // the foot: the last body's colliding geom furthest from the knee
+            // (a calf may collide along its length too)
+            let from_knee = |g: usize| -> f64 {
+                (0..3)
+                    .map(|i| (gpos[g][i] - anchor[kfe][i]).powi(2))
+                    .sum::<f64>()
+            };
+            let Some(foot_geom) = (0..gbody.len())
+                .filter(|&g| gbody[g] == b && (ctype[g] != 0 || caff[g] != 0))
+                .max_by(|&a, &c| from_knee(a).total_cmp(&from_knee(c)))
+            else {
+                continue;
+            };
             let (hip, knee, foot) = (anchor[hfe], anchor[kfe], gpos[foot_geom]);
             let d: f64 = (0..3)
                 .map(|i| (foot[i] - hip[i]).powi(2))
@@ -235,6 +271,7 @@ impl<'py> Mujoco<'py> {
                 knee_axis: axis[kfe],
                 hip_to_foot: d,
                 foot_radius: gsize[foot_geom][0],
+                foot_geom,
             });
         }
         Ok(legs)

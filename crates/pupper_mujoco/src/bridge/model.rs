@@ -141,10 +141,67 @@ impl<'py> LoadedModel<'py> {
     }
 
     /// The stand pose of a body variant, searched on its compiled geometry.
-    pub fn stand_pose(&self, leg_scale: f64, torso_mass_scale: f64) -> Result<StandPose> {
+    pub fn stand_pose(
+        &self,
+        leg_scale: f64,
+        torso_mass_scale: f64,
+        depth: Option<f64>,
+    ) -> Result<StandPose> {
         let body = self.variant(leg_scale, torso_mass_scale)?;
         let info = self.mj.info(&self.source, &body)?;
-        pupper_core::pose::stand_pose(&info, leg_scale)
+        pupper_core::pose::stand_pose(&info, leg_scale, depth)
+    }
+
+    /// The stance height of `body` with the joints of `qpos`: the base
+    /// height at which its lowest foot (each leg's foot geom; a model
+    /// without legs: its lowest colliding geom's bounding sphere) touches
+    /// z = 0. Falls and collapses are judged against it.
+    pub fn stance(&self, body: &Bound<'py, PyAny>, qpos: &[f64]) -> Result<f64> {
+        let layout = self
+            .layout
+            .as_ref()
+            .ok_or_else(|| Error::Internal("stance needs a floating model".into()))?;
+        let lowest = (|| -> PyResult<f64> {
+            let data = self.mj.module.getattr("MjData")?.call1((body,))?;
+            let q = data.getattr("qpos")?;
+            for (i, v) in qpos.iter().enumerate() {
+                q.set_item(i, *v)?;
+            }
+            self.mj
+                .module
+                .getattr("mj_kinematics")?
+                .call1((body, &data))?;
+            let list = |obj: &Bound<'py, PyAny>, n: &str| -> PyResult<Bound<'py, PyAny>> {
+                obj.getattr(n)?.call_method0("tolist")
+            };
+            let gpos: Vec<[f64; 3]> = list(&data, "geom_xpos")?.extract()?;
+            let gsize: Vec<[f64; 3]> = list(body, "geom_size")?.extract()?;
+            if !self.info.legs.is_empty() {
+                return Ok(self
+                    .info
+                    .legs
+                    .iter()
+                    .map(|l| gpos[l.foot_geom][2] - gsize[l.foot_geom][0])
+                    .fold(f64::INFINITY, f64::min));
+            }
+            let gbody: Vec<usize> = list(body, "geom_bodyid")?.extract()?;
+            let rbound: Vec<f64> = list(body, "geom_rbound")?.extract()?;
+            let ctype: Vec<i64> = list(body, "geom_contype")?.extract()?;
+            let caff: Vec<i64> = list(body, "geom_conaffinity")?.extract()?;
+            Ok((0..gbody.len())
+                .filter(|&g| gbody[g] != 0 && (ctype[g] != 0 || caff[g] != 0))
+                .map(|g| gpos[g][2] - rbound[g])
+                .fold(f64::INFINITY, f64::min))
+        })()
+        .internal()?;
+        let z = qpos[layout.base.z()];
+        let stance = z - lowest;
+        // a robot without a foot below its base: judge it by where it starts
+        Ok(if stance.is_finite() && stance > 0.0 {
+            stance
+        } else {
+            z
+        })
     }
 
     /// A model with scaled legs and torso, compiled from an edited spec.
@@ -162,7 +219,12 @@ impl<'py> LoadedModel<'py> {
             .as_ref()
             .ok_or_else(|| Error::Internal("variants need a floating model".into()))?;
         let base_name = &self.info.bodies[layout.base.body];
-        scale_spec(&spec, base_name, leg_scale, torso_mass_scale).internal()?;
+        let torso = Torso {
+            compiled: &self.model,
+            id: layout.base.body,
+            scale: torso_mass_scale,
+        };
+        scale_spec(&spec, base_name, leg_scale, &torso).internal()?;
         let model = self.mj.compile(&self.source, &spec)?;
         self.variants.borrow_mut().push((key, model.clone()));
         Ok(model)
@@ -173,7 +235,15 @@ impl<'py> LoadedModel<'py> {
 /// thigh and calf segments of each leg) get their offsets, geoms, sites and
 /// inertial positions scaled by `leg`, their masses by `leg` and inertias by
 /// `leg^3` (a uniform rod); the base body's mass and inertia by `torso`.
-fn scale_spec(spec: &Bound<'_, PyAny>, base: &str, leg: f64, torso: f64) -> PyResult<()> {
+/// A base whose inertia the compiler derives from its geoms (no
+/// `<inertial>`) gets the compiled inertial, scaled, as an explicit one: a
+/// heavier torso must never be the same torso.
+fn scale_spec(
+    spec: &Bound<'_, PyAny>,
+    base: &str,
+    leg: f64,
+    torso: &Torso<'_, '_>,
+) -> PyResult<()> {
     let py = spec.py();
     let scale3 = |obj: &Bound<'_, PyAny>, attr: &str, s: f64| -> PyResult<()> {
         let v: Vec<f64> = obj.getattr(attr)?.call_method0("tolist")?.extract()?;
@@ -181,10 +251,24 @@ fn scale_spec(spec: &Bound<'_, PyAny>, base: &str, leg: f64, torso: f64) -> PyRe
         obj.setattr(attr, PyList::new(py, scaled)?)
     };
     let base_body = spec.call_method1("body", (base,))?;
-    if torso != 1.0 {
+    if torso.scale != 1.0 {
+        if !base_body.getattr("explicitinertial")?.extract::<bool>()? {
+            let row = |field: &str| -> PyResult<Bound<'_, PyAny>> {
+                torso
+                    .compiled
+                    .getattr(field)?
+                    .get_item(torso.id)?
+                    .call_method0("tolist")
+            };
+            base_body.setattr("mass", row("body_mass")?)?;
+            base_body.setattr("inertia", row("body_inertia")?)?;
+            base_body.setattr("ipos", row("body_ipos")?)?;
+            base_body.setattr("iquat", row("body_iquat")?)?;
+            base_body.setattr("explicitinertial", true)?;
+        }
         let m: f64 = base_body.getattr("mass")?.extract()?;
-        base_body.setattr("mass", m * torso)?;
-        scale3(&base_body, "inertia", torso)?;
+        base_body.setattr("mass", m * torso.scale)?;
+        scale3(&base_body, "inertia", torso.scale)?;
     }
     if leg == 1.0 {
         return Ok(());
@@ -223,6 +307,13 @@ fn scale_spec(spec: &Bound<'_, PyAny>, base: &str, leg: f64, torso: f64) -> PyRe
         }
     }
     Ok(())
+}
+
+/// The base body of a compiled model, and the factor on its mass.
+struct Torso<'a, 'py> {
+    compiled: &'a Bound<'py, PyAny>,
+    id: usize,
+    scale: f64,
 }
 
 /// The direct child bodies of a spec body.

@@ -48,6 +48,8 @@ pub(crate) struct StartStates {
     /// True when the start angles are the targets (a pose), not the keyframe's.
     pub set_joints: bool,
     pub starts: Vec<Start>,
+    /// Each simulation's stance height (see [`LoadedModel::stance`]).
+    pub stance: Vec<f64>,
 }
 
 impl StartStates {
@@ -62,15 +64,17 @@ impl StartStates {
         let (key, pose) = match initial {
             InitialState::Keyframe(name) => (info.start_keyframe(name)?.0, None),
             // base x, y and orientation as the first keyframe (or qpos0) has them
-            InitialState::Auto => (info.keyframes.first().map(|_| 0), None),
+            InitialState::Auto | InitialState::AutoDepth(_) => {
+                (info.keyframes.first().map(|_| 0), None)
+            }
             InitialState::Pose(p) => {
                 info.check_pose(p)?;
                 (info.keyframes.first().map(|_| 0), Some(p.clone()))
             }
         };
         // each simulation's start: joint angles (also its targets), base height
-        let starts: Vec<Start> = match (initial, &pose, key) {
-            (InitialState::Auto, _, _) => {
+        let starts: Vec<Start> = match (initial.auto_depth(), &pose, key) {
+            (Some(depth), _, _) => {
                 // one search per body, not per cell
                 let mut poses: Vec<((u64, u64), Start)> = Vec::new();
                 let mut starts = Vec::with_capacity(n);
@@ -79,7 +83,7 @@ impl StartStates {
                     let start = match poses.iter().find(|(k, _)| *k == key) {
                         Some((_, s)) => s.clone(),
                         None => {
-                            let p = owner.stand_pose(c.leg_scale, c.torso_mass_scale)?;
+                            let p = owner.stand_pose(c.leg_scale, c.torso_mass_scale, depth)?;
                             poses.push((key, (p.targets, Some(p.base_z))));
                             poses[poses.len() - 1].1.clone()
                         }
@@ -100,11 +104,37 @@ impl StartStates {
             }
             (_, None, None) => vec![(layout.joint_targets(&info.qpos0), None); n],
         };
-        Ok(StartStates {
+        let mut states = StartStates {
             keyframe: key,
-            set_joints: pose.is_some() || *initial == InitialState::Auto,
+            set_joints: pose.is_some() || initial.auto_depth().is_some(),
             starts,
-        })
+            stance: Vec::with_capacity(n),
+        };
+        // one forward-kinematics pass per body and start, not per cell
+        let reset = match key {
+            Some(k) => info.keyframes[k].qpos.clone(),
+            None => info.qpos0.clone(),
+        };
+        let mut seen: Vec<((u64, u64), usize, f64)> = Vec::new();
+        for (i, c) in cells.iter().enumerate() {
+            let body = (c.leg_scale.to_bits(), c.torso_mass_scale.to_bits());
+            let same = |&(b, j, _): &((u64, u64), usize, f64)| {
+                b == body && states.starts[j] == states.starts[i]
+            };
+            let stance = match seen.iter().find(|s| same(s)) {
+                Some(&(_, _, s)) => s,
+                None => {
+                    let mut q = reset.clone();
+                    states.qpos(owner, i, &mut q);
+                    let model = owner.variant(c.leg_scale, c.torso_mass_scale)?;
+                    let s = owner.stance(&model, &q)?;
+                    seen.push((body, i, s));
+                    s
+                }
+            };
+            states.stance.push(stance);
+        }
+        Ok(states)
     }
 
     /// Simulation `i`'s qpos, given the qpos it was reset to.

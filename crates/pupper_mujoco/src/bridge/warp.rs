@@ -107,6 +107,7 @@ pub struct WarpBatch<'py> {
     /// (group, world) of each simulation.
     place: Vec<(usize, usize)>,
     targets: Vec<Vec<f64>>,
+    stance: Vec<f64>,
     nq: usize,
     nu: usize,
 }
@@ -129,7 +130,7 @@ fn world_params(mode: Mode, c: &CellSetup, a: usize) -> ([f64; 3], [f64; 3]) {
         Mode::Servo => actuator_params(mode, c, a),
         // the targets go in as ctrl; the limit is the force range
         Mode::Torque => {
-            let pd = ActuatorPd::new(c.kp, c.kd, 0.0, f64::INFINITY);
+            let pd = ActuatorPd::new(c.kp(a), c.kd(a), 0.0, f64::INFINITY);
             ([pd.gain, 0.0, 0.0], pd.bias)
         }
     }
@@ -265,6 +266,7 @@ impl<'py> WarpBatch<'py> {
         Ok(WarpBatch {
             groups,
             place,
+            stance: starts.stance,
             targets: starts.starts.into_iter().map(|(t, _)| t).collect(),
             nq,
             nu,
@@ -283,6 +285,10 @@ impl SimBatch for WarpBatch<'_> {
 
     fn targets(&self, sim: usize) -> &[f64] {
         &self.targets[sim]
+    }
+
+    fn stance(&self, sim: usize) -> f64 {
+        self.stance[sim]
     }
 
     fn qpos(&self, sim: usize) -> Result<Vec<f64>> {
