@@ -243,3 +243,45 @@ def test_merge_checks_every_file_of_every_shard(run, tmp_path: Path, damage: str
         f.write_bytes((tmp_path / f"s1-{name}").read_bytes())
     assert pc.load_run(tmp_path / "s1").complete is True
     run("merge", tmp_path / "s1", tmp_path / "s2", "-o", tmp_path / "merged", check=0)
+
+
+def test_smaller_holes(run, tmp_path: Path) -> None:
+    """The smaller items: a resume never drops options silently, --force
+    leaves nothing of the old run, merge never writes into a shard, Python
+    takes one name as one name, a non-finite option names itself."""
+    import math
+
+    import pupper_core as pc
+
+    args = ["sweep", "--grid", "kp=5,30", "--seconds", "0.2", "-q"]
+    run(*args, "-o", tmp_path / "r", "--best-by", "kp", check=0)
+    assert (tmp_path / "r" / "best.csv").exists()
+    p = run("sweep", "--resume", tmp_path / "r", "--seconds", "5")
+    assert p.returncode == 2 and "schedule.duration" in p.stderr, p.stderr
+    # the same value as the run's is no conflict; a complete run says so
+    again = run("sweep", "--resume", tmp_path / "r", "--seconds", "0.2", check=0)
+    assert "nothing left to run" in again.stdout, again.stdout
+    # --force: no best.csv of the old run beside the new summary
+    run(*args, "-o", tmp_path / "r", "--force", check=0)
+    assert not (tmp_path / "r" / "best.csv").exists()
+    # a value given twice is refused (two cells with one id)
+    dup = run("sweep", "--grid", "kp=10,10", "-o", tmp_path / "d")
+    assert dup.returncode == 2 and "twice" in dup.stderr and not (tmp_path / "d").exists()
+    # replicates without draws are identical: said
+    same = run("sweep", "--replicates", "2", "--seconds", "0.1", "-q", "-o", tmp_path / "rep", check=0)
+    assert "identical copies" in same.stderr, same.stderr
+    # merge never writes into one of its shards
+    for i in (1, 2):
+        run(*args, "--shard", f"{i}/2", "-o", tmp_path / f"s{i}", check=0)
+    m = run("merge", tmp_path / "s1", tmp_path / "s2", "-o", tmp_path / "s1", "--force")
+    assert m.returncode == 2 and "itself" in m.stderr, m.stderr
+    (tmp_path / "taken").mkdir()
+    m = run("merge", tmp_path / "s1", tmp_path / "s2", "-o", tmp_path / "taken")
+    assert m.returncode == 2 and "--force" in m.stderr and "--resume" not in m.stderr, m.stderr
+    with pytest.raises(pc.ConfigError):
+        pc.merge(tmp_path / "s1", tmp_path / "one")  # one path: one shard, not its letters
+    # Python: one body name, a grid dict, a NaN named by its keyword
+    res = pc.lab("heavy", {"kp": [30], "kd": 1}, seconds=2.0, progress=False)
+    assert list(res["variant"]) == ["heavy"] and list(res["kp"]) == [30.0]
+    with pytest.raises(pc.ConfigError, match="push_force=nan"):
+        pc.sweep({"kp": [5]}, seconds=0.1, push_force=math.nan, progress=False)

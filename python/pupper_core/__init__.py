@@ -208,8 +208,8 @@ def sweep(
 
 
 def lab(
-    variants: Sequence[Variant] | None = None,
-    grid: Sequence[str] | None = None,
+    variants: Variant | Sequence[Variant] | None = None,
+    grid: Mapping[str, Any] | Sequence[str] | str | None = None,
     *,
     out: str | os.PathLike[str] | None = None,
     render: bool = False,
@@ -232,9 +232,7 @@ def lab(
     `pupper lab --help`).
     """
     callback = _progress_printer() if progress is True else (progress or None)
-    res = _native.lab(list(variants) if variants is not None else None,
-                      list(grid) if grid is not None else None,
-                      out=out, progress=callback, **options)
+    res = _native.lab(_names(variants), _grid_specs(grid), out=out, progress=callback, **options)
     if res.out is not None:
         from pupper_core import plots, render as draw
 
@@ -247,12 +245,43 @@ def lab(
     return res
 
 
+def _names(variants: str | Sequence[str] | None) -> list[str] | None:
+    """Body names: one name or several (a string is one name, never its letters)."""
+    if variants is None:
+        return None
+    return [variants] if isinstance(variants, str) else [str(v) for v in variants]
+
+
+def _grid_specs(grid: Any) -> list[str] | None:
+    """The lab's grid as CLI strings, from what `sweep` takes: a dict of
+    axis -> values (numbers or text), `AXIS=VALUES` strings, or one."""
+    if grid is None:
+        return None
+    if isinstance(grid, str):
+        return [grid]
+    if isinstance(grid, Mapping):
+        def one(v: Any) -> str:
+            if isinstance(v, str) or (isinstance(v, int) and not isinstance(v, bool)):
+                return str(v)
+            return repr(float(v))  # numpy scalars too: the shortest exact text
+
+        def text(values: Any) -> str:
+            if isinstance(values, (str, int, float)):
+                return one(values)
+            return ",".join(one(v) for v in values)
+
+        return [f"{axis}={text(values)}" for axis, values in grid.items()]
+    return [str(g) for g in grid]
+
+
 def merge(dirs: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], *,
           force: bool = False) -> SweepResult:
     """Puts the shards of one sweep (each run with ``shard="I/N"``) together
     into the run directory `out`, as `pupper merge` does: its summary.csv is
     the unsharded sweep's. Refuses shards of different sweeps, a missing or
     repeated shard (saying which to rerun)."""
+    if isinstance(dirs, (str, os.PathLike)):
+        dirs = [dirs]  # one directory, never its characters
     return _native.merge([os.fspath(d) for d in dirs], os.fspath(out), force=force)
 
 

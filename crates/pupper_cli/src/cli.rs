@@ -708,6 +708,9 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
 /// fill it): the spec, where it goes, and what to show after.
 struct Job {
     spec: SweepSpec,
+    /// The spec of the same command with no option given: what a `--resume
+    /// DIR` alone compares against to find the inputs the user set.
+    baseline: SweepSpec,
     out: Option<PathBuf>,
     resume: Option<PathBuf>,
     /// `--resume DIR` without grid flags: the manifest's inputs.
@@ -731,6 +734,7 @@ fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
     run_job(
         Job {
             spec: a.spec()?,
+            baseline: SweepSpec::default(),
             resume_alone: a.grid.grid.is_empty() && a.preset.is_none(),
             out: a.out,
             resume: a.resume,
@@ -764,6 +768,12 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
     run_job(
         Job {
             spec,
+            baseline: pupper_core::lab::spec(
+                &pupper_core::lab::VARIANTS.map(String::from),
+                &[],
+                pupper_core::lab::SECONDS,
+                pupper_core::lab::SINE,
+            ),
             resume_alone: a.grid.grid.is_empty(),
             out: a.out,
             resume: a.resume,
@@ -782,6 +792,40 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
     )
 }
 
+/// `--resume DIR` alone runs with the manifest's inputs: an input the
+/// command line also sets (away from its default) to another value is
+/// refused, never silently dropped.
+fn refuse_other_inputs(
+    dir: &std::path::Path,
+    baseline: &SweepSpec,
+    given: &pupper_core::experiment::SweepConfig,
+    run: &pupper_core::experiment::SweepConfig,
+) -> Result<()> {
+    let Ok(base) = baseline.build() else {
+        return Ok(());
+    };
+    let set: Vec<String> = output::config_diff(&base.config, given)
+        .into_iter()
+        .filter_map(|d| d.split(':').next().map(String::from))
+        .collect();
+    let clash: Vec<String> = output::config_diff(run, given)
+        .into_iter()
+        .filter(|d| {
+            d.split(':')
+                .next()
+                .is_some_and(|p| set.iter().any(|s| s == p))
+        })
+        .collect();
+    if clash.is_empty() {
+        return Ok(());
+    }
+    Err(Error::ResumeMismatch(format!(
+        "--resume {} continues the run with its own inputs, but this command sets others ({}): drop those options, or start a new run with -o",
+        dir.display(),
+        clash.join(", ")
+    )))
+}
+
 fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
     // as text for the manifest: a path that is not UTF-8 keeps its other bytes
     let command: Vec<String> = std::env::args_os()
@@ -797,6 +841,7 @@ fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
             }
             .build()?;
             let m = output::read_manifest(dir)?;
+            refuse_other_inputs(dir, &a.baseline, &s.config, &m.config)?;
             s.config = m.config;
             s.shard = m.shard.map(|r| r.shard);
             s

@@ -330,15 +330,26 @@ pub fn sweep(o: &SweepOutcome) -> String {
             "{bad} cell(s) fell or diverged: see the status and event_time columns"
         );
     }
-    if let Some(d) = &o.out {
-        let _ = writeln!(
-            s,
-            "{} cells in {:.2} s (mujoco {}); wrote {}/summary.csv",
-            o.cells_run,
-            o.wall_seconds,
-            o.mujoco_version,
-            d.display()
-        );
+    match &o.out {
+        Some(d) if o.cells_run == 0 => {
+            let _ = writeln!(
+                s,
+                "nothing left to run: {} holds all {} cells",
+                d.display(),
+                o.rows.len()
+            );
+        }
+        Some(d) => {
+            let _ = writeln!(
+                s,
+                "{} cells in {:.2} s (mujoco {}); wrote {}/summary.csv",
+                o.cells_run,
+                o.wall_seconds,
+                o.mujoco_version,
+                d.display()
+            );
+        }
+        None => {}
     }
     s
 }

@@ -181,6 +181,15 @@ impl AxisValues {
             }
             axis.check(v)?;
         }
+        // a value given twice would make two cells with one id
+        for (i, &v) in values.iter().enumerate() {
+            if values[..i].iter().any(|&w| axis.text(w) == axis.text(v)) {
+                return Err(Error::Grid(format!(
+                    "grid axis '{axis}' has the value {} twice: give each value once",
+                    axis.text(v)
+                )));
+            }
+        }
         Ok(AxisValues { axis, values })
     }
 }
@@ -473,6 +482,17 @@ pub fn cell_id(values: &[(Axis, f64)]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_value_given_twice_is_refused() {
+        let e = Grid::parse(&["kp=10,30,10"]).unwrap_err().to_string();
+        assert!(e.contains("value 10 twice"), "{e}");
+        let e = AxisValues::new(Axis::Kd, vec![0.5, 0.5])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("0.5 twice"), "{e}");
+        assert!(Grid::parse(&["kp=10,30"]).is_ok());
+    }
 
     #[test]
     fn list_values() {

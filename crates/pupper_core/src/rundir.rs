@@ -378,9 +378,23 @@ impl RunWriter {
         };
         remove_stale_temps(&dir);
         if self.existing == Existing::Overwrite {
-            // an overwritten run must not keep files of the old one
-            let _ = std::fs::remove_file(dir.join(TRACES));
-            let _ = std::fs::remove_file(dir.join(REPLICATES));
+            // an overwritten run must not keep files of the old one: its
+            // tables, its ranking, MuJoCo's log, the figures pupper drew
+            for name in [TRACES, REPLICATES, crate::output::BEST, "MUJOCO_LOG.TXT"] {
+                let _ = std::fs::remove_file(dir.join(name));
+            }
+            if let Ok(entries) = std::fs::read_dir(dir.join("plots")) {
+                for e in entries.flatten() {
+                    let p = e.path();
+                    let drawn = p
+                        .extension()
+                        .and_then(|x| x.to_str())
+                        .is_some_and(|x| matches!(x, "png" | "gif" | "csv"));
+                    if drawn && p.is_file() {
+                        let _ = std::fs::remove_file(&p);
+                    }
+                }
+            }
         }
         // a resume's files are rewritten from what was read: sorted, without
         // a truncated last line or traces of cells that must run again
@@ -560,6 +574,24 @@ pub fn merge(dirs: &[PathBuf], out: &Path, existing: Existing) -> Result<(PathBu
         return Err(bad(
             "merge needs the shards' run directories: pupper merge DIR... -o OUT".into(),
         ));
+    }
+    // the merged run is a new directory: never one of the shards it reads
+    let same = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    };
+    if let Some(d) = dirs.iter().find(|d| same(d, out)) {
+        return Err(Error::Output(format!(
+            "-o '{}' is the shard '{}' itself: merge into a new directory",
+            out.display(),
+            d.display()
+        )));
+    }
+    if existing == Existing::Refuse && out.exists() {
+        return Err(Error::RunExists(format!(
+            "output directory '{}' already exists: choose another -o, or add --force to overwrite it",
+            out.display()
+        )));
     }
     let mut parts: Vec<(&PathBuf, Manifest)> = Vec::with_capacity(dirs.len());
     for d in dirs {

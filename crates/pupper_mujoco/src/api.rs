@@ -515,6 +515,14 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             notes: note
                 .into_iter()
                 .chain(unclipped)
+                .chain(
+                    (cfg.replicates.count > 1 && cfg.replicates.randomize.is_empty()).then(|| {
+                        format!(
+                            "--replicates {} without --randomize runs {} identical copies of every cell: add --randomize QUANTITY=DIST (see --help) to draw a population",
+                            cfg.replicates.count, cfg.replicates.count
+                        )
+                    }),
+                )
                 .chain(cfg.schedule.shortfalls())
                 .collect(),
         })

@@ -161,6 +161,22 @@ fn spec_from(py: Python<'_>, options: Option<&Bound<'_, PyDict>>) -> PyResult<Sw
     let Some(options) = options else {
         return Ok(SweepSpec::default());
     };
+    // a float that is not finite, named by its keyword (JSON cannot say which)
+    for (k, v) in options.iter() {
+        let bad = |x: f64| !x.is_finite();
+        let nonfinite = match v.extract::<f64>() {
+            Ok(x) => bad(x),
+            Err(_) => v
+                .extract::<Vec<f64>>()
+                .is_ok_and(|xs| xs.iter().copied().any(bad)),
+        };
+        if nonfinite && !v.is_instance_of::<pyo3::types::PyBool>() {
+            return Err(ConfigError::new_err(format!(
+                "{k}={} is not a finite number: give {k} a finite value",
+                v.repr()?
+            )));
+        }
+    }
     let kw = PyDict::new(py);
     kw.set_item("allow_nan", false)?;
     let text: String = PyModule::import(py, "json")?
