@@ -24,7 +24,7 @@ sweep: setup
 
 # every optional extra: the tests run the warp backend (on Warp's CPU device)
 # and --ray (on a two-node Ray cluster over loopback, in its own namespaces)
-test: export PUPPER_EXTRAS := gpu,ray
+test: export PUPPER_EXTRAS := gpu,ray,dev
 test: setup test-rust test-python
 
 test-rust:

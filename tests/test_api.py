@@ -204,3 +204,40 @@ def test_best_by_groups_follows_the_rule_and_the_cli(run, tmp_path):
         (g for g in groups if g["id"]), key=lambda g: g["last_1s_std_mm"])["id"]
     with pytest.raises(pc.ConfigError, match="cannot group by 'leg_scale'"):
         res.best(by=["leg_scale"])
+
+
+def test_a_result_behaves_like_a_table_in_a_notebook(tmp_path):
+    """`in`, iteration, HTML, plots on the result itself, a clean dir(),
+    signatures that show real defaults, Python's words in messages."""
+    import inspect
+    import subprocess
+    import sys
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = pc.sweep({"kp": [10, 30], "kd": [0.5, 1]}, seconds=2.5, progress=False)
+    assert any("seconds=2.5" in str(w.message) for w in caught), [str(w.message) for w in caught]
+    assert not any("--seconds" in str(w.message) for w in caught)
+    assert "kp" in res and "nope" not in res
+    rows = list(res)
+    assert [r["id"] for r in rows] == res.ids and rows[0]["kp"] == 10.0
+    html = res._repr_html_()
+    assert html.startswith("<table") and html.count("<tr") == 1 + len(res)
+    assert "<th>name</th>" not in html  # empty in a sweep without a preset
+    assert not repr(res).splitlines()[1].split()[0] == "name"
+    from pupper_core import plots
+
+    fig = plots.heatmap(res, "final_z", x="kp", y="kd")
+    assert fig.axes and fig.pupper_best
+    for module in (pc, plots):
+        assert not {"os", "sys", "np", "typing", "inspect"} & set(dir(module)), dir(module)
+    sig = inspect.signature(pc.sweep)
+    assert sig.parameters["randomize"].default == ()
+    assert inspect.signature(pc.SweepResult.best).parameters["max_saturation"].default == 0.05
+    lab = inspect.signature(pc._native.lab).parameters
+    assert lab["seconds"].default == 6.0 and lab["max_saturation"].default == 0.05
+    # no progress bar in a script whose stderr is a pipe, for a short sweep
+    p = subprocess.run([sys.executable, "-c", "import pupper_core as pc; pc.sweep({'kp': [5]}, seconds=0.1)"],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0 and "pupper sweep" not in p.stderr and "it/s" not in p.stderr, p.stderr

@@ -413,3 +413,84 @@ def test_render_without_gl_says_how_to_fix(tmp_path: Path) -> None:
                        capture_output=True, text=True, timeout=120)
     assert p.stdout.startswith("unavailable: MUJOCO_GL=no-such-backend cannot render"), p.stdout + p.stderr
     assert "fix:" in p.stdout and not (tmp_path / "x.png").exists()
+
+
+# ---------------------------------------------------------------------------
+# figures that answer the question (issue 25), read back from the files'
+# own figures
+
+
+@pytest.fixture(scope="module")
+def chapter_grid(pupper_bin, tmp_path_factory) -> Path:
+    import subprocess
+
+    from conftest import clean_env
+
+    d = tmp_path_factory.mktemp("grid") / "run"
+    p = subprocess.run([str(pupper_bin), "sweep", "--grid", "kp=10,30,60,120", "--grid", "kd=0.5,1,2,5",
+                        "--trace", "-q", "-o", str(d)], capture_output=True, text=True, env=clean_env(),
+                       timeout=300)
+    assert p.returncode == 0, p.stderr
+    return d
+
+
+def test_the_heatmap_marks_what_the_cli_names_and_says_what_is_not_ranked(chapter_grid: Path, run) -> None:
+    from matplotlib.patches import Rectangle
+
+    table, _, _ = plots.read_run(chapter_grid)
+    fig = plots.heatmap(table, "last_1s_std_mm")
+    # the star is on the cell `pupper sweep` printed as steadiest (the tie
+    # within 1 um goes to the smaller dip: Kp 120, Kd 2)
+    assert fig.pupper_best == [{"panel": None, "kp": 120.0, "kd": 2.0,
+                                "last_1s_std_mm": pytest.approx(float(table["last_1s_std_mm"][14]))}]
+    ax = fig.axes[0]
+    # the four chattering Kd 5 cells are hatched and say so
+    hatched = [p for p in ax.patches if isinstance(p, Rectangle) and p.get_gid() == "saturated"]
+    assert len(hatched) == 4
+    texts = [t.get_text() for t in ax.texts]
+    assert sum("saturated" in t for t in texts) == 4
+    # one number format: micrometres, "<0.001" below; never 9.42e-06
+    assert not any("e-" in t for t in texts), texts
+    assert "<0.001" in texts
+    # yellow is steadier in both the sweep's and the lab's heatmaps
+    image = ax.images[0]
+    assert image.get_cmap().name.startswith("viridis_r")
+
+
+def test_base_z_tells_cells_apart_and_shows_the_dip(chapter_grid: Path) -> None:
+    import matplotlib.colors as mcolors
+
+    table, manifest, traces = plots.read_run(chapter_grid)
+    status = dict(zip(table["id"], table["status"]))
+    fig = plots.base_z(traces, push=manifest["config"]["schedule"]["push"], status=status)
+    whole, zoom = fig.axes[:2]
+    lines = whole.get_lines()
+    assert len(lines) == 16
+    assert len({mcolors.to_hex(line.get_color()) for line in lines}) == 16, "16 distinct colours"
+    # the whole-run range is the robots after landing: the 280 mm start is
+    # off the top, and the millimetre dips fill the panel
+    lo, hi = whole.get_ylim()
+    assert hi < 140 and hi - lo < 15, (lo, hi)
+    assert "off the top" in whole.get_title()
+    # chattering cells are dashed and set no range
+    dashed = [line for line in lines if line.get_linestyle() == "--"]
+    assert len(dashed) == 4
+
+
+def test_lab_figures_name_the_disturbance_number_the_cells_and_hint_at_the_edge(run, tmp_path: Path) -> None:
+    import matplotlib.image as mpimg
+
+    run("lab", "--seconds", "2", "-q", "-o", tmp_path / "lab", check=0)
+    table, manifest, _ = plots.read_run(tmp_path / "lab")
+    assert "vertical sine 2 N at 1.2 Hz" in plots.describe(manifest)
+    rows = [dict(zip(table, vals)) for vals in zip(*table.values())]
+    bodies = list(dict.fromkeys(r["variant"] for r in rows))
+    kp = sorted({float(r["kp"]) for r in rows})
+    kd = sorted({float(r["kd"]) for r in rows})
+    values = {b: np.full((len(kd), len(kp)), 0.05) for b in bodies}
+    fig = plots.lab_heatmaps(bodies, kp, kd, values, {b: (kp[-1], kd[0]) for b in bodies})
+    assert fig.pupper_edges and all("Kp up" in e for e in fig.pupper_edges)
+    assert all(any(t.get_text() == "0.050" for t in a.texts) for a in fig.axes[:3])
+    assert fig.axes[0].images[0].get_cmap().name.startswith("viridis_r")
+    png = mpimg.imread(tmp_path / "lab" / "plots" / "lab_heatmaps.png")
+    assert png.std() > 0.05, "blank figure"

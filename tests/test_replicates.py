@@ -278,5 +278,5 @@ def test_lab_takes_the_counts_sweep_takes():
         pc.lab(replicates=-1, progress=False)
     with pytest.raises(ValueError, match="seed must be a whole number >= 0, not -2"):
         pc.lab(seed=-2, progress=False)
-    with pytest.raises(pc.ConfigError, match="--replicates"):
+    with pytest.raises(pc.ConfigError, match="replicates="):
         pc.lab(replicates=0, progress=False)

@@ -18,7 +18,7 @@ import inspect
 import os
 import sys
 import threading as _threading
-from typing import TYPE_CHECKING, Any, Callable, Literal, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Literal, Mapping, Sequence, TypeVar, cast
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack
@@ -86,6 +86,12 @@ __all__ = [
     "METRICS",
 ]
 
+
+def __dir__() -> list[str]:
+    """The public API (and the lazily imported `plots` and `render`), not
+    the modules this file imports for itself."""
+    return sorted([*__all__, "plots", "render", "__version__"])
+
 #: Metric columns of summary.csv, in order (defined once, in the Rust core).
 METRICS: tuple[str, ...] = tuple(_native.METRICS)
 
@@ -105,18 +111,23 @@ Mode = Literal["servo", "torque"]
 Variant = Literal["original", "long-leg", "heavy"]
 
 
-def _with_spec_signature(options: type, *, after: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def _with_spec_signature(options: type, *, after: str) -> Callable[[_F], _F]:
     """Gives a wrapper taking `**options` the full signature notebooks and
     help() show: each keyword of the TypedDict `options` (names and types
     written once, in _types.py) with its default from the Rust spec (_D),
     placed after the parameter `after`."""
 
-    def wrap(fn: Callable[..., Any]) -> Callable[..., Any]:
+    def wrap(fn: _F) -> _F:
         sig = inspect.signature(fn)
         head = [p for p in sig.parameters.values() if p.kind is not p.VAR_KEYWORD]
         at = [p.name for p in head].index(after) + 1
         spec = [
-            inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=_D[name],
+            inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY,
+                              # a list default would read as a shared mutable one
+                              default=tuple(_D[name]) if isinstance(_D[name], list) else _D[name],
                               annotation=getattr(kind, "__forward_arg__", kind))
             for name, kind in options.__annotations__.items()
             if name not in sig.parameters
@@ -134,7 +145,8 @@ def _with_spec_signature(options: type, *, after: str) -> Callable[[Callable[...
                 )
             return fn(*args, **kwargs)
 
-        return checked
+        # the wrapper keeps the function's declared types for type checkers
+        return cast(_F, checked)
 
     return wrap
 
@@ -156,10 +168,21 @@ def _options(arguments: Mapping[str, Any]) -> dict[str, Any]:
             continue
         if name == "model":
             value = os.fspath(value)
+        elif name == "sine" and isinstance(value, str):
+            value = _sine(value)
         elif name in ("pose", "sine") and value is not None and not isinstance(value, str):
             value = [float(x) for x in value]
         out[name] = value
     return out
+
+
+def _sine(text: str) -> list[float]:
+    """`"2,1.2"`, as the CLI's --sine takes it: amplitude (N), frequency (Hz)."""
+    try:
+        return [float(x) for x in text.split(",")]
+    except ValueError:
+        raise ConfigError(f"sine={text!r} is not 'AMPLITUDE,FREQUENCY': give two numbers, "
+                          "e.g. sine='2,1.2' or sine=(2, 1.2)") from None
 
 
 def _progress_printer() -> Callable[[int, int], None] | None:
@@ -173,7 +196,11 @@ def _progress_printer() -> Callable[[int, int], None] | None:
     def update(done: int, total: int) -> None:
         nonlocal bar
         if bar is None:
-            bar = tqdm(total=total, unit="step", unit_scale=True, desc="pupper sweep")
+            # tqdm's habit: nothing for a run shorter than a second, and
+            # nothing in a script whose stderr is not a terminal (a log)
+            shown = sys.stderr.isatty() or "ipykernel" in sys.modules
+            bar = tqdm(total=total, unit="step", unit_scale=True, desc="pupper sweep",
+                       delay=1.0, disable=not shown)
         bar.update(done - bar.n)
         if done >= total:
             bar.close()
@@ -232,6 +259,8 @@ def lab(
     `pupper lab --help`).
     """
     callback = _progress_printer() if progress is True else (progress or None)
+    if isinstance(options.get("sine"), str):
+        options["sine"] = _sine(options["sine"])
     res = _native.lab(_names(variants), _grid_specs(grid), out=out, progress=callback, **options)
     if res.out is not None:
         from pupper_core import plots, render as draw

@@ -4,12 +4,17 @@
 Sweep keywords are the fields of the Rust `SweepSpec`; their defaults live
 there alone (`sweep_defaults()` returns them), so the stubs state types only."""
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from os import PathLike
 from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
-from typing import Any, Literal, Unpack, overload
+from typing import TYPE_CHECKING, Any, Literal, overload
+
+from typing_extensions import Unpack
+
+if TYPE_CHECKING:
+    import pandas  # type: ignore[import-untyped, import-not-found, unused-ignore]
 
 from pupper_core._types import (
     JointInfo,
@@ -128,7 +133,13 @@ class SweepResult:
         metric defaults to "last_1s_std_mm", or for a replicated sweep
         "p95:last_1s_std_mm" (statistics are "mean:M" and "p95:M"; eligible:
         no replicate fell or diverged, p95:saturation_frac under the bound)."""
-    def to_pandas(self) -> Any:
+    def __contains__(self, column: str) -> bool:
+        """Whether the table has that column."""
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        """Each row as a dict of typed values (as `row(i)`)."""
+    def _repr_html_(self) -> str:
+        """The table as HTML, for notebooks."""
+    def to_pandas(self) -> "pandas.DataFrame":
         """The table as a pandas DataFrame (pandas must be installed)."""
 
 def info(model: str = ..., variant: str = ...) -> ModelInfo:
@@ -173,6 +184,10 @@ def lab(
     progress: Callable[[int, int], object] | None = ...,
 ) -> SweepResult:
     """The chapter's lab; best.csv in `out`. Plots and rendering are the wrapper's."""
+
+def best_rows(header: Sequence[str], rows: Sequence[Sequence[str]], metric: str, *,
+              by: Sequence[str] = ..., minimize: bool = ..., max_saturation: float = ...) -> list[int | None]:
+    """pupper's ranking rule on a table of text rows: the best row of each group."""
 
 def _shutdown() -> None:
     """At interpreter exit: stops running sweeps and waits for them (atexit)."""

@@ -29,10 +29,21 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["base_z", "heatmap", "metric_vs_axis", "bars", "read_run", "write_run_plots"]
+    from pupper_core._native import SweepResult
+
+__all__ = ["base_z", "heatmap", "metric_vs_axis", "bars", "read_run", "write_run_plots",
+           "grid_axes", "describe", "label_of", "read_replicates", "replicate_spread",
+           "lab_heatmaps", "write_lab_plots"]
+
+
+def __dir__() -> list[str]:
+    """The figures and readers, not numpy, os or sys."""
+    return sorted(__all__)
 
 Table = Mapping[str, Union[Sequence[Any], np.ndarray]]
 Traces = Mapping[str, tuple[np.ndarray, np.ndarray]]
+#: A table, or a result whose ``.table`` is one.
+TableLike = Union[Table, "SweepResult"]
 
 #: Columns of summary.csv that are text, not numbers.
 TEXT_COLUMNS = ("id", "name", "status")
@@ -170,6 +181,8 @@ def label_of(column: str) -> str:
 
 
 def _fmt(v: Any) -> str:
+    """An axis value as a label: at most 3 significant digits (a log
+    range's 22.8943 reads 22.9)."""
     if isinstance(v, str):
         return v
     try:
@@ -178,7 +191,33 @@ def _fmt(v: Any) -> str:
         return str(v)
     if math.isnan(f):
         return "—"
-    return f"{f:g}"
+    return f"{f:.3g}"
+
+
+#: Below this a *_mm metric is no difference at all (the ranking's tie, 1 µm).
+MM_RESOLUTION = 0.001
+
+
+def _cell_text(v: float, metric: str) -> str:
+    """A heatmap cell's number, one format per metric: millimetres to the
+    micrometre ("<0.001" below it: nanometres are no result), fractions in
+    percent, others to 3 significant digits."""
+    name = metric.split(":")[-1]
+    if name.endswith("_mm"):
+        if abs(v) < MM_RESOLUTION:
+            return "<0.001"
+        return f"{v:.3f}" if abs(v) < 10 else f"{v:.1f}"
+    if name.endswith("_frac") or name == "failure_fraction":
+        return f"{v * 100:.1f}%"
+    return f"{v:.3g}"
+
+
+def _as_table(table: TableLike) -> Table:
+    """A column mapping from what the user has: a mapping, or a result
+    (``SweepResult``, whose ``.table`` is one)."""
+    if isinstance(table, Mapping):
+        return table
+    return table.table
 
 
 def _col(table: Table, name: str) -> np.ndarray:
@@ -223,6 +262,47 @@ def _distinct(values: np.ndarray) -> list[Any]:
     return sorted(set(values.tolist()), key=str)
 
 
+def _text(v: Any) -> str:
+    """A table value as summary.csv writes it (NaN: empty)."""
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (bool, np.bool_)):
+        return str(v)
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return str(v)
+    return "" if math.isnan(f) else repr(f)
+
+
+def _rule_best(table: Table, metric: str, minimize: bool, rows: np.ndarray) -> int | None:
+    """The row (among ``rows``) that pupper's ranking rule picks, the one
+    `--best-by` and the printed "steadiest" name: eligible cells only (they
+    stood, under 5 % saturation), ties within 1 µm to the smaller dip. None
+    when no row is eligible, or the table is not one pupper can rank."""
+    from pupper_core import _native
+
+    header = list(table)
+    idx = [int(i) for i in np.flatnonzero(rows)]
+    if not idx:
+        return None
+    cols = [np.asarray(table[h], dtype=object) for h in header]
+    text = [[_text(c[i]) for c in cols] for i in idx]
+    try:
+        (pick,) = _native.best_rows(header, text, metric, minimize=minimize)
+    except Exception:  # noqa: BLE001 (a table of other columns: no rule to apply)
+        return None
+    return None if pick is None else idx[pick]
+
+
+def _rankable(table: Table, metric: str) -> bool:
+    """Whether pupper's rule applies: a summary table with its status (or
+    failure fraction) and the metric."""
+    return metric in table and ("status" in table or "failure_fraction" in table)
+
+
 def _best_index(values: np.ndarray, status: np.ndarray, minimize: bool) -> int | None:
     """Row of the best finite value among cells whose status is ok (else any)."""
     finite = np.isfinite(values)
@@ -247,7 +327,8 @@ def _row_label(table: Table, i: int, axes: Sequence[str] | None = None, label: s
 
 def _key_line(best_word: str, status: np.ndarray) -> str:
     """'★ = lowest …' plus the colours used for fallen / diverged cells."""
-    parts = [f"★ = {best_word}" + (" among cells that stayed up" if (status != "ok").any() else "")]
+    parts = [f"★ = {best_word} among cells that stood below 5 % saturation (ties within 0.001 mm: the smaller dip)"
+             if best_word == "lowest" else f"★ = {best_word} among cells that stood"]
     if (status == "fell").any():
         parts.append("pink = fell")
     if (status == "diverged").any():
@@ -299,6 +380,9 @@ def base_z(
     *,
     title: str | None = None,
     zoom: bool | None = None,
+    status: Mapping[str, str] | None = None,
+    landing: float = 1.0,
+    ylabel: str = "base height z (mm)",
 ) -> "Figure":
     """Base height (mm) against time, one line per trace; the push window is shaded.
 
@@ -306,6 +390,10 @@ def base_z(
     a manifest push dict or None. ``labels``: id -> label, or a list in trace order.
     With a push and no ``ax``, a second panel zooms on the push (0.5 s before
     to 1.5 s after, the window of push_dip_mm); ``zoom=False`` turns it off.
+    ``status``: id -> status; saturated (chattering) cells are drawn thin and
+    dashed and set no axis range. The whole-run panel's range is that of the
+    robots after ``landing`` s, so a millimetre push dip is visible beside a
+    drop of centimetres (the drop runs off the top, said in the panel title).
     """
     with _style():
         p = _push_tuple(push)
@@ -326,19 +414,25 @@ def base_z(
         else:
             names = {k: str(lab) for k, lab in zip(ids, labels)}
         n = len(ids)
-        if n > 10:
-            import matplotlib
+        import matplotlib
 
+        if n > 20:
             cmap = matplotlib.colormaps["viridis"]
             colours = [cmap(i / max(1, n - 1)) for i in range(n)]
+        elif n > 10:
+            # twenty colours that can be told apart, not one ramp
+            tab = matplotlib.colormaps["tab20"]
+            colours = [tab(i) for i in range(n)]
         else:
             colours = [f"C{i}" for i in range(n)]
+        chatter = {k for k in ids if status is not None and status.get(k) == "saturated"}
         panels = [a for a in (ax, zax) if a is not None]
         for a in panels:
             for k, c in zip(ids, colours):
                 t, z = traces[k]
-                a.plot(np.asarray(t, float), np.asarray(z, float) * 1000.0, color=c, lw=1.4,
-                       label=names[k] if a is panels[-1] else None)
+                style = dict(lw=0.8, ls="--", alpha=0.6) if k in chatter else dict(lw=1.4)
+                a.plot(np.asarray(t, float), np.asarray(z, float) * 1000.0, color=c,
+                       label=names[k] if a is panels[-1] else None, **style)
             if p is not None:
                 start, dur, fz = p
                 what = f"push {fz:+g} N" if fz is not None else "push"
@@ -346,11 +440,11 @@ def base_z(
                           label=f"{what} ({dur:g} s)" if a is panels[-1] else None)
             a.set_xlabel("time (s)")
             a.grid(True, alpha=0.3)
-        ax.set_ylabel("base height z (mm)")
+        ax.set_ylabel(ylabel)
         if zax is not None and p is not None:
             lo_t, hi_t = p[0] - 0.5, p[0] + p[1] + 1.5
             zs = []
-            for k in ids:
+            for k in [k for k in ids if k not in chatter] or ids:
                 t, z = (np.asarray(v, float) for v in traces[k])
                 w = (t >= lo_t) & (t <= hi_t) & np.isfinite(z)
                 if w.any():
@@ -363,6 +457,23 @@ def base_z(
                 zax.set_ylim(lo - pad, hi + pad)
             zax.set_title("around the push", fontsize=11)
             ax.set_title("whole run", fontsize=11)
+        # the whole run's range: the robots after landing, chattering ones aside
+        steady = []
+        top0 = -np.inf
+        for k in [k for k in ids if k not in chatter] or ids:
+            t, z = (np.asarray(v, float) for v in traces[k])
+            w = (t >= landing) & np.isfinite(z)
+            if w.any():
+                steady.append(z[w] * 1000.0)
+            if len(z) and np.isfinite(z[0]):
+                top0 = max(top0, float(z[0]) * 1000.0)
+        if steady:
+            allz = np.concatenate(steady)
+            lo, hi = float(allz.min()), float(allz.max())
+            pad = 0.15 * (hi - lo) if hi > lo else 0.5
+            ax.set_ylim(lo - pad, hi + pad)
+            if top0 > hi + pad:
+                ax.set_title(f"whole run (from {top0:.0f} mm at t = 0, off the top)", fontsize=11)
         if title is not None:
             (fig.suptitle if zax is not None else ax.set_title)(title)
         if n <= 24:
@@ -372,7 +483,7 @@ def base_z(
 
 
 def heatmap(
-    table: Table,
+    table: TableLike,
     metric: str = "last_1s_std_mm",
     x: str = "kp",
     y: str = "kd",
@@ -392,6 +503,7 @@ def heatmap(
     more than 100×. The figure's ``pupper_best`` attribute lists the marked
     cells as dicts ``{"panel", x, y, metric}``.
     """
+    table = _as_table(table)
     from matplotlib.colors import LogNorm, Normalize
     from matplotlib.patches import Rectangle
 
@@ -492,23 +604,33 @@ def heatmap(
                         txt, colour = "n/a", "#444444"
                     elif not np.isfinite(shown[r, c]):  # fell
                         a.add_patch(Rectangle((c - 0.5, r - 0.5), 1, 1, color=_FELL, lw=0, zorder=1))
-                        txt, colour = f"fell\n{v:.3g}", "#7a2a12"
+                        txt, colour = f"fell\n{_cell_text(v, metric)}", "#7a2a12"
                     else:
-                        txt = f"{v:.3g}"
+                        txt = _cell_text(v, metric)
                         rgba = cmap(norm(v))
                         lum = 0.299 * rgba[0] + 0.587 * rgba[1] + 0.114 * rgba[2]
                         colour = "black" if lum > 0.55 else "white"
+                        if stat[r, c] == "saturated":
+                            # stood, but on its torque limits: never ranked
+                            a.add_patch(Rectangle((c - 0.5, r - 0.5), 1, 1, fill=False, hatch="///",
+                                                  ec="#bbbbbb", lw=0, zorder=2, gid="saturated"))
+                            txt += "\nsaturated"
                     a.text(c, r, txt, ha="center", va="center", color=colour, fontsize=fs, zorder=3)
             # best cell
             sel_rows = np.ones(len(vals), bool) if bcol is None else (bcol == pv)
             v2 = np.where(sel_rows & (status != "diverged"), vals, np.nan)
-            bi = _best_index(v2, status, minimize) if mark_best else None
+            bi = None
+            if mark_best:
+                bi = _rule_best(table, metric, minimize, sel_rows)
+                if bi is None and not _rankable(table, metric):
+                    bi = _best_index(v2, status, minimize)
             if bi is not None:
                 c, r = xv.index(xs_all[bi]), yv.index(ys_all[bi])
                 a.add_patch(
                     Rectangle((c - 0.5, r - 0.5), 1, 1, fill=False, ec="red", lw=3, zorder=5, gid="best")
                 )
-                a.plot(c + 0.5 - 0.14, r + 0.5 - 0.17, marker="*", ms=12, color="red", mec="white",
+                # inside the box, clear of its edge and of the number
+                a.plot(c + 0.5 - 0.2, r + 0.5 - 0.24, marker="*", ms=11, color="red", mec="white",
                        mew=0.8, zorder=6, gid="best_star")
                 best_marks.append({"panel": pv, x: xv[c], y: yv[r], metric: float(vals[bi])})
             if pv is not None:
@@ -528,7 +650,7 @@ def heatmap(
 
 
 def metric_vs_axis(
-    table: Table,
+    table: TableLike,
     metric: str,
     axis: str,
     group: str | None = None,
@@ -540,6 +662,7 @@ def metric_vs_axis(
 
     Cells that fell are drawn with a red ×; diverged / NaN cells are left out.
     """
+    table = _as_table(table)
     with _style():
         xs = _num(table, axis)
         vs = _num(table, metric)
@@ -584,7 +707,7 @@ def metric_vs_axis(
 
 
 def bars(
-    table: Table,
+    table: TableLike,
     metric: str,
     label: str = "name",
     *,
@@ -597,6 +720,7 @@ def bars(
     Bars of cells that fell are orange, diverged / NaN cells are marked; the
     best ok cell (min if ``minimize``) is outlined in red.
     """
+    table = _as_table(table)
     with _style():
         vs = _num(table, metric)
         status = _status(table)
@@ -704,8 +828,9 @@ def read_run(run_dir: str | os.PathLike) -> tuple[dict[str, Any], dict[str, Any]
     return table, manifest, traces
 
 
-def grid_axes(table: Table) -> list[str]:
+def grid_axes(table: TableLike) -> list[str]:
     """The grid-axis columns of a summary table (between ``name`` and the metrics)."""
+    table = _as_table(table)
     cols = list(table)
     start = cols.index("name") + 1 if "name" in cols else 0
     out = []
@@ -737,14 +862,21 @@ def describe(manifest: Mapping[str, Any], n_cells: int | None = None) -> str:
         f = (sched.get("push") or {}).get("force")
         ftxt = "[" + ", ".join(_fmt(v) for v in f) + "] N" if f is not None else ""
         parts.append(f"push {ftxt} at {p[0]:g} s for {p[1]:g} s")
+    sine = sched.get("sine")
+    if isinstance(sine, Mapping):
+        parts.append(f"vertical sine {float(sine.get('amplitude', 0)):g} N at {float(sine.get('frequency', 0)):g} Hz")
     if sched.get("duration") is not None:
         parts.append(f"{float(sched['duration']):g} s simulated")
     defaults = cfg.get("defaults") or {}
     if defaults:
-        # only what was set: no torque limit means the model's own, scales of 1 the model's body
+        # only what was set and not swept: no gain or torque limit means the
+        # model's own, scales of 1 the model's body
+        swept = {a.get("axis") for a in ((cfg.get("grid") or {}).get("axes") or []) if isinstance(a, Mapping)}
         shown = {k: v for k, v in defaults.items()
-                 if v is not None and not (k in ("leg_scale", "torso_mass_scale") and v == 1)}
-        parts.append("defaults " + ", ".join(f"{SHORT.get(k, k)} {_fmt(v)}" for k, v in shown.items()))
+                 if v is not None and k not in swept
+                 and not (k in ("leg_scale", "torso_mass_scale") and v == 1)}
+        if shown:
+            parts.append(", ".join(f"{SHORT.get(k, k)} {_fmt(v)}" for k, v in shown.items()))
     reps = cfg.get("replicates") or {}
     if reps:
         drawn = []
@@ -796,8 +928,13 @@ def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
     sched = ((manifest.get("config") or {}).get("schedule") or {}) if manifest else {}
     push = sched.get("push")
 
+    def setting(fig: "Figure") -> None:
+        # what was run, below the figure: the title says what is shown
+        fig.supxlabel(_wrap_parts(what, fig.get_figwidth(), 8), fontsize=8, color="#555555")
+
     def finish(fig: "Figure", name: str, head: str) -> None:
-        fig.suptitle(f"{head}\n{_wrap_parts(what, fig.get_figwidth(), 10)}", fontsize=11)
+        fig.suptitle(head, fontsize=12)
+        setting(fig)
         written.append(_save(fig, out / name))
 
     if traces:
@@ -808,7 +945,10 @@ def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
                 st = str(table["status"][i]) if "status" in table else "ok"
                 if st != "ok":
                     labels[cid] += f" — {st}"
-        fig = base_z(traces, push=push, labels=labels)
+        status = ({str(c): str(s) for c, s in zip(table["id"], table["status"])}
+                  if "id" in table and "status" in table else None)
+        fig = base_z(traces, push=push, labels=labels, status=status,
+                     landing=float(sched.get("landing", 1.0)))
         finish(fig, "base_z.png", "Base height during the sweep")
 
     # a metric that is NaN in every cell (push_dip_mm without a push) has nothing to show
@@ -846,7 +986,8 @@ def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
                 key = key.replace("pink = fell", "pink = some replicates fell or diverged")
             if metric == "failure_fraction":
                 key = "0 = every replicate stayed up"
-            fig.suptitle(f"{label_of(metric)}\n{key}\n{_wrap_parts(what, fig.get_figwidth(), 10)}", fontsize=11)
+            fig.suptitle(f"{label_of(metric)}\n{key}", fontsize=12)
+            setting(fig)
             written.append(_save(fig, out / f"heatmap_{metric.replace(':', '_')}.png"))
         elif product and len(varying) in (1, 2):
             axis = varying[0]
@@ -944,10 +1085,14 @@ def lab_heatmaps(
     values: Mapping[str, np.ndarray],
     best: Mapping[str, tuple[float, float] | None],
     metric: str = "last_1s_std_mm",
+    status: Mapping[str, np.ndarray] | None = None,
 ) -> "Figure":
     """One Kp × Kd heatmap per body on one shared (log) colour scale, the
-    body's best cell starred. ``values[body]`` is a (len(kd), len(kp)) array,
-    NaN where the cell fell, diverged or saturated."""
+    body's best cell starred, as the sweep's heatmaps: yellow is steadier,
+    numbers in the cells. ``values[body]`` is a (len(kd), len(kp)) array,
+    NaN where the cell fell, diverged or saturated; ``status[body]`` (the
+    same shape, text) names why a cell is blank. A best cell on the grid's
+    edge gets a hint to widen the grid that way."""
     from matplotlib.colors import LogNorm
 
     with _style():
@@ -957,20 +1102,47 @@ def lab_heatmaps(
         lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (1e-3, 1.0)
         norm = LogNorm(vmin=lo, vmax=max(hi, lo * 1.0001))
         image = None
+        import matplotlib
+
+        cmap = matplotlib.colormaps["viridis_r"].with_extremes(bad=_BAD_GREY)
+        edges: list[str] = []
         for ax, body in zip(axes, bodies):
             v = np.ma.masked_invalid(values[body])
-            image = ax.imshow(v, origin="lower", cmap="viridis", norm=norm, aspect="auto")
-            ax.set_xticks(range(len(kp)), [f"{x:g}" for x in kp])
-            ax.set_yticks(range(len(kd)), [f"{x:g}" for x in kd])
+            image = ax.imshow(v, origin="lower", cmap=cmap, norm=norm, aspect="auto")
+            ax.set_xticks(range(len(kp)), [_fmt(x) for x in kp])
+            ax.set_yticks(range(len(kd)), [_fmt(x) for x in kd])
             ax.set_xlabel("Kp (N·m/rad)")
             ax.set_title(body)
+            st = status.get(body) if status is not None else None
+            for r in range(len(kd)):
+                for c in range(len(kp)):
+                    x = values[body][r, c]
+                    if np.isfinite(x):
+                        rgba = cmap(norm(x))
+                        lum = 0.299 * rgba[0] + 0.587 * rgba[1] + 0.114 * rgba[2]
+                        txt, colour = _cell_text(float(x), metric), "black" if lum > 0.55 else "white"
+                    else:
+                        why = str(st[r, c]) if st is not None else ""
+                        txt, colour = (why if why and why != "ok" else "n/a"), "#444444"
+                    ax.text(c, r, txt, ha="center", va="center", color=colour, fontsize=8, zorder=3)
             b = best.get(body)
             if b is not None:
-                ax.plot([list(kp).index(b[0])], [list(kd).index(b[1])], marker="*", color="white",
-                        markersize=16, markeredgecolor="black")
+                c, r = list(kp).index(b[0]), list(kd).index(b[1])
+                ax.plot([c + 0.28], [r + 0.25], marker="*", color="red", markersize=12,
+                        markeredgecolor="white", zorder=6, gid="best_star")
+                side = [w for w, on in (("Kp up", c == len(kp) - 1 and len(kp) > 1),
+                                        ("Kp down", c == 0 and len(kp) > 1),
+                                        ("Kd up", r == len(kd) - 1 and len(kd) > 1),
+                                        ("Kd down", r == 0 and len(kd) > 1)) if on]
+                if side:
+                    edges.append(f"{body}: {', '.join(side)}")
         axes[0].set_ylabel("Kd (N·m·s/rad)")
         if image is not None:
             fig.colorbar(image, ax=list(axes), label=f"{LABELS.get(metric, metric)} (log)")
+        if edges:
+            fig.supxlabel("★ on the grid's edge, the steadiest gains may lie beyond it: widen the grid ("
+                          + "; ".join(edges) + ")", fontsize=9, color="#9a6700")
+        fig.pupper_edges = edges  # type: ignore[attr-defined]
         return fig
 
 
@@ -991,17 +1163,20 @@ def write_lab_plots(run_dir: str | os.PathLike) -> list[Path]:
     kp = sorted({float(r["kp"]) for r in rows})
     kd = sorted({float(r["kd"]) for r in rows})
     values: dict[str, np.ndarray] = {b: np.full((len(kd), len(kp)), np.nan) for b in bodies}
+    status: dict[str, np.ndarray] = {b: np.full((len(kd), len(kp)), "", dtype=object) for b in bodies}
     for r in rows:
         up = r["failure_fraction"] == "0" if replicated else r["status"] == "ok"
+        at = (kd.index(float(r["kd"])), kp.index(float(r["kp"])))
+        status[r["variant"]][at] = ("fell" if not up else "ok") if replicated else r["status"]
         if up and r[metric]:
-            values[r["variant"]][kd.index(float(r["kd"])), kp.index(float(r["kp"]))] = float(r[metric])
+            values[r["variant"]][at] = float(r[metric])
     best: dict[str, tuple[float, float] | None] = {}
     for b in best_rows:
         best[b["variant"]] = (float(b["kp"]), float(b["kd"])) if b["id"] else None
     out = d / "plots"
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    fig = lab_heatmaps(bodies, kp, kd, values, best, metric="last_1s_std_mm")
+    fig = lab_heatmaps(bodies, kp, kd, values, best, metric="last_1s_std_mm", status=status)
     head = ("Worst-side 95th percentile over replicates of the last-second base-z std per body"
             if replicated else "Last-second base-z std per body")
     fig.suptitle(f"{head}\n{describe(manifest, len(rows))}", fontsize=11)
@@ -1019,6 +1194,16 @@ def write_lab_plots(run_dir: str | os.PathLike) -> list[Path]:
     chosen = {b["id"]: f"{b['variant']}: Kp {float(b['kp']):g}, Kd {float(b['kd']):g}" for b in best_rows if b["id"]}
     picked = {cid: traces[cid] for cid in chosen if cid in traces}
     if picked:
-        fig = base_z(picked, push=None, labels=chosen, title="Base height at each body's best gains")
+        # each body about its own mean: the bodies stand 160 and 230 mm
+        # tall, and their response to the sine is a twentieth of a millimetre
+        landing = float(((manifest.get("config") or {}).get("schedule") or {}).get("landing", 1.0))
+        for cid, (t, z) in list(picked.items()):
+            t, z = np.asarray(t, float), np.asarray(z, float)
+            mean = float(np.mean(z[t >= landing])) if (t >= landing).any() else float(np.mean(z))
+            picked[cid] = (t, z - mean)
+            chosen[cid] += f" (stands at {mean * 1000:.1f} mm)"
+        fig = base_z(picked, push=None, labels=chosen, landing=landing,
+                     title="Each body at its best gains: base height about its own mean",
+                     ylabel="base z − its mean after landing (mm)")
         written.append(_save(fig, out / "lab_best_base_z.png"))
     return written

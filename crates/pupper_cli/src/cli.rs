@@ -216,8 +216,8 @@ impl From<Mode> for ModeArg {
 struct SimArgs {
     #[command(flatten)]
     model: ModelArg,
-    /// A named body for cells without leg_scale / torso_mass_scale axes: original,
-    /// long-leg (thighs and calves 1.5x), heavy (torso mass 2x).
+    /// A named body: original, long-leg (thighs and calves 1.5x), heavy (torso mass 2x) (in a
+    /// sweep: where the grid has no variant, leg_scale or torso_mass_scale axis).
     #[arg(long, default_value_t = SweepSpec::default().variant, value_name = "NAME")]
     variant: String,
     /// Who computes the PD torques.
@@ -226,11 +226,11 @@ struct SimArgs {
     /// Simulated seconds (per cell).
     #[arg(long, default_value_t = SweepSpec::default().seconds, value_name = "S", allow_negative_numbers = true)]
     seconds: f64,
-    /// Proportional gain (N·m/rad) of every actuator, for cells whose grid has no kp axis
+    /// Proportional gain (N·m/rad) of every actuator (in a sweep: where the grid has no kp axis)
     /// [default: each actuator's own, as the model declares it; Pupper v3: 5]
     #[arg(long, allow_negative_numbers = true)]
     kp: Option<f64>,
-    /// Derivative gain (N·m·s/rad) of every actuator, for cells whose grid has no kd axis
+    /// Derivative gain (N·m·s/rad) of every actuator (in a sweep: where the grid has no kd axis)
     /// [default: each actuator's own, as the model declares it; Pupper v3: 0.1]
     #[arg(long, allow_negative_numbers = true)]
     kd: Option<f64>,
@@ -361,7 +361,8 @@ struct LabArgs {
     #[command(flatten)]
     model: ModelArg,
     /// The bodies, comma-separated: original, long-leg (legs 1.5x), heavy (torso mass 2x).
-    #[arg(long, value_delimiter = ',', default_values_t = pupper_core::lab::VARIANTS.map(String::from), value_name = "NAME,...")]
+    /// (`--variant`, as sweep spells it, works too.)
+    #[arg(long, alias = "variant", value_delimiter = ',', default_values_t = pupper_core::lab::VARIANTS.map(String::from), value_name = "NAME,...")]
     variants: Vec<String>,
     #[command(flatten)]
     grid: GridArg,
@@ -517,7 +518,7 @@ struct SweepArgs {
     /// The metric --best-by ranks by (lower is better): a summary.csv column. With replicates,
     /// a statistic over them: mean:METRIC or p95:METRIC (worst side), e.g.
     /// p95:last_1s_std_mm [default: last_1s_std_mm; with replicates p95:last_1s_std_mm].
-    #[arg(long, visible_alias = "best-metric", value_name = "[STAT:]METRIC")]
+    #[arg(long, alias = "best-metric", value_name = "[STAT:]METRIC")]
     rank: Option<String>,
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
     #[arg(long, default_value_t = pupper_core::best::MAX_SATURATION, value_name = "FRACTION")]

@@ -10,7 +10,8 @@
 //! 3. Cells within [`TIE_MM`] of the winner on a `*_mm` metric (exactly
 //!    equal on others) are tied: the smallest push dip among them wins
 //!    (the same statistic of it in a replicated sweep), when the table has
-//!    one and the metric is not the dip itself.
+//!    one, some tied cell has a dip (a run with a push) and the metric is
+//!    not the dip itself; otherwise the lowest metric stands.
 //! 4. Remaining ties go to the cell that comes first in grid order.
 //!
 //! Groups are the distinct values of the `by` columns, in order of first
@@ -80,9 +81,10 @@ pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<
             .flat_map(|m| STATISTICS.iter().map(move |s| format!("{s}:{m}")))
             .collect()
     } else {
+        // status is text; when a cell fell is no quality to rank by
         METRIC_NAMES
             .iter()
-            .filter(|m| **m != "status")
+            .filter(|m| !matches!(**m, "status" | "event_time"))
             .map(|m| m.to_string())
             .collect()
     };
@@ -200,9 +202,18 @@ pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<
                 .map(|&(i, _)| i)
                 .collect();
             g.tied = tied.len();
-            g.best = tied.first().copied();
-            if let (Some(d), true) = (dip, tied.len() > 1) {
-                // the smallest dip (a cell without one last), then grid order
+            // the lowest metric (grid order on equal values) ...
+            let value = |i: usize| sense * number(&rows[i], metric);
+            g.best = tied
+                .iter()
+                .copied()
+                .min_by(|&a, &b| value(a).total_cmp(&value(b)).then(a.cmp(&b)));
+            // ... unless the dip tells the tied cells apart: the smallest
+            // dip wins (a cell without one last)
+            let with_dip = dip.filter(|&d| {
+                tied.len() > 1 && tied.iter().any(|&i| number(&rows[i], d).is_finite())
+            });
+            if let Some(d) = with_dip {
                 let key = |i: usize| {
                     let v = number(&rows[i], d);
                     if v.is_nan() { f64::INFINITY } else { v }
@@ -396,6 +407,15 @@ mod tests {
         };
         let g = best(&h, &rows, &loose).unwrap();
         assert_eq!((g[0].best, g[0].eligible), (Some(4), 5));
+        // without a push (no dip anywhere) the lowest metric stands
+        for r in rows.iter_mut() {
+            r[dip] = String::new();
+        }
+        let g = best(&h, &rows, &Rule::new("last_1s_std_mm", &[])).unwrap();
+        assert_eq!(
+            (g[0].best, g[0].tied, g[0].tie_break.clone()),
+            (Some(1), 3, None)
+        );
         // exactly equal values on a metric without a tolerance: grid order
         let (h, rows) = table(&[("10", "1", "0.5", "0", "ok"), ("30", "1", "0.5", "0", "ok")]);
         let g = best(&h, &rows, &Rule::new("final_z", &[])).unwrap();

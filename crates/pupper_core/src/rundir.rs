@@ -557,7 +557,11 @@ impl RunWriter {
             self.write_tables(&dir)?;
             self.write_manifest()?;
         }
-        self.open = None;
+        // the lock file stays (removing it would let a second writer lock a
+        // new file while this one still holds the old), but names nobody
+        if let Some(open) = self.open.take() {
+            let _ = open._lock.set_len(0);
+        }
         Ok(())
     }
 }

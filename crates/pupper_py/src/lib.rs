@@ -110,7 +110,7 @@ const DUAL_ERRORS: [(&str, &str, &str, &str); 4] = [
 /// The Python exception of a Rust error: the family's class (or its
 /// `OSError` twin), with the stable `kind` code as an attribute.
 pub(crate) fn to_py(e: Error) -> PyErr {
-    let msg = e.to_string();
+    let msg = pythonic(&e.to_string());
     let dual = match e.code() {
         "model_not_found" => Some("ModelNotFoundError"),
         "run_not_found" | "not_found" => Some("RunNotFoundError"),
@@ -144,6 +144,62 @@ pub(crate) fn to_py(e: Error) -> PyErr {
         let _ = err.value(py).setattr("kind", e.code());
         err
     })
+}
+
+/// A message written for the command line, in Python's words: `--kp -1`
+/// becomes `kp=-1`, `add --force` `add force=True`, `--no-push`
+/// `push=False`, `--max-torque` `max_torque=`. Command lines quoted in it
+/// (from `pupper` to the next `:` `;` or `,`) stay as they are.
+pub(crate) fn pythonic(msg: &str) -> String {
+    const SWITCHES: [(&str, &str); 4] = [
+        ("force", "force=True"),
+        ("resume", "resume=True"),
+        ("trace", "trace=True"),
+        ("no-push", "push=False"),
+    ];
+    let words: Vec<&str> = msg.split(' ').collect();
+    let mut out: Vec<String> = Vec::with_capacity(words.len());
+    let mut quoted = false;
+    let mut i = 0;
+    while i < words.len() {
+        let w = words[i];
+        if w.trim_start_matches('`') == "pupper" {
+            quoted = true;
+        }
+        let flag = w
+            .strip_prefix("--")
+            .filter(|f| f.chars().next().is_some_and(|c| c.is_ascii_lowercase()));
+        match flag {
+            Some(f) if !quoted => {
+                let name: String = f
+                    .chars()
+                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '-')
+                    .collect();
+                let rest = &f[name.len()..];
+                let key = name.replace('-', "_");
+                let value = words.get(i + 1).filter(|v| {
+                    rest.is_empty()
+                        && v.trim_end_matches([',', ':', ';', ')'])
+                            .parse::<f64>()
+                            .is_ok()
+                });
+                match (SWITCHES.iter().find(|(s, _)| *s == name), value) {
+                    (Some((_, py)), _) => out.push(format!("{py}{rest}")),
+                    (None, Some(v)) => {
+                        out.push(format!("{key}={v}"));
+                        i += 1;
+                    }
+                    (None, None) => out.push(format!("{key}={rest}")),
+                }
+            }
+            _ => out.push(w.to_string()),
+        }
+        if w.ends_with([':', ';', ',']) {
+            quoted = false;
+        }
+        i += 1;
+    }
+    out.join(" ")
 }
 
 /// A serializable report as a dict of plain Python values.
@@ -475,7 +531,7 @@ fn run_spec(
         PyErr::warn(
             py,
             &py.get_type::<pyo3::exceptions::PyUserWarning>(),
-            &std::ffi::CString::new(n.as_str()).unwrap_or_default(),
+            &std::ffi::CString::new(pythonic(n)).unwrap_or_default(),
             1,
         )?;
     }
@@ -514,7 +570,8 @@ fn run_spec(
 /// best.csv (the best gains per body) in `out`. Plots and rendering are the
 /// Python wrapper's.
 #[pyfunction]
-#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::lab::SECONDS, sine=pupper_core::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, rank=None, replicates=1, seed=0, randomize=Vec::new(), backend="cpu".to_string(), device=None, ray=None, depth=None, progress=None))]
+#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::lab::SECONDS, sine=pupper_core::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, rank=None, replicates=1, seed=0, randomize=Vec::new(), backend="cpu".to_string(), device=None, ray=None, depth=None, progress=None),
+    text_signature = "(variants=None, grid=None, *, seconds=6.0, sine=(2.0, 1.2), model='pupper_v3', out=None, force=False, resume=False, threads=0, max_saturation=0.05, rank=None, replicates=1, seed=0, randomize=(), backend='cpu', device=None, ray=None, depth=None, progress=None)")]
 #[allow(clippy::too_many_arguments)]
 fn lab(
     py: Python<'_>,
@@ -733,6 +790,37 @@ fn builtin_model(name: &str) -> PyResult<Py<PyAny>> {
     api::compiled(&source).map_err(to_py)
 }
 
+/// pupper's ranking rule (`best::best`) on any table: `header` and rows of
+/// text as summary.csv holds them; the best row of each group of `by`, in
+/// order of first appearance (None for a group with no eligible row).
+/// Plots mark the cell the CLI names, through this one rule.
+#[pyfunction]
+#[pyo3(signature = (header, rows, metric, *, by = Vec::new(), minimize = true, max_saturation = best::MAX_SATURATION))]
+fn best_rows(
+    header: Vec<String>,
+    rows: Vec<Vec<String>>,
+    metric: String,
+    by: Vec<String>,
+    minimize: bool,
+    max_saturation: f64,
+) -> PyResult<Vec<Option<usize>>> {
+    let rule = best::Rule {
+        max_saturation,
+        minimize,
+        ..best::Rule::new(&metric, &by)
+    };
+    if let Some(r) = rows.iter().find(|r| r.len() != header.len()) {
+        return Err(pyo3::exceptions::PyValueError::new_err(format!(
+            "a row has {} fields for {} columns",
+            r.len(),
+            header.len()
+        )));
+    }
+    best::best(&header, &rows, &rule)
+        .map(|groups| groups.into_iter().map(|g| g.best).collect())
+        .map_err(to_py)
+}
+
 /// The `pupper` command inside this interpreter (the wheel's console
 /// script): `argv` as `sys.argv`; returns the exit status.
 #[pyfunction]
@@ -783,6 +871,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(info, m)?)?;
     m.add_function(wrap_pyfunction!(stand, m)?)?;
     m.add_function(wrap_pyfunction!(_shutdown, m)?)?;
+    m.add_function(wrap_pyfunction!(best_rows, m)?)?;
     m.add_function(wrap_pyfunction!(sweep, m)?)?;
     m.add_function(wrap_pyfunction!(read_manifest, m)?)?;
     m.add_function(wrap_pyfunction!(load_run, m)?)?;
@@ -796,4 +885,36 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(cli_main, m)?)?;
     m.add_function(wrap_pyfunction!(_run_task, m)?)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::pythonic;
+
+    #[test]
+    fn cli_words_become_keywords() {
+        assert_eq!(
+            pythonic("--kp -1 is negative or not finite: gains must be >= 0"),
+            "kp=-1 is negative or not finite: gains must be >= 0"
+        );
+        assert_eq!(
+            pythonic(
+                "output directory 'x' already exists: choose another --out, add --force to overwrite it, or --resume it"
+            ),
+            "output directory 'x' already exists: choose another out=, add force=True to overwrite it, or resume=True it"
+        );
+        assert_eq!(
+            pythonic("give --max-torque a value > 0"),
+            "give max_torque= a value > 0"
+        );
+        assert_eq!(
+            pythonic("drop --no-push or the axis"),
+            "drop push=False or the axis"
+        );
+        // a quoted command line stays one
+        assert_eq!(
+            pythonic("finish it with pupper sweep --resume d, then merge"),
+            "finish it with pupper sweep --resume d, then merge"
+        );
+    }
 }

@@ -205,6 +205,70 @@ impl SweepResult {
         self.column(py, column)
     }
 
+    /// `"kp" in res`: whether the table has that column.
+    fn __contains__(&self, column: &str) -> bool {
+        self.header.iter().any(|h| h == column)
+    }
+
+    /// `for row in res`: each row as a dict of typed values (as `row(i)`).
+    fn __iter__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyIterator>> {
+        let rows = (0..self.rows.len() as isize)
+            .map(|i| self.row(py, i))
+            .collect::<PyResult<Vec<_>>>()?;
+        pyo3::types::PyList::new(py, rows)?.try_iter()
+    }
+
+    /// The table as HTML, for notebooks: every column, the first 100 rows,
+    /// a status other than ok in its own colour.
+    fn _repr_html_(&self, py: Python<'_>) -> PyResult<String> {
+        let esc = |s: &str| {
+            s.replace('&', "&amp;")
+                .replace('<', "&lt;")
+                .replace('>', "&gt;")
+                .replace('"', "&quot;")
+        };
+        let shown: Vec<usize> = (0..self.header.len())
+            .filter(|&c| !(self.header[c] == "name" && self.rows.iter().all(|r| r[c].is_empty())))
+            .collect();
+        let status = self.header.iter().position(|h| h == "status");
+        let format = PyModule::import(py, "builtins")?.getattr("format")?;
+        let mut html = String::from("<table class=\"pupper-sweep\"><thead><tr>");
+        for &c in &shown {
+            html.push_str(&format!("<th>{}</th>", esc(&self.header[c])));
+        }
+        html.push_str("</tr></thead><tbody>");
+        for r in 0..self.rows.len().min(100) {
+            let colour = match status.map(|s| self.rows[r][s].as_str()) {
+                Some("fell") | Some("diverged") => " style=\"color:#b00020\"",
+                Some("saturated") => " style=\"color:#9a6700\"",
+                _ => "",
+            };
+            html.push_str(&format!("<tr{colour}>"));
+            for &c in &shown {
+                let v = self.value(py, r, c)?;
+                let text = if v.is_instance_of::<pyo3::types::PyFloat>() {
+                    format.call1((v, ".4g"))?.extract::<String>()?
+                } else {
+                    v.str()?.to_string()
+                };
+                html.push_str(&format!("<td>{}</td>", esc(&text)));
+            }
+            html.push_str("</tr>");
+        }
+        html.push_str("</tbody></table>");
+        let more = self.rows.len().saturating_sub(100);
+        let out = self.out.bind(py);
+        let mut foot = format!("{} rows", self.rows.len());
+        if more > 0 {
+            foot.push_str(&format!(" ({more} not shown)"));
+        }
+        if !out.is_none() {
+            foot.push_str(&format!(", written to {}", esc(&out.str()?.to_string())));
+        }
+        html.push_str(&format!("<p>{foot}</p>"));
+        Ok(html)
+    }
+
     /// Row `i` as a dict: index an int, text as str, numbers as float.
     fn row<'py>(&self, py: Python<'py>, i: isize) -> PyResult<Bound<'py, PyDict>> {
         let n = self.rows.len() as isize;
@@ -234,7 +298,10 @@ impl SweepResult {
     /// `"p95:last_1s_std_mm"`); a cell is eligible when none of its
     /// replicates fell or diverged and its p95:saturation_frac is under
     /// `max_saturation`.
-    #[pyo3(signature = (metric = None, *, by = None, minimize = true, max_saturation = best::MAX_SATURATION))]
+    #[pyo3(
+        signature = (metric = None, *, by = None, minimize = true, max_saturation = best::MAX_SATURATION),
+        text_signature = "($self, metric=None, *, by=None, minimize=True, max_saturation=0.05)"
+    )]
     fn best<'py>(
         &self,
         py: Python<'py>,
@@ -301,7 +368,17 @@ impl SweepResult {
     }
 
     fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
-        let mut cols: Vec<String> = vec!["name".into()];
+        // names are given by presets only: an empty column is not shown
+        let named = self
+            .header
+            .iter()
+            .position(|h| h == "name")
+            .is_some_and(|c| self.rows.iter().any(|r| !r[c].is_empty()));
+        let mut cols: Vec<String> = if named {
+            vec!["name".into()]
+        } else {
+            Vec::new()
+        };
         cols.extend(self.axes());
         let per_replicate = self.header.iter().any(|h| h == "replicate");
         if per_replicate {
