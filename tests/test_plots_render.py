@@ -318,14 +318,18 @@ def test_render_png_shows_the_robot(tmp_path: Path) -> None:
     # plain floor: compare with the same view with the robot's geoms hidden.
     import mujoco
 
+    # a header says what is drawn (46 px at 320 px wide); the scene is below
+    header = 46
+    assert img[:header].std() > 5.0, "the header has text"
+    img = img[header:]
     m = mujoco.MjModel.from_xml_path(str(render.builtin_model_path("pupper_v3")))
     d = mujoco.MjData(m)
     mujoco.mj_resetDataKeyframe(m, d, 0)
     mujoco.mj_forward(m, d)
-    with_robot = render.frame(m, d, width=320, height=240).astype(float)
+    with_robot = render.frame(m, d, width=320, height=240 - header).astype(float)
     floor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor")
     m.geom_rgba[[g for g in range(m.ngeom) if g != floor], 3] = 0.0
-    background = render.frame(m, d, width=320, height=240).astype(float)
+    background = render.frame(m, d, width=320, height=240 - header).astype(float)
     diff = np.abs(with_robot - background).sum(axis=2) > 40
     h, w = diff.shape
     centre = diff[h // 4 : 3 * h // 4, w // 4 : 3 * w // 4]

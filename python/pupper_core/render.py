@@ -615,11 +615,15 @@ def write_effects(
     camera: str | int | None = "tracking_cam",
     shadows: bool = True,
     gif: bool = True,
+    caption: str | None = None,
 ) -> tuple[Path, Path | None, Path]:
     """Draws recordings side by side: ``<stem>.png`` (final frames),
-    ``<stem>.gif`` (synchronized panels at the recordings' frame rate;
-    ``gif=False`` skips it) and ``<stem>.csv`` (id, frame, time, base z and
-    push of every frame drawn).
+    ``<stem>.gif`` (synchronized panels at the recordings' frame rate,
+    played in real time: GIF frame durations are whole centiseconds, so a
+    frame rate that does not divide 100 is played at the nearest one that
+    does, and the caption says at what speed; ``gif=False`` skips it) and
+    ``<stem>.csv`` (id, frame, time, base z and push of every frame drawn).
+    ``caption``: a line under the panels (which cells, and why).
 
     Returns ``(png_path, gif_path or None, csv_path)``.
     """
@@ -655,10 +659,29 @@ def write_effects(
     png_path = out / f"{stem}.png"
     gif_path = out / f"{stem}.gif"
     csv_path = out / f"{stem}.csv"
-    _atomic_save(_compose(finals), png_path, "PNG")
     fps = _fps_of(recordings[0])
+    # a GIF counts in centiseconds: the real-time frame duration, rounded
+    centis = max(1, round(100 / fps))
+    speed = (1000 / fps) / (centis * 10)
+    line = (caption + "  ·  " if caption else "") + (
+        "played in real time" if abs(speed - 1) < 1e-9 else f"played at {speed:.2f}x real time")
+
+    def captioned(img: "PILImage.Image") -> "PILImage.Image":
+        from PIL import ImageDraw
+
+        font = fonts[1]
+        strip = Image.new("RGB", (img.width, font.size + 12), (245, 245, 245))
+        ImageDraw.Draw(strip).text((8, 5), line, font=font, fill=(60, 60, 60))
+        both = Image.new("RGB", (img.width, img.height + strip.height), (255, 255, 255))
+        both.paste(img, (0, 0))
+        both.paste(strip, (0, img.height))
+        return both
+
+    finals = [captioned(f) for f in [_compose(finals)]]
+    gif_frames = [captioned(f) for f in gif_frames]
+    _atomic_save(finals[0], png_path, "PNG")
     if gif:
-        _atomic_save(_shared_palette(gif_frames), gif_path, "GIF", duration=int(round(1000 / fps)), loop=0)
+        _atomic_save(_shared_palette(gif_frames), gif_path, "GIF", duration=centis * 10, loop=0)
 
     def table(tmp: Path) -> None:
         with open(tmp, "w", newline="") as f:
@@ -691,14 +714,28 @@ def render_png(
     seconds = float(options.get("seconds", 10.0))
     fps = 1.0 / seconds if seconds > 0 else 1.0
     recs = record(None, fps=fps, **{**options, "push": False})
-    img = draw(recs, width=int(width), height=int(height), camera=camera)[0][-1]
+    # say what is drawn (the body, its gains, when, how high it stands) in
+    # a header inside the asked size
+    scale = max(1.0, int(width) / 320)
+    header_h = min(int(round(46 * scale)), int(height) // 3)
+    drawn = _draw(recs, int(width), int(height) - header_h, camera, True)[0]
+    rec = recs[0]
+    fonts = (_font(int(round(17 * scale))), _font(int(round(13 * scale))))
+    model = str(options.get("model", "pupper_v3"))
+    body = str(options.get("variant", "original"))
+    _, gains = _labels(rec)
+    title = f"{Path(model).name if os.sep in model else model}" + ("" if body == "original" else f" ({body})")
+    params = f"{gains}  ·  base z {drawn.base_z[-1] * 1000:.1f} mm"
+    status = "" if rec["status"] == "ok" else rec["status"]
+    img = _panel(drawn.frames[-1], title, params, float(rec["times"][-1]), False, "", status, fonts,
+                 header_h)
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    _atomic_save(Image.fromarray(img), out, "PNG")
+    _atomic_save(img, out, "PNG")
     return out
 
 
-def write_run_effects(run_dir: str | os.PathLike[str], max_cells: int = 6, fps: float = 15) -> list[Path]:
+def write_run_effects(run_dir: str | os.PathLike[str], max_cells: int = 6, fps: float = 10) -> list[Path]:
     """`pupper sweep --render`: the effects GIF, final-frame PNG and frame
     table of a run, in ``<run_dir>/plots/``.
 
@@ -715,20 +752,30 @@ def write_run_effects(run_dir: str | os.PathLike[str], max_cells: int = 6, fps: 
     if not rows:
         raise ValueError(f"{run}/summary.csv has no cells to render")
     picks = list(range(len(rows)))
+    caption = f"all {len(rows)} cells"
     if len(rows) > max_cells:
         step = (len(rows) - 1) / (max_cells - 1)
         picks = sorted({round(i * step) for i in range(max_cells)})
-        ok = [i for i, r in enumerate(rows) if r["status"] == "ok" and r["last_1s_std_mm"]]
-        if ok:
-            best = min(ok, key=lambda i: float(rows[i]["last_1s_std_mm"]))
+        caption = f"{len(picks)} of {len(rows)} cells, evenly spread over the grid"
+        # the steadiest by pupper's rule (what `pupper sweep` printed)
+        from pupper_core import _native
+
+        header = list(rows[0])
+        try:
+            (best,) = _native.best_rows(header, [[r[h] for h in header] for r in rows], "last_1s_std_mm")
+        except _native.PupperError:  # a replicated run ranks by a statistic: none named here
+            best = None
+        if best is not None:
             if best not in picks:
                 picks[-1] = best
                 picks.sort()
+            caption += f", the steadiest ({rows[best]['id']}) among them"
     recs = record_run(run, [int(rows[i]["index"]) for i in picks], fps=fps)
-    return [p for p in write_effects(recs, run / "plots", shadows=False) if p is not None]
+    paths = write_effects(recs, run / "plots", shadows=False, caption=caption)
+    return [p for p in paths if p is not None]
 
 
-def write_lab_effects(run_dir: str | os.PathLike[str], gif: bool = False, fps: float = 15) -> list[Path]:
+def write_lab_effects(run_dir: str | os.PathLike[str], gif: bool = False, fps: float = 10) -> list[Path]:
     """`pupper lab`: each body at its best gains (best.csv), re-simulated by
     the sweep's runner and drawn side by side on its own body:
     ``plots/lab_best.png`` (final frames), with ``gif=True`` also

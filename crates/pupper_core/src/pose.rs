@@ -384,7 +384,10 @@ mod tests {
             assert!((z - -0.14).abs() < 0.5e-3, "{z}");
             assert!(x.abs() < 1e-3, "{x}");
         }
-        assert!((p.thigh_angle - (0.07f64 / 0.1).acos()).abs() < 0.01, "{p:?}");
+        assert!(
+            (p.thigh_angle - (0.07f64 / 0.1).acos()).abs() < 0.01,
+            "{p:?}"
+        );
         // right (axes -y) and left (+y) get opposite angles, abduction 0
         assert_eq!(p.targets[0], 0.0);
         assert_eq!(p.targets[1], -p.targets[4]);
