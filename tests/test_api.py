@@ -241,3 +241,20 @@ def test_a_result_behaves_like_a_table_in_a_notebook(tmp_path):
     p = subprocess.run([sys.executable, "-c", "import pupper_core as pc; pc.sweep({'kp': [5]}, seconds=0.1)"],
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 0 and "pupper sweep" not in p.stderr and "it/s" not in p.stderr, p.stderr
+
+
+def test_a_result_pickles(tmp_path):
+    """A result crosses to worker processes and into files: table, traces,
+    replicates, inputs and where it was written all come back."""
+    import pickle
+
+    res = pc.sweep({"kp": [10, 30]}, seconds=2.5, replicates=2, randomize=["torso_mass=±10%"],
+                   trace=True, out=tmp_path / "run", progress=False)
+    back = pickle.loads(pickle.dumps(res))
+    assert back.header == res.header and back.rows == res.rows
+    assert back.config == res.config and back.out == res.out and back.complete == res.complete
+    assert back.replicates is not None and back.replicates.rows == res.replicates.rows
+    assert set(back.traces) == set(res.traces)
+    for cid, (t, z) in res.traces.items():
+        assert list(back.traces[cid][0]) == list(t) and list(back.traces[cid][1]) == list(z)
+    assert back.best("p95:last_1s_std_mm")["id"] == res.best("p95:last_1s_std_mm")["id"]

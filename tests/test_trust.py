@@ -151,7 +151,10 @@ def work():
         pc.sweep({"kp": [10, 20, 30, 40, 50, 60, 70, 80]}, seconds=600.0, out=out, progress=False,
                  chunk_cells=1, threads=1)
     except KeyboardInterrupt as e:
-        print("stopped:", e, flush=True)
+        # a file, not stdout: a daemon thread still printing while Python
+        # finalizes trips CPython's own stdout lock check, pupper or not
+        with open(out + ".stopped", "w") as f:
+            f.write(str(e))
 t = threading.Thread(target=work, daemon=daemon)
 t.start()
 time.sleep(4.0)
@@ -181,7 +184,13 @@ def test_the_interpreter_exits_cleanly_while_a_sweep_runs_in_a_thread(tmp_path: 
         raise
     assert p.returncode not in (-11, 139, -6, 134), (p.returncode, stderr)
     assert "Fatal Python error" not in stderr and "panicked" not in stderr, stderr
-    assert "stopped:" in stdout, (stdout, stderr)
+    if how == "daemon":
+        assert "main done" in stdout, (stdout, stderr)
+    # a non-daemon thread ends before Python finalizes: its sweep was told
+    # why it stopped (a daemon thread may be frozen anywhere in its own
+    # code once the sweep has left Rust, so only the process is checked)
+    if how != "daemon":
+        assert "interpreter is exiting" in Path(str(out) + ".stopped").read_text()
     m = json.loads((out / "manifest.json").read_text())
     assert m["complete"] is False
     assert m["cells_done"] < 8

@@ -189,6 +189,9 @@ def best_rows(header: Sequence[str], rows: Sequence[Sequence[str]], metric: str,
               by: Sequence[str] = ..., minimize: bool = ..., max_saturation: float = ...) -> list[int | None]:
     """pupper's ranking rule on a table of text rows: the best row of each group."""
 
+def _result_from_state(state: dict[str, Any]) -> SweepResult:
+    """A result rebuilt from its pickled state."""
+
 def _shutdown() -> None:
     """At interpreter exit: stops running sweeps and waits for them (atexit)."""
 

@@ -139,6 +139,47 @@ impl SweepResult {
         })
     }
 
+    /// What a result is made from, as plain values (for pickling): its
+    /// table as text, traces as lists, where it was written, its inputs.
+    fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("header", self.header.clone())?;
+        d.set_item("rows", self.rows.clone())?;
+        let traces = PyDict::new(py);
+        for (id, tz) in self.traces.bind(py).iter() {
+            let (t, z): (Bound<'py, PyAny>, Bound<'py, PyAny>) = tz.extract()?;
+            let t: Vec<f64> = t.call_method0("tolist")?.extract()?;
+            let z: Vec<f64> = z.call_method0("tolist")?.extract()?;
+            traces.set_item(id, (t, z))?;
+        }
+        d.set_item("traces", traces)?;
+        let out = self.out.bind(py);
+        d.set_item(
+            "out",
+            if out.is_none() {
+                None
+            } else {
+                Some(out.str()?.to_string())
+            },
+        )?;
+        d.set_item("complete", self.complete)?;
+        d.set_item("wall_seconds", self.wall_seconds)?;
+        let text: String = PyModule::import(py, "json")?
+            .getattr("dumps")?
+            .call1((self.config.bind(py),))?
+            .extract()?;
+        d.set_item("config", text)?;
+        let reps = match &self.replicates {
+            Some(r) => {
+                let r = r.borrow(py);
+                Some((r.header.clone(), r.rows.clone()))
+            }
+            None => None,
+        };
+        d.set_item("replicates", reps)?;
+        Ok(d)
+    }
+
     fn column<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
         self.columns.bind(py).get_item(name)?.ok_or_else(|| {
             PyKeyError::new_err(format!(
@@ -203,6 +244,16 @@ impl SweepResult {
 
     fn __getitem__<'py>(&self, py: Python<'py>, column: &str) -> PyResult<Bound<'py, PyAny>> {
         self.column(py, column)
+    }
+
+    /// Pickling (a result crosses to worker processes, or is saved): the
+    /// table, traces and inputs; rebuilt by `_result_from_state`.
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
+        let rebuild = PyModule::import(py, "pupper_core._native")?.getattr("_result_from_state")?;
+        Ok((rebuild, (self.state(py)?,)))
     }
 
     /// `"kp" in res`: whether the table has that column.
@@ -432,4 +483,43 @@ impl SweepResult {
             lines.join("\n")
         ))
     }
+}
+
+/// A result rebuilt from what `SweepResult.__reduce__` gave (unpickling).
+#[pyfunction]
+pub fn _result_from_state(py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult<SweepResult> {
+    let get = |k: &str| -> PyResult<Bound<'_, PyAny>> {
+        state.get_item(k)?.ok_or_else(|| {
+            pyo3::exceptions::PyValueError::new_err(format!("no '{k}' in a result's state"))
+        })
+    };
+    let header: Vec<String> = get("header")?.extract()?;
+    let rows: Vec<Vec<String>> = get("rows")?.extract()?;
+    let mut traces: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    for (id, tz) in get("traces")?.cast_into::<PyDict>()?.iter() {
+        let (t, z): (Vec<f64>, Vec<f64>) = tz.extract()?;
+        traces.push((id.extract()?, t.into_iter().zip(z).collect()));
+    }
+    let out: Option<String> = get("out")?.extract()?;
+    let text: String = get("config")?.extract()?;
+    let config: pupper_core::experiment::SweepConfig =
+        serde_json::from_str(&text).map_err(|e| {
+            pyo3::exceptions::PyValueError::new_err(format!(
+                "a result's inputs do not read back: {e}"
+            ))
+        })?;
+    let replicates: Option<(Vec<String>, Vec<Vec<String>>)> = get("replicates")?.extract()?;
+    SweepResult::new(
+        py,
+        Parts {
+            header,
+            rows,
+            traces: &traces,
+            out: out.as_deref().map(Path::new),
+            complete: get("complete")?.extract()?,
+            wall_seconds: get("wall_seconds")?.extract()?,
+            config: &config,
+            replicates,
+        },
+    )
 }
