@@ -219,3 +219,24 @@ def test_a_model_without_visual_geoms_is_drawn_from_its_collision_geoms() -> Non
     assert pupper is not None
     opt = render.scene_option(mujoco.MjModel.from_xml_path(str(pupper)))
     assert list(opt.geomgroup) == list(mujoco.MjvOption().geomgroup)
+
+
+def test_a_run_too_short_to_measure_is_never_ranked(run, tmp_path: Path) -> None:
+    """--seconds 0.5: the last second holds the landing, the push never
+    comes; the metrics it cannot have are empty, a note says why, and no
+    cell is called steadiest (it was, with the drop inside its last second)."""
+    p = run("sweep", "--grid", "kp=10,30", "--seconds", "0.5", "-o", tmp_path / "run", check=0)
+    assert "steadiest" not in p.stdout, p.stdout
+    notes = [ln for ln in p.stderr.splitlines() if ln.startswith("note:")]
+    assert any("last_1s_std_mm is left empty" in n for n in notes), p.stderr
+    assert any("push_dip_mm and settle_time_s are left empty" in n for n in notes), p.stderr
+    import csv
+
+    with open(tmp_path / "run" / "summary.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert all(r["last_1s_std_mm"] == "" and r["push_dip_mm"] == "" for r in rows), rows
+    best = run("sweep", "--grid", "kp=10,30", "--seconds", "0.5", "--best-by", "kp", "-q",
+               "-o", tmp_path / "ranked", check=0)
+    with open(tmp_path / "ranked" / "best.csv", newline="") as f:
+        assert all(r["id"] == "" for r in csv.DictReader(f)), "no cell ranked"
+    assert best.returncode == 0
