@@ -405,22 +405,27 @@ mod tests {
         assert_eq!(m.event_time, 1.0);
     }
 
-    #[test]
-    fn falls_are_judged_against_the_robots_own_stance() {
+    /// 3 s without a push, sampled every 10 ms: (base z, tilt) at each
+    /// post-step time, for a robot `stance` m tall.
+    fn three_seconds(stance: f64, sample: &dyn Fn(f64) -> (f64, f64)) -> Metrics {
         let s = Schedule {
             duration: 3.0,
             push: None,
             ..Schedule::default()
         };
+        let mut r = Recorder::new(&s, 0.01, stance);
+        for k in 0..300 {
+            let (z, tilt) = sample((k + 1) as f64 * 0.01);
+            r.observe(z, tilt, 0.0, 1, 0.0, 0, 1);
+        }
+        r.finish().0
+    }
+
+    #[test]
+    fn falls_are_judged_against_the_robots_own_stance() {
         // the same 0.05 m is a fall for a robot 0.27 m tall, not for one
         // 0.13 m tall (0.3 x 0.27 = 0.081 m)
-        let run = |stance: f64, z: &dyn Fn(f64) -> f64| {
-            let mut r = Recorder::new(&s, 0.01, stance);
-            for k in 0..300 {
-                r.observe(z((k + 1) as f64 * 0.01), 0.0, 0.0, 1, 0.0, 0, 1);
-            }
-            r.finish().0
-        };
+        let run = |stance: f64, z: &dyn Fn(f64) -> f64| three_seconds(stance, &|t| (z(t), 0.0));
         let low = |_: f64| 0.05;
         let (tall, short) = (run(0.27, &low), run(0.13, &low));
         assert_eq!(tall.status, Status::Fell);
@@ -445,18 +450,7 @@ mod tests {
 
     #[test]
     fn ending_on_its_side_is_a_fall_a_passing_lean_is_not() {
-        let s = Schedule {
-            duration: 3.0,
-            push: None,
-            ..Schedule::default()
-        };
-        let run = |tilt: &dyn Fn(f64) -> f64| {
-            let mut r = Recorder::new(&s, 0.01, 0.13);
-            for k in 0..300 {
-                r.observe(0.12, tilt((k + 1) as f64 * 0.01), 0.0, 1, 0.0, 0, 1);
-            }
-            r.finish().0
-        };
+        let run = |tilt: &dyn Fn(f64) -> f64| three_seconds(0.13, &|t| (0.12, tilt(t)));
         // tipping over to 38 degrees at 1.5 s and staying there
         let m = run(&|t| if t < 1.5 { 2.0 } else { 38.0 });
         assert_eq!(m.status, Status::Fell);
