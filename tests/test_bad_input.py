@@ -85,6 +85,8 @@ CASES = [
     Case("out-exists", ["sweep", "--seconds", "1"], ["already exists", "--force", "--resume"],
          setup="out-exists"),
     Case("unknown-preset", ["sweep", "--preset", "nope"], ["unknown preset 'nope'", "chapter-4.6"]),
+    Case("old-lab-preset", ["sweep", "--preset", "lab"], ["now 'lab-grid'", "pupper lab"]),
+    Case("lab-random-push", ["lab", "--replicates", "2", "--randomize", "push_at=1:2"], ["this run has none", "pupper sweep"]),
     Case("bad-pose-length", ["sweep", "--pose", "1,2,3"],
          ["pose has 3 angles", "12 actuated joints"]),
     Case("bad-pose-length-stand", ["stand", "--pose", "0.1,0.2"],

@@ -404,6 +404,35 @@ def test_pupper_render_command(run, tmp_path: Path) -> None:
     assert not (tmp_path / "bad.png").exists()
 
 
+def test_render_draws_a_cell_of_a_finished_run_at_a_time(run, tmp_path: Path) -> None:
+    """`render --run DIR --cell ID --time T`: the cell re-simulated with the
+    run's inputs, drawn at T; by id or index; -o a directory or a file;
+    bad cell, time or extra controller flags: one line, exit 2, no file."""
+    from PIL import Image
+
+    _need_gl()
+    d = tmp_path / "run"
+    run("sweep", "--grid", "kp=2,30", "--grid", "kd=0.1", "--seconds", "1.5", "-o", d, "-q", check=0)
+    p = run("render", "--run", d, "--cell", "kp30_kd0.1", "--time", "0", "--width", "320", "--height", "240",
+            check=0)
+    start = d / "plots" / "render-kp30_kd0.1-t0.png"
+    assert p.stdout.strip() == f"wrote {start}"
+    _check_png(start)
+    p = run("render", "--run", d, "--cell", "1", "-o", tmp_path, "--json", "--width", "320", "--height", "240",
+            check=0)
+    end = tmp_path / "render-kp30_kd0.1-t1.5.png"
+    assert json.loads(p.stdout) == {"path": str(end)}
+    _check_png(end)
+    # the robot dropped and settled between 0 and 1.5 s: not the same picture
+    a, b = (np.asarray(Image.open(x).convert("RGB"), dtype=float) for x in (start, end))
+    assert np.abs(a - b).mean() > 1.0
+    for bad, word in ((["--cell", "nope"], "--cell nope"), (["--time", "9"], "--time 9"),
+                      (["--kp", "3"], "drop the model")):
+        p = run("render", "--run", d, *bad, "-o", tmp_path / "bad.png", check=2)
+        assert len(p.stderr.strip().splitlines()) == 1 and word in p.stderr, p.stderr
+    assert not (tmp_path / "bad.png").exists()
+
+
 def test_render_without_gl_says_how_to_fix(tmp_path: Path) -> None:
     import subprocess
 

@@ -280,3 +280,31 @@ def test_lab_takes_the_counts_sweep_takes():
         pc.lab(seed=-2, progress=False)
     with pytest.raises(pc.ConfigError, match="replicates="):
         pc.lab(replicates=0, progress=False)
+
+
+def test_the_spread_plot_shows_every_replicate_and_the_pick(run, tmp_path):
+    """Read back from the figure: a dot per replicate that stayed up, a red
+    cross per replicate that fell, dots coloured by the drawn quantity that
+    orders the metric (named on the colour bar), the rule's pick starred."""
+    from pupper_core import plots
+
+    d = tmp_path / "falls"
+    run("sweep", "--grid", "kp=0.8,1,30", "--grid", "kd=0.05", "--replicates", "8", "--seconds", "4",
+        "--randomize", "torso_mass=±60%", "--randomize", "push_force=-150:-10", "-o", d, "-q", check=0)
+    _, reps = read_csv(d / "replicates.csv")
+    fell = sum(r["status"] != "ok" for r in reps)
+    assert 0 < fell < len(reps), "the grid must hold both fallen and standing replicates"
+    fig = plots.replicate_spread(d)
+    ax = fig.axes[0]
+    crosses = sum(len(line.get_xdata()) for line in ax.lines if line.get_marker() == "x")
+    dots = sum(len(c.get_offsets()) for c in ax.collections if c.get_array() is not None)
+    assert (crosses, dots) == (fell, len(reps) - fell)
+    assert fig.axes[1].get_ylabel() in ("drawn torso_mass", "drawn push_force")
+    ticks = [t.get_text() for t in ax.get_xticklabels()]
+    starred = [t for t in ticks if t.startswith("★")]
+    assert starred == ["★ kp30_kd0.05"], ticks
+    summary = {r["id"]: r for r in read_csv(d / "summary.csv")[1]}
+    for t in ticks:
+        cid = t.lstrip("★ ").split("\n")[0]
+        n_down = round(float(summary[cid]["failure_fraction"]) * 8)
+        assert (f"{n_down}/8 fell" in t) == (n_down > 0), t

@@ -222,7 +222,7 @@ def sweep(
     grid: {"kp": [10, 30], "kd": 1} (a value may also be text parsed as the
     CLI parses it: "10,30" or "1:120:16:log"), or the CLI's strings
     ["kp=10,30", "kd=1"] (or one such string). preset: "chapter-4.6" or
-    "lab" instead of a grid. Every other keyword is the CLI flag of the same
+    "lab-grid" (the lab's Kp x Kd grid only) instead of a grid. Every other keyword is the CLI flag of the same
     name, with the same default and checks (`pupper sweep --help`).
     out: also write the run directory (summary.csv, manifest.json, traces.csv)
     as `pupper sweep --out` does; resume=True continues an interrupted one.

@@ -695,44 +695,89 @@ def write_effects(
     return png_path, (gif_path if gif else None), csv_path
 
 
+def _still(rec: "Recording", k: int, title: str, width: int, height: int,
+           camera: str | int | None) -> "PILImage.Image":
+    """Frame ``k`` of a recording with a header inside the asked size: the
+    body, its gains, the time and how high the base stands."""
+    scale = max(1.0, int(width) / 320)
+    header_h = min(int(round(46 * scale)), int(height) // 3)
+    drawn = _draw([rec], int(width), int(height) - header_h, camera, True)[0]
+    fonts = (_font(int(round(17 * scale))), _font(int(round(13 * scale))))
+    _, gains = _labels(rec)
+    params = f"{gains}  ·  base z {drawn.base_z[k] * 1000:.1f} mm"
+    status = "" if rec["status"] == "ok" else rec["status"]
+    return _panel(drawn.frames[k], title, params, float(rec["times"][k]), bool(rec["pushing"][k]),
+                  _push_text(rec), status, fonts, header_h)
+
+
+def _save_png(img: "PILImage.Image", path: str | os.PathLike[str]) -> Path:
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    _atomic_save(img, out, "PNG")
+    return out
+
+
 def render_png(
     path: str | os.PathLike[str],
     *,
     width: int = 640,
     height: int = 480,
     camera: str | int | None = "tracking_cam",
+    time: float | None = None,
     **options: Any,
 ) -> Path:
-    """The robot after standing ``seconds`` (no push), drawn to a PNG.
+    """The robot after standing ``seconds`` (no push), or at ``time`` s,
+    drawn to a PNG with a header naming body, gains, time and base height.
 
     Keywords are those of :func:`pupper_core.stand` (model, mode, seconds,
     gains, keyframe or pose); the stand is simulated by the sweep's runner.
     """
-    from PIL import Image
-
     _require_gl()
     seconds = float(options.get("seconds", 10.0))
-    fps = 1.0 / seconds if seconds > 0 else 1.0
-    recs = record(None, fps=fps, **{**options, "push": False})
-    # say what is drawn (the body, its gains, when, how high it stands) in
-    # a header inside the asked size
-    scale = max(1.0, int(width) / 320)
-    header_h = min(int(round(46 * scale)), int(height) // 3)
-    drawn = _draw(recs, int(width), int(height) - header_h, camera, True)[0]
+    at = seconds if time is None else float(time)
+    recs = record(None, fps=_fps_for(at, seconds), **{**options, "push": False})
     rec = recs[0]
-    fonts = (_font(int(round(17 * scale))), _font(int(round(13 * scale))))
     model = str(options.get("model", "pupper_v3"))
     body = str(options.get("variant", "original"))
-    _, gains = _labels(rec)
     title = f"{Path(model).name if os.sep in model else model}" + ("" if body == "original" else f" ({body})")
-    params = f"{gains}  ·  base z {drawn.base_z[-1] * 1000:.1f} mm"
-    status = "" if rec["status"] == "ok" else rec["status"]
-    img = _panel(drawn.frames[-1], title, params, float(rec["times"][-1]), False, "", status, fonts,
-                 header_h)
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    _atomic_save(img, out, "PNG")
-    return out
+    return _save_png(_still(rec, _frame_at(rec, at), title, width, height, camera), path)
+
+
+def _fps_for(at: float, seconds: float) -> float:
+    """A frame rate whose frames fall on ``at`` (frame 1) and are few."""
+    if at > 0:
+        return 1.0 / at
+    return 1.0 / seconds if seconds > 0 else 1.0
+
+
+def _frame_at(rec: "Recording", at: float) -> int:
+    times = np.asarray(rec["times"], dtype=float)
+    return int(np.argmin(np.abs(times - at)))
+
+
+def render_cell_png(
+    path: str | os.PathLike[str],
+    run_dir: str | os.PathLike[str],
+    cell: int,
+    *,
+    time: float | None = None,
+    width: int = 640,
+    height: int = 480,
+    camera: str | int | None = "tracking_cam",
+) -> Path:
+    """Cell ``cell`` (its ``index`` in summary.csv) of a finished run at
+    ``time`` s (default: the run's end), re-simulated with the run's
+    manifest (its push included) and drawn to a PNG; the header names the
+    cell, its gains and axis values, the time and the base height."""
+    _require_gl()
+    from pupper_core import _native
+
+    manifest = _native.read_manifest(os.fspath(run_dir))
+    seconds = float(manifest["config"]["schedule"]["duration"])
+    at = seconds if time is None else float(time)
+    (rec,) = record_run(run_dir, [int(cell)], fps=_fps_for(at, seconds))
+    title = f"{rec['id']}" + (f" {rec['name']}" if rec["name"] else "")
+    return _save_png(_still(rec, _frame_at(rec, at), title, width, height, camera), path)
 
 
 def write_run_effects(run_dir: str | os.PathLike[str], max_cells: int = 6, fps: float = 10) -> list[Path]:

@@ -113,6 +113,9 @@ struct MergeArgs {
     /// Overwrite pupper's files in an existing OUT.
     #[arg(long)]
     force: bool,
+    /// Print {"out", "shards", "cells"} as JSON instead of the "merged" line.
+    #[arg(long)]
+    json: bool,
 }
 
 /// `--grid`, repeatable.
@@ -223,7 +226,7 @@ struct SimArgs {
     /// Who computes the PD torques.
     #[arg(long, value_enum, default_value_t = ModeArg::from(SweepSpec::default().mode))]
     mode: ModeArg,
-    /// Simulated seconds (per cell).
+    /// Simulated seconds (in a sweep: of every cell).
     #[arg(long, default_value_t = SweepSpec::default().seconds, value_name = "S", allow_negative_numbers = true)]
     seconds: f64,
     /// Proportional gain (N·m/rad) of every actuator (in a sweep: where the grid has no kp axis)
@@ -242,7 +245,7 @@ struct SimArgs {
     #[arg(long, default_value_t = SweepSpec::default().keyframe, value_name = "NAME", conflicts_with = "pose")]
     keyframe: String,
     /// Start and target joint angles (rad), one per actuator in ctrl order, comma-separated;
-    /// or `auto`: a stand pose searched on each cell's own body (see `pupper pose`), the base
+    /// or `auto`: a stand pose searched on the body (in a sweep: on each cell's own; see `pupper pose`), the base
     /// just above the floor.
     #[arg(long, value_name = "Q1,Q2,...|auto", allow_hyphen_values = true)]
     pose: Option<String>,
@@ -289,8 +292,8 @@ struct PopulationArgs {
     seed: u64,
     /// What differs between replicates, QUANTITY=DISTRIBUTION; repeat for more.
     /// Relative (a factor uniform in 1±P): torso_mass=±10%, leg_mass=±10% (thigh and calf),
-    /// motor_gain=±5% (drawn per actuator). Uniform ranges: friction=0.5:1.2 (feet and floor),
-    /// push_force=-35:-15 (N), push_at=1.5:3 (s). Torque mode only: q_noise=N(0,0.002) (rad,
+    /// motor_gain=±5% (drawn per actuator). Uniform ranges: friction=0.5:1.2 (feet and floor);
+    /// with a push (sweep, not lab): push_force=-35:-15 (N), push_at=1.5:3 (s). Torque mode only: q_noise=N(0,0.002) (rad,
     /// on the angles the PD reads, every step), delay=0:3 (whole control steps the PD reads
     /// late). `+-10%` may stand for `±10%`.
     #[arg(long, value_name = "QUANTITY=DIST", allow_hyphen_values = true)]
@@ -447,7 +450,8 @@ Ties: cells within 0.001 mm on a *_mm metric are tied, and the smaller push dip 
 struct SweepArgs {
     #[command(flatten)]
     grid: GridArg,
-    /// A named grid: chapter-4.6 (the chapter's soft/default/stiff/underD servo cases) or lab (kp 10,30,60,120 x kd 0.5,1,2,5).
+    /// A named grid: chapter-4.6 (the chapter's soft/default/stiff/underD servo cases) or lab-grid (the lab's
+    /// kp 10,30,60,120 x kd 0.5,1,2,5 only, in this command's mode and push; the lab itself is `pupper lab`).
     #[arg(long, value_name = "NAME", conflicts_with = "grid")]
     preset: Option<String>,
     #[command(flatten)]
@@ -563,12 +567,26 @@ impl SweepArgs {
 }
 
 #[derive(Args, Debug)]
+#[command(after_help = "Examples:
+  pupper render --kp 5 --kd 0.1 -o stand.png          the robot after 10 s standing
+  pupper render --run runs/X --cell 5 --time 2.5     cell 5 of a finished sweep at 2.5 s")]
 struct RenderArgs {
     #[command(flatten)]
     sim: SimArgs,
-    /// Output PNG.
-    #[arg(long, short = 'o', default_value = "pupper.png", value_name = "FILE")]
-    out: PathBuf,
+    /// A finished run directory: draw one of its cells (--cell), re-simulated with the run's
+    /// own inputs (its push too); the model and controller flags are then not given.
+    #[arg(long, value_name = "DIR")]
+    run: Option<PathBuf>,
+    /// With --run: the cell, by its id or index in summary.csv [default: the first].
+    #[arg(long, value_name = "ID", requires = "run")]
+    cell: Option<String>,
+    /// The moment drawn, in simulated seconds from the start [default: the end of the run].
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    time: Option<f64>,
+    /// Output PNG; an existing directory gets a file named for what is drawn
+    /// [default: pupper.png, or with --run DIR/plots/render-<ID>-t<T>.png]
+    #[arg(long, short = 'o', value_name = "FILE")]
+    out: Option<PathBuf>,
     /// Overwrite FILE if it exists (only ever a PNG: any other file is refused).
     #[arg(long)]
     force: bool,
@@ -578,6 +596,121 @@ struct RenderArgs {
     /// Image height in pixels.
     #[arg(long, default_value_t = 480)]
     height: u32,
+    /// Print {"path": ...} as JSON instead of the "wrote" line.
+    #[arg(long)]
+    json: bool,
+}
+
+impl RenderArgs {
+    /// The PNG to write: `-o` as given, inside it when it is a directory,
+    /// else the default for what is drawn.
+    fn target(&self, default_name: &str, default_dir: Option<&std::path::Path>) -> PathBuf {
+        match &self.out {
+            Some(o) if o.is_dir() => o.join(default_name),
+            Some(o) => o.clone(),
+            None => default_dir
+                .map(|d| d.join(default_name))
+                .unwrap_or_else(|| PathBuf::from(default_name)),
+        }
+    }
+
+    fn run(&self) -> Result<()> {
+        let written = match &self.run {
+            Some(dir) => self.render_cell(dir)?,
+            None => self.render_stand()?,
+        };
+        if self.json {
+            outln!("{}", serde_json::json!({ "path": written }));
+        } else {
+            outln!("wrote {written}");
+        }
+        Ok(())
+    }
+
+    fn check_time(&self, seconds: f64) -> Result<()> {
+        match self.time {
+            Some(t) if !(0.0..=seconds).contains(&t) => Err(Error::Config(format!(
+                "--time {t} is outside the run's 0..{seconds} s: give a time in that range"
+            ))),
+            _ => Ok(()),
+        }
+    }
+
+    fn render_stand(&self) -> Result<String> {
+        // the spec checks the values; the runner simulates, Python draws
+        let spec = self.sim.spec()?;
+        spec.build()?;
+        self.check_time(spec.seconds)?;
+        let out = self.target("pupper.png", None);
+        check_png_target(&out, self.force)?;
+        let written = bridge::call_helper(
+            "pupper_core.render",
+            "render_png",
+            &[out.display().to_string()],
+            &serde_json::json!({
+                "width": self.width,
+                "height": self.height,
+                "time": self.time,
+                "model": spec.model,
+                "variant": spec.variant,
+                "mode": spec.mode,
+                "seconds": spec.seconds,
+                "kp": spec.kp,
+                "kd": spec.kd,
+                "max_torque": spec.max_torque,
+                "keyframe": spec.keyframe,
+                "pose": spec.pose,
+            }),
+        )?;
+        Ok(written.first().cloned().unwrap_or_default())
+    }
+
+    fn render_cell(&self, dir: &std::path::Path) -> Result<String> {
+        if self.sim.spec()? != SweepSpec::default() {
+            return Err(Error::Config(format!(
+                "--run {} draws a cell with the run's own inputs: drop the model and controller options, or render without --run",
+                dir.display()
+            )));
+        }
+        let cfg = output::read_manifest(dir)?.config;
+        let cells = cfg.grid.cells();
+        let cell = match &self.cell {
+            None => cells.first(),
+            Some(want) => cells
+                .iter()
+                .find(|c| &c.id == want || want.parse::<usize>().ok() == Some(c.index)),
+        }
+        .ok_or_else(|| {
+            let ids: Vec<&str> = cells.iter().take(6).map(|c| c.id.as_str()).collect();
+            Error::Config(format!(
+                "--cell {} is not a cell of {}: give an id or index from its summary.csv (e.g. {}{})",
+                self.cell.as_deref().unwrap_or(""),
+                dir.display(),
+                ids.join(", "),
+                if cells.len() > ids.len() { ", ..." } else { "" }
+            ))
+        })?;
+        let seconds = cfg.schedule.duration;
+        self.check_time(seconds)?;
+        let at = self.time.unwrap_or(seconds);
+        let out = self.target(
+            &format!("render-{}-t{}.png", cell.id, output::fmt_f64(at)),
+            Some(&dir.join("plots")),
+        );
+        check_png_target(&out, self.force)?;
+        let written = bridge::call_helper(
+            "pupper_core.render",
+            "render_cell_png",
+            &[out.display().to_string(), dir.display().to_string()],
+            &serde_json::json!({
+                "cell": cell.index,
+                "time": at,
+                "width": self.width,
+                "height": self.height,
+            }),
+        )?;
+        Ok(written.first().cloned().unwrap_or_default())
+    }
 }
 
 /// `render -o FILE`: a new file, or with `force` an existing PNG; never
@@ -638,6 +771,13 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
                 ),
             };
             let (dir, m) = pupper_core::rundir::merge(&a.dirs, &out, existing)?;
+            if a.json {
+                outln!(
+                    "{}",
+                    serde_json::json!({"out": dir, "shards": m.merged.len(), "cells": m.cells_total})
+                );
+                return Ok(0);
+            }
             outln!(
                 "merged {} shards ({} cells) into {}",
                 m.merged.len(),
@@ -656,31 +796,7 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
                 return Err(Error::Mujoco(p));
             }
         }
-        Command::Render(a) => {
-            // the spec checks the values; the runner simulates, Python draws
-            let spec = a.sim.spec()?;
-            spec.build()?;
-            check_png_target(&a.out, a.force)?;
-            let out = bridge::call_helper(
-                "pupper_core.render",
-                "render_png",
-                &[a.out.display().to_string()],
-                &serde_json::json!({
-                    "width": a.width,
-                    "height": a.height,
-                    "model": spec.model,
-                    "variant": spec.variant,
-                    "mode": spec.mode,
-                    "seconds": spec.seconds,
-                    "kp": spec.kp,
-                    "kd": spec.kd,
-                    "max_torque": spec.max_torque,
-                    "keyframe": spec.keyframe,
-                    "pose": spec.pose,
-                }),
-            )?;
-            outln!("wrote {}", out.first().cloned().unwrap_or_default());
-        }
+        Command::Render(a) => a.run()?,
         Command::View { model } => {
             let source = model.source()?;
             if std::env::var_os("DISPLAY").is_none()

@@ -384,7 +384,12 @@ impl Grid {
                     vec![5.0, 0.0],
                 ],
             }),
-            "lab" => Grid::parse(&["kp=10,30,60,120", "kd=0.5,1,2,5"]),
+            "lab-grid" => Grid::parse(&["kp=10,30,60,120", "kd=0.5,1,2,5"]),
+            // the old name read as the lab itself, which also sets the mode,
+            // the disturbance and the bodies
+            "lab" => Err(Error::Grid(
+                "preset 'lab' is now 'lab-grid': it is only the lab's 4x4 Kp x Kd grid; for the lab itself (torque mode, the sine, every body) run `pupper lab`".into(),
+            )),
             _ => Err(Error::Grid(format!(
                 "unknown preset '{name}': known presets are {}",
                 PRESETS.join(", ")
@@ -465,7 +470,7 @@ impl Grid {
     }
 }
 
-pub const PRESETS: [&str; 2] = ["chapter-4.6", "lab"];
+pub const PRESETS: [&str; 2] = ["chapter-4.6", "lab-grid"];
 
 /// `kp30_kd0.5`: short, stable, file-name safe.
 pub fn cell_id(values: &[(Axis, f64)]) -> String {

@@ -341,7 +341,7 @@ impl Replicates {
             r.check_mode(mode)?;
             if matches!(r.quantity, Quantity::PushForce | Quantity::PushAt) && !push {
                 return Err(Error::Config(format!(
-                    "--randomize {name} varies the push, which is off: drop --no-push or this --randomize"
+                    "--randomize {name} varies the push, and this run has none (--no-push, or `pupper lab`, whose disturbance is a sine): drop this --randomize, or run `pupper sweep` with a push"
                 )));
             }
             if matches!(r.quantity, Quantity::Friction | Quantity::PushForce)
