@@ -110,6 +110,8 @@ def test_render_never_overwrites_without_force_and_never_a_non_png(run, tmp_path
     p = run("render", "--seconds", "0.01", "-o", png)
     assert p.returncode == 2 and "--force" in p.stderr, p.stderr
     assert png.read_bytes().endswith(b"old")
+    # a directory takes the picture inside it, under the same rule
+    (tmp_path / "pupper.png").mkdir()
     d = run("render", "--seconds", "0.01", "-o", tmp_path)
     assert d.returncode == 2 and "not a file" in d.stderr, d.stderr
 

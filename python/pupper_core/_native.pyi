@@ -96,6 +96,9 @@ class SweepResult:
     """Seconds the sweep took (NaN for a run read back from disk)."""
     config: dict[str, Any]
     """The inputs that decide the numbers, as stored in manifest.json."""
+    tables: dict[str, SweepResult]
+    """Every table beside summary.csv by name: "replicates"; a response
+    run's "response" (a row per cell and joint) and "bode"."""
     replicates: SweepResult | None
     """replicates.csv (a row per cell and replicate: drawn values, metrics);
     None without replicates."""
@@ -160,6 +163,21 @@ def sweep(
     **options: Unpack[SweepOptions],
 ) -> SweepResult:
     """Runs a sweep; its table as a `SweepResult`."""
+
+def response(
+    grid: Any = ...,
+    *,
+    out: str | PathLike[str] | None = ...,
+    progress: Callable[[int, int], None] | None = ...,
+    signal: str = ...,
+    amplitude: float = ...,
+    frequency: float | None = ...,
+    chirp: Sequence[float] | None = ...,
+    hold: float = ...,
+    joints: Sequence[str] = ...,
+    standing: bool = ...,
+    **options: Any,
+) -> SweepResult: ...
 
 def lab(
     variants: Sequence[str] | None = ...,

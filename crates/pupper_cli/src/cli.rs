@@ -5,13 +5,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use pupper_core::best;
-use pupper_core::experiment::{Hooks, SweepConfig};
-use pupper_core::model::ModelSource;
-use pupper_core::output;
-use pupper_core::physics::Mode;
-use pupper_core::rundir::Existing;
-use pupper_core::spec::{self, GridInput, SweepSpec};
+use pupper_core::plan::config::SweepConfig;
+use pupper_core::plan::mode::Mode;
+use pupper_core::request::spec::{self, GridInput, SweepSpec};
+use pupper_core::results::best;
+use pupper_core::results::output;
+use pupper_core::results::rundir::Existing;
+use pupper_core::robot::model::ModelSource;
+use pupper_core::sim::runner::Hooks;
 use pupper_core::{Error, Result};
 use pupper_mujoco::api::{self, SweepRequest, SweepUi};
 use pupper_mujoco::bridge;
@@ -83,6 +84,18 @@ enum Command {
     /// mode under a 2 N, 1.2 Hz vertical sine force, 6 s, no push, all in one batch; the
     /// steadiest gains per body (best.csv), heatmaps, base-z curves and the bodies rendered.
     Lab(Box<LabArgs>),
+    /// How each joint follows its target: every joint excited alone (its target steps or
+    /// oscillates around the stand pose while the others hold), on the robot hung in the air
+    /// (base fixed, no contact) or --standing, for every gain cell of the grid in one batch.
+    /// Writes response.csv (a row per cell and joint), summary.csv (per joint group) and, for
+    /// sine and chirp, bode.csv.
+    Response(Box<ResponseArgs>),
+    /// PD gains from each joint's reflected inertia (the joint-space inertia diagonal with
+    /// armature, on the robot hung in the air at its stand pose): the gains per joint group
+    /// that give --bandwidth HZ at --damping ZETA (kp = I wn^2, kd = 2 zeta I wn), or what
+    /// --kp/--kd give (natural frequency, damping ratio); and whether each lies past the
+    /// stability bound of an explicitly integrated PD at the model's timestep.
+    Gains(GainsArgs),
     /// Put the shards of one sweep (each run with --shard I/N) together into one run directory,
     /// whose summary.csv is the one the unsharded sweep writes. Checks that the shards share
     /// inputs and model and that together they hold every cell once; says which shard to
@@ -114,6 +127,162 @@ struct MergeArgs {
     #[arg(long)]
     force: bool,
     /// Print {"out", "shards", "cells"} as JSON instead of the "merged" line.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args, Debug)]
+#[command(
+    after_help = "Step figures (python-control's step_info and MATLAB's stepinfo, for a step of
+size A commanded at the end of the hold, from the angle y0 then to the final value yf, the mean
+over the last tenth of the window): rise_time_s from 10 % to 90 % of yf - y0; settling_time_s
+until the angle stays within 2 % of |yf - y0| of yf (empty: never settled); overshoot_pct past yf
+in % of |yf - y0|; peak_time_s; ss_error_rad = y0 + A - yf and ss_error_pct in % of A.
+Sine: gain_db and phase_deg of the joint against its target (a least-squares fit over the second
+half of the window). Chirp (logarithmic, F0 to F1 over the window): gain and phase at 24
+log-spaced frequencies inside the band (the angle's Fourier sum over the target's, on the whole
+window) in bode.csv; bandwidth_hz where the gain falls 3 dB below its value at the lowest of them
+(refined by bisection), phase_at_bw_deg there, resonance_db the peak above it.
+peak_torque and saturation_frac are the excited joint's actuator over the window. Status: ok,
+saturated (at its torque limit in 5 % of steps or more), diverged.
+Joint groups: haa (abduction), hfe (hip pitch), kfe (knee), assigned by what each joint does in
+its leg on the compiled model (`pupper info` lists them), not by its name.
+
+Examples:
+  pupper response --grid kp=5,20,60 --grid kd=0.1,0.5,2
+  pupper response --signal chirp --chirp 0.5,30 --seconds 12 --joints hfe --kp 20 --kd 0.5
+  pupper response --signal sine --frequency 3 --amplitude 0.1 --standing"
+)]
+struct ResponseArgs {
+    #[command(flatten)]
+    grid: GridArg,
+    #[command(flatten)]
+    sim: SimArgs,
+    /// The excitation: step (the target jumps by --amplitude), sine (--frequency), chirp
+    /// (a logarithmic sweep over --chirp F0,F1 for the window after the hold).
+    #[arg(long, default_value = "step", value_name = "KIND")]
+    signal: String,
+    /// The signal's size (rad), added to the joint's pose angle.
+    #[arg(long, default_value_t = pupper_core::plan::excitation::AMPLITUDE, value_name = "RAD", allow_negative_numbers = true)]
+    amplitude: f64,
+    /// --signal sine: its frequency (Hz).
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    frequency: Option<f64>,
+    /// --signal chirp: its band, F0,F1 in Hz [default: 0.5,20].
+    #[arg(long, value_name = "F0,F1")]
+    chirp: Option<String>,
+    /// Seconds the pose is held before the signal starts (the joints settle under gravity).
+    #[arg(long, default_value_t = pupper_core::request::response::DEFAULT_HOLD, value_name = "S", allow_negative_numbers = true)]
+    hold: f64,
+    /// The excited joints: groups (haa, hfe, kfe) or actuator names, comma-separated
+    /// [default: every actuator].
+    #[arg(long, value_name = "NAMES", value_delimiter = ',')]
+    joints: Vec<String>,
+    /// Excite the joints of the floating robot standing on the floor instead of the one hung
+    /// in the air.
+    #[arg(long)]
+    standing: bool,
+    /// Run directory (default runs/<time>-response).
+    #[arg(long, short = 'o', value_name = "DIR", conflicts_with = "resume")]
+    out: Option<PathBuf>,
+    /// Overwrite pupper's files in an existing --out directory.
+    #[arg(long)]
+    force: bool,
+    /// Run only shard I of N of the grid's cells (see `pupper sweep --help`).
+    #[arg(long, value_name = "I/N")]
+    shard: Option<String>,
+    /// Continue an interrupted run in DIR (alone: with the manifest's inputs).
+    #[arg(long, value_name = "DIR")]
+    resume: Option<PathBuf>,
+    /// Batch threads; 0 uses all cores. Never changes the numbers.
+    #[arg(long, short = 'j', default_value_t = SweepSpec::default().threads, value_name = "N")]
+    threads: usize,
+    /// Most cells per batch. Never changes the numbers.
+    #[arg(long, value_name = "N")]
+    chunk_cells: Option<usize>,
+    /// Print the rows as JSON instead of a table per joint group.
+    #[arg(long)]
+    json: bool,
+    /// No progress bar.
+    #[arg(long, short = 'q')]
+    quiet: bool,
+    #[command(flatten)]
+    backend: BackendArgs,
+    #[command(flatten)]
+    population: PopulationArgs,
+}
+
+impl ResponseArgs {
+    fn spec(&self) -> Result<SweepSpec> {
+        let signal = pupper_core::request::response::SignalInput {
+            kind: self.signal.clone(),
+            amplitude: self.amplitude,
+            frequency: self.frequency,
+            chirp: self
+                .chirp
+                .as_deref()
+                .map(pupper_core::request::response::parse_chirp)
+                .transpose()?,
+        };
+        let base = SweepSpec {
+            grid: GridInput::Specs(self.grid.grid.clone()),
+            seconds: self
+                .sim
+                .seconds
+                .unwrap_or(pupper_core::request::response::SECONDS),
+            threads: self.threads,
+            chunk_cells: self.chunk_cells,
+            force: self.force,
+            shard: self.shard.clone(),
+            ..self.backend.apply(self.population.apply(self.sim.spec()?))
+        };
+        pupper_core::request::response::spec(
+            base,
+            &signal,
+            self.hold,
+            &self.joints,
+            self.standing,
+            self.sim.keyframe.is_some(),
+        )
+    }
+}
+
+#[derive(Args, Debug)]
+#[command(
+    after_help = "Stability: MuJoCo's Euler integrator (and pupper's torque mode) applies a PD
+force computed from the state at the start of each step, then steps velocity and position
+semi-implicitly. With a = h^2 kp / I and b = h kd / I (h the timestep, I the joint's inertia) that
+discrete system is stable exactly when a + 2b < 4 and b < 2 (Jury's test on its characteristic
+polynomial z^2 - (2 - a - b) z + (1 - b)). stability_margin = max((a + 2b)/4, b/2): 1 or more is
+past the bound, where the joint chatters or diverges.
+
+Examples:
+  pupper gains --bandwidth 8 --damping 0.7
+  pupper gains --kp 20 --kd 0.5 --json"
+)]
+struct GainsArgs {
+    #[command(flatten)]
+    model: ModelArg,
+    /// The −3 dB bandwidth (Hz) the gains should give.
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true, conflicts_with_all = ["kp", "kd"])]
+    bandwidth: Option<f64>,
+    /// The damping ratio with --bandwidth.
+    #[arg(
+        long,
+        default_value_t = 0.7,
+        value_name = "ZETA",
+        allow_negative_numbers = true
+    )]
+    damping: f64,
+    /// Given gains: their natural frequency, damping ratio and stability margin per joint.
+    #[arg(long, allow_negative_numbers = true, requires = "kd")]
+    kp: Option<f64>,
+    #[arg(long, allow_negative_numbers = true, requires = "kp")]
+    kd: Option<f64>,
+    /// The pose the inertias are read at, one angle per actuator [default: the stand pose].
+    #[arg(long, value_name = "Q1,Q2,...", allow_hyphen_values = true)]
+    pose: Option<String>,
+    /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
 }
@@ -158,12 +327,12 @@ impl BodyArgs {
     /// Runs `find` on the body and prints its answer as text or JSON.
     fn show<T: serde::Serialize>(
         &self,
-        find: impl FnOnce(&ModelSource, &pupper_core::variant::Variant) -> Result<T>,
+        find: impl FnOnce(&ModelSource, &pupper_core::robot::variant::Variant) -> Result<T>,
         text: impl FnOnce(&T) -> String,
     ) -> Result<()> {
         let found = find(
             &self.model.source()?,
-            pupper_core::variant::variant(&self.variant)?,
+            pupper_core::robot::variant::variant(&self.variant)?,
         )?;
         if self.json {
             outln!("{}", print::json(&found)?);
@@ -226,9 +395,9 @@ struct SimArgs {
     /// Who computes the PD torques.
     #[arg(long, value_enum, default_value_t = ModeArg::from(SweepSpec::default().mode))]
     mode: ModeArg,
-    /// Simulated seconds (in a sweep: of every cell).
-    #[arg(long, default_value_t = SweepSpec::default().seconds, value_name = "S", allow_negative_numbers = true)]
-    seconds: f64,
+    /// Simulated seconds (in a sweep: of every cell) [default: 10; response: 3]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    seconds: Option<f64>,
     /// Proportional gain (N·m/rad) of every actuator (in a sweep: where the grid has no kp axis)
     /// [default: each actuator's own, as the model declares it; Pupper v3: 5]
     #[arg(long, allow_negative_numbers = true)]
@@ -242,8 +411,9 @@ struct SimArgs {
     #[arg(long, value_name = "NM", allow_negative_numbers = true)]
     max_torque: Option<f64>,
     /// Keyframe to reset to; its ctrl (or joint qpos) gives the joint targets.
-    #[arg(long, default_value_t = SweepSpec::default().keyframe, value_name = "NAME", conflicts_with = "pose")]
-    keyframe: String,
+    /// [default: home; response: the searched stand pose, as --pose auto]
+    #[arg(long, value_name = "NAME", conflicts_with = "pose")]
+    keyframe: Option<String>,
     /// Start and target joint angles (rad), one per actuator in ctrl order, comma-separated;
     /// or `auto`: a stand pose searched on the body (in a sweep: on each cell's own; see `pupper pose`), the base
     /// just above the floor.
@@ -262,11 +432,14 @@ impl SimArgs {
             model: self.model.model.clone(),
             variant: self.variant.clone(),
             mode: self.mode.into(),
-            seconds: self.seconds,
+            seconds: self.seconds.unwrap_or(SweepSpec::default().seconds),
             kp: self.kp,
             kd: self.kd,
             max_torque: self.max_torque,
-            keyframe: self.keyframe.clone(),
+            keyframe: self
+                .keyframe
+                .clone()
+                .unwrap_or_else(|| SweepSpec::default().keyframe),
             pose: self.pose.as_deref().map(spec::parse_pose).transpose()?,
             depth: self.depth,
             ..SweepSpec::default()
@@ -365,12 +538,12 @@ struct LabArgs {
     model: ModelArg,
     /// The bodies, comma-separated: original, long-leg (legs 1.5x), heavy (torso mass 2x).
     /// (`--variant`, as sweep spells it, works too.)
-    #[arg(long, alias = "variant", value_delimiter = ',', default_values_t = pupper_core::lab::VARIANTS.map(String::from), value_name = "NAME,...")]
+    #[arg(long, alias = "variant", value_delimiter = ',', default_values_t = pupper_core::request::lab::VARIANTS.map(String::from), value_name = "NAME,...")]
     variants: Vec<String>,
     #[command(flatten)]
     grid: GridArg,
     /// Simulated seconds per cell.
-    #[arg(long, default_value_t = pupper_core::lab::SECONDS, value_name = "S")]
+    #[arg(long, default_value_t = pupper_core::request::lab::SECONDS, value_name = "S")]
     seconds: f64,
     /// The vertical disturbance AMPLITUDE*sin(2π·FREQUENCY·t) (N, Hz).
     #[arg(
@@ -385,7 +558,7 @@ struct LabArgs {
     #[arg(long, value_name = "M", allow_negative_numbers = true)]
     depth: Option<f64>,
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
-    #[arg(long, default_value_t = pupper_core::best::MAX_SATURATION, value_name = "FRACTION")]
+    #[arg(long, default_value_t = pupper_core::results::best::MAX_SATURATION, value_name = "FRACTION")]
     max_saturation: f64,
     /// The metric each body's best gains are ranked by (lower is better) [default:
     /// last_1s_std_mm; with replicates p95:last_1s_std_mm].
@@ -525,7 +698,7 @@ struct SweepArgs {
     #[arg(long, alias = "best-metric", value_name = "[STAT:]METRIC")]
     rank: Option<String>,
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
-    #[arg(long, default_value_t = pupper_core::best::MAX_SATURATION, value_name = "FRACTION")]
+    #[arg(long, default_value_t = pupper_core::results::best::MAX_SATURATION, value_name = "FRACTION")]
     max_saturation: f64,
     /// Print the rows as JSON instead of a table.
     #[arg(long)]
@@ -758,6 +931,32 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
         }
         Command::Sweep(a) => return sweep(*a, stop),
         Command::Lab(a) => return lab(*a, stop),
+        Command::Response(a) => return response(*a, stop),
+        Command::Gains(a) => {
+            use pupper_core::robot::gains::Ask;
+            let ask = match (a.bandwidth, a.kp, a.kd) {
+                (Some(hz), _, _) => Ask::Bandwidth {
+                    hz,
+                    zeta: a.damping,
+                },
+                (None, Some(kp), Some(kd)) => Ask::Gains { kp, kd },
+                _ => {
+                    return Err(Error::Config(
+                        "pupper gains needs --bandwidth HZ (with --damping, default 0.7) or --kp and --kd".into(),
+                    ));
+                }
+            };
+            let pose = match a.pose.as_deref().map(spec::parse_pose).transpose()? {
+                Some(spec::PoseInput::Angles(p)) => Some(p),
+                _ => None,
+            };
+            let r = api::gains(&a.model.source()?, pose, ask)?;
+            if a.json {
+                outln!("{}", print::json(&r)?);
+            } else {
+                outp!("{}", print::gains(&r));
+            }
+        }
         Command::Merge(a) => {
             let (out, existing) = match (a.out, a.force) {
                 (Some(o), true) => (o, Existing::Overwrite),
@@ -770,7 +969,7 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
                     Existing::Unique,
                 ),
             };
-            let (dir, m) = pupper_core::rundir::merge(&a.dirs, &out, existing)?;
+            let (dir, m) = pupper_core::results::rundir::merge(&a.dirs, &out, existing)?;
             if a.json {
                 outln!(
                     "{}",
@@ -867,6 +1066,37 @@ fn sweep(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
     )
 }
 
+fn response(a: ResponseArgs, stop: &'static AtomicBool) -> Result<u8> {
+    let baseline = pupper_core::request::response::spec(
+        SweepSpec {
+            seconds: pupper_core::request::response::SECONDS,
+            ..SweepSpec::default()
+        },
+        &Default::default(),
+        pupper_core::request::response::DEFAULT_HOLD,
+        &[],
+        false,
+        false,
+    )?;
+    run_job(
+        Job {
+            spec: a.spec()?,
+            baseline,
+            resume_alone: a.grid.grid.is_empty(),
+            out: a.out,
+            resume: a.resume,
+            preset: Some("response".into()),
+            quiet: a.quiet,
+            json: a.json,
+            plot: false,
+            render: false,
+            rule: None,
+            lab: false,
+        },
+        stop,
+    )
+}
+
 fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
     let sine = spec::parse_sine(&a.sine)?;
     let spec = SweepSpec {
@@ -874,22 +1104,23 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
         threads: a.threads,
         depth: a.depth,
         force: a.force,
-        ..a.backend.apply(a.population.apply(pupper_core::lab::spec(
-            &a.variants,
-            &a.grid.grid,
-            a.seconds,
-            sine,
-        )))
+        ..a.backend
+            .apply(a.population.apply(pupper_core::request::lab::spec(
+                &a.variants,
+                &a.grid.grid,
+                a.seconds,
+                sine,
+            )))
     };
     let metric = a.rank.clone().unwrap_or_default();
     run_job(
         Job {
             spec,
-            baseline: pupper_core::lab::spec(
-                &pupper_core::lab::VARIANTS.map(String::from),
+            baseline: pupper_core::request::lab::spec(
+                &pupper_core::request::lab::VARIANTS.map(String::from),
                 &[],
-                pupper_core::lab::SECONDS,
-                pupper_core::lab::SINE,
+                pupper_core::request::lab::SECONDS,
+                pupper_core::request::lab::SINE,
             ),
             resume_alone: a.grid.grid.is_empty(),
             out: a.out,
@@ -915,8 +1146,8 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
 fn refuse_other_inputs(
     dir: &std::path::Path,
     baseline: &SweepSpec,
-    given: &pupper_core::experiment::SweepConfig,
-    run: &pupper_core::experiment::SweepConfig,
+    given: &pupper_core::plan::config::SweepConfig,
+    run: &pupper_core::plan::config::SweepConfig,
 ) -> Result<()> {
     let Ok(base) = baseline.build() else {
         return Ok(());
@@ -1014,7 +1245,13 @@ fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
             outcome.rows.len(),
             outcome.cells_total,
             dir.display(),
-            if a.lab { "lab" } else { "sweep" },
+            if a.lab {
+                "lab"
+            } else if a.spec.response.is_some() {
+                "response"
+            } else {
+                "sweep"
+            },
             dir.display(),
             a.spec
                 .ray
@@ -1025,7 +1262,10 @@ fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
         return Ok(130);
     }
     if !a.json && !a.lab {
-        outp!("{}", print::sweep(&outcome));
+        match a.spec.response.is_some() {
+            true => outp!("{}", print::response(&outcome)),
+            false => outp!("{}", print::sweep(&outcome)),
+        }
     }
     let mut best = None;
     if let Some(rule) = &a.rule {

@@ -2,7 +2,7 @@
 
 use std::fmt::Write;
 
-use pupper_core::model::ModelInfo;
+use pupper_core::robot::model::ModelInfo;
 use pupper_core::{Error, Result};
 use pupper_mujoco::api::{StandReport, SweepOutcome};
 use pupper_mujoco::bridge::PythonReport;
@@ -254,8 +254,8 @@ pub fn sweep(o: &SweepOutcome) -> String {
     // the steadiest cell by the --best-by rule (it stood, under 5 %
     // saturation; nanometres are a tie the smaller dip breaks)
     if let (Some(si), Some(_)) = (col("last_1s_std_mm"), col("status")) {
-        let rule = pupper_core::best::Rule::new("last_1s_std_mm", &[]);
-        let group = pupper_core::best::best(&o.header, &o.rows, &rule)
+        let rule = pupper_core::results::best::Rule::new("last_1s_std_mm", &[]);
+        let group = pupper_core::results::best::best(&o.header, &o.rows, &rule)
             .ok()
             .and_then(|g| g.into_iter().next());
         if let Some((i, g)) = group.and_then(|g| g.best.map(|i| (i, g))) {
@@ -273,7 +273,7 @@ pub fn sweep(o: &SweepOutcome) -> String {
                         s,
                         " ({} cells within {} mm of the lowest std: the smallest push dip, {} mm, decides)",
                         g.tied,
-                        pupper_core::best::TIE_MM,
+                        pupper_core::results::best::TIE_MM,
                         r[di]
                             .parse::<f64>()
                             .map_or("-".into(), |d| format!("{d:.2}"))
@@ -284,7 +284,7 @@ pub fn sweep(o: &SweepOutcome) -> String {
                         s,
                         " ({} cells within {} mm of the lowest std: the first in grid order)",
                         g.tied,
-                        pupper_core::best::TIE_MM
+                        pupper_core::results::best::TIE_MM
                     );
                 }
                 _ => {
@@ -321,7 +321,7 @@ pub fn sweep(o: &SweepOutcome) -> String {
         let _ = writeln!(
             s,
             "{saturated} cell(s) saturated: at the torque limit in {}% or more of actuator-steps (sat %), so never the steadiest",
-            pupper_core::metrics::SATURATED * 100.0
+            pupper_core::sim::metrics::SATURATED * 100.0
         );
     }
     if bad > 0 {
@@ -357,8 +357,8 @@ pub fn sweep(o: &SweepOutcome) -> String {
 /// The steadiest cell over the replicates (the `--best-by` rule on the whole
 /// table), and how the nominal ranking would have differed.
 fn steadiest_robust(s: &mut String, o: &SweepOutcome) {
-    let rule = pupper_core::best::Rule::new("p95:last_1s_std_mm", &[]);
-    let Ok(groups) = pupper_core::best::best(&o.header, &o.rows, &rule) else {
+    let rule = pupper_core::results::best::Rule::new("p95:last_1s_std_mm", &[]);
+    let Ok(groups) = pupper_core::results::best::best(&o.header, &o.rows, &rule) else {
         return;
     };
     let col = |name: &str| o.header.iter().position(|h| h == name);
@@ -420,8 +420,8 @@ fn row_json(header: &[String], r: &[String]) -> serde_json::Value {
 /// many cells were eligible or tied, and the best row (null when none).
 pub fn best_json(
     o: &SweepOutcome,
-    rule: &pupper_core::best::Rule,
-    groups: &[pupper_core::best::Group],
+    rule: &pupper_core::results::best::Rule,
+    groups: &[pupper_core::results::best::Group],
 ) -> serde_json::Value {
     let groups: Vec<serde_json::Value> = groups
         .iter()
@@ -452,8 +452,8 @@ pub fn best_json(
 /// One line per group of `--best-by`.
 pub fn best(
     o: &SweepOutcome,
-    rule: &pupper_core::best::Rule,
-    groups: &[pupper_core::best::Group],
+    rule: &pupper_core::results::best::Rule,
+    groups: &[pupper_core::results::best::Group],
 ) -> String {
     let col = |name: &str| o.header.iter().position(|h| h == name);
     let metric = col(&rule.metric);
@@ -487,7 +487,7 @@ pub fn best(
     s
 }
 
-pub fn pose(p: &pupper_core::pose::StandPose) -> String {
+pub fn pose(p: &pupper_core::robot::pose::StandPose) -> String {
     let mut s = String::new();
     let why = match p.depth_from {
         "given" => "as given".to_string(),
@@ -523,8 +523,8 @@ pub fn pose(p: &pupper_core::pose::StandPose) -> String {
 /// `pupper lab`: a line per body, its steadiest gains.
 pub fn lab(
     o: &SweepOutcome,
-    rule: &pupper_core::best::Rule,
-    groups: &[pupper_core::best::Group],
+    rule: &pupper_core::results::best::Rule,
+    groups: &[pupper_core::results::best::Group],
 ) -> String {
     let col = |name: &str| o.header.iter().position(|h| h == name);
     let (kp, kd, std) = (col("kp"), col("kd"), col(&rule.metric));
@@ -565,6 +565,153 @@ pub fn lab(
             }
         }
     }
+    s
+}
+
+/// A response run's summary: a table per joint group, a row per cell.
+pub fn response(o: &SweepOutcome) -> String {
+    let status_at = o.header.iter().position(|h| h == "status");
+    // axis columns come before the first "<metric>.<group>" column
+    let first = o
+        .header
+        .iter()
+        .position(|h| h.contains('.'))
+        .unwrap_or(o.header.len());
+    let axes: Vec<(usize, &String)> = o.header.iter().enumerate().take(first).skip(3).collect();
+    let mut groups: Vec<&str> = Vec::new();
+    for h in &o.header[first..] {
+        if let Some((_, g)) = h.split_once('.')
+            && !groups.contains(&g)
+        {
+            groups.push(g);
+        }
+    }
+    let mut s = String::new();
+    for g in groups {
+        let cols: Vec<(usize, &str)> = o
+            .header
+            .iter()
+            .enumerate()
+            .filter_map(|(i, h)| h.strip_suffix(&format!(".{g}")).map(|m| (i, m)))
+            .collect();
+        let _ = writeln!(s, "{}", group_title(g));
+        let mut head = String::new();
+        for (_, a) in &axes {
+            let _ = write!(head, "{:>8} ", a);
+        }
+        for (_, m) in &cols {
+            let _ = write!(head, "{:>16} ", m);
+        }
+        let _ = write!(head, "{:>10}", "status");
+        let _ = writeln!(s, "{}", head.trim_end());
+        for r in &o.rows {
+            let mut line = String::new();
+            for (i, _) in &axes {
+                let _ = write!(line, "{:>8} ", short(&r[*i]));
+            }
+            for (i, _) in &cols {
+                let text = match r[*i].parse::<f64>() {
+                    Ok(v) => format!("{}", Sig(v)),
+                    Err(_) => "-".into(),
+                };
+                let _ = write!(line, "{:>16} ", text);
+            }
+            let _ = write!(line, "{:>10}", status_at.map_or("", |i| r[i].as_str()));
+            let _ = writeln!(s, "{}", line.trim_end());
+        }
+        s.push('\n');
+    }
+    s
+}
+
+fn group_title(g: &str) -> String {
+    match g {
+        "haa" => "haa (hip abduction/adduction)".into(),
+        "hfe" => "hfe (hip flexion/extension)".into(),
+        "kfe" => "kfe (knee flexion/extension)".into(),
+        other => other.to_string(),
+    }
+}
+
+/// A number to 3 significant digits, as a table shows it.
+struct Sig(f64);
+
+impl std::fmt::Display for Sig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let v = self.0;
+        if v == 0.0 || !v.is_finite() {
+            return write!(f, "{v}");
+        }
+        if v.abs() < 1e-3 {
+            return write!(f, "{v:.2e}");
+        }
+        let digits = (2 - v.abs().log10().floor() as i32).clamp(0, 6) as usize;
+        write!(f, "{v:.digits$}")
+    }
+}
+
+/// `pupper gains`: a line per joint group, then per joint.
+pub fn gains(r: &pupper_core::robot::gains::GainsReport) -> String {
+    let mut s = String::new();
+    match (r.bandwidth_hz, r.damping) {
+        (Some(hz), Some(z)) => {
+            let _ = writeln!(
+                s,
+                "{}: gains for a {hz} Hz bandwidth at damping {z} (timestep {} s)",
+                r.model, r.timestep
+            );
+        }
+        _ => {
+            let _ = writeln!(
+                s,
+                "{}: what the gains give (timestep {} s)",
+                r.model, r.timestep
+            );
+        }
+    }
+    let head = format!(
+        "{:<16} {:>12} {:>10} {:>10} {:>11} {:>9} {:>10}",
+        "", "inertia", "kp", "kd", "natural_hz", "damping", "stability"
+    );
+    let _ = writeln!(s, "{}", head.trim_end());
+    let flag = |m: f64| {
+        if m >= 1.0 {
+            format!("{} PAST", Sig(m))
+        } else {
+            format!("{}", Sig(m))
+        }
+    };
+    for g in &r.groups {
+        let _ = writeln!(
+            s,
+            "{:<16} {:>12} {:>10} {:>10} {:>11} {:>9} {:>10}",
+            format!("{} ({})", g.group, g.joints),
+            format!("{:.3e}", g.inertia),
+            Sig(g.kp).to_string(),
+            Sig(g.kd).to_string(),
+            Sig(g.natural_hz).to_string(),
+            Sig(g.damping_ratio).to_string(),
+            flag(g.stability_margin)
+        );
+    }
+    let _ = writeln!(s);
+    for j in &r.joints {
+        let _ = writeln!(
+            s,
+            "{:<16} {:>12} {:>10} {:>10} {:>11} {:>9} {:>10}",
+            j.actuator,
+            format!("{:.3e}", j.inertia),
+            Sig(j.kp).to_string(),
+            Sig(j.kd).to_string(),
+            Sig(j.natural_hz).to_string(),
+            Sig(j.damping_ratio).to_string(),
+            flag(j.stability_margin)
+        );
+    }
+    let _ = writeln!(
+        s,
+        "inertia: kg·m² (armature included); stability: 1 or more is past the explicit PD's bound (see --help)"
+    );
     s
 }
 

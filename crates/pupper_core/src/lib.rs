@@ -1,34 +1,20 @@
 //! pupper_core: physics experiments on the Pupper v3 quadruped in MuJoCo.
 //!
-//! The plain Rust core: grids, schedules, PD, index bookkeeping, quaternions,
-//! statistics, metrics, the experiment runner and its run directory. No
-//! Python here: physics comes through the [`physics::Physics`] trait, which
+//! The plain Rust core, in layers that import only downwards: [`math`]
+//! (PD, quaternions, statistics), [`robot`] (the compiled model), [`plan`]
+//! (grids, schedules, configs), [`sim`] (the runner and its metrics),
+//! [`results`] (run directories, ranking) and [`request`] (what a user
+//! asks). No Python here: physics comes through the [`sim::physics::Physics`] trait, which
 //! `pupper_mujoco` implements on MuJoCo's batch; the `#[pymodule]` lives in
 //! `pupper_py`.
 
-pub mod backend;
-pub mod best;
-pub mod cluster;
 pub mod error;
-pub mod experiment;
-pub mod frames;
-pub mod grid;
-pub mod lab;
-pub mod layout;
-pub mod metrics;
-pub mod model;
-pub mod output;
-pub mod pd;
-pub mod physics;
-pub mod pose;
-pub mod quat;
-pub mod randomize;
-pub mod rundir;
-pub mod schedule;
-pub mod shard;
-pub mod spec;
-pub mod stats;
-pub mod variant;
+pub mod math;
+pub mod plan;
+pub mod request;
+pub mod results;
+pub mod robot;
+pub mod sim;
 
 pub use error::{Error, ErrorKind, Result};
 

@@ -2,8 +2,8 @@
 //! whatever they are fed.
 
 use proptest::prelude::*;
-use pupper_core::grid::{AxisValues, Grid};
-use pupper_core::schedule::Schedule;
+use pupper_core::plan::grid::{AxisValues, Grid};
+use pupper_core::plan::schedule::Schedule;
 
 proptest! {
     #[test]

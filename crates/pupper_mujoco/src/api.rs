@@ -8,21 +8,23 @@ use serde::Serialize;
 
 use crate::bridge;
 use crate::bridge::ray::RayCluster;
-use pupper_core::backend::Backend;
-use pupper_core::best;
-use pupper_core::cluster::{self, Job, Outcome, Task};
 use pupper_core::error::{Error, Result};
-use pupper_core::experiment::{self, CellResult, Hooks, RunOptions, SweepConfig};
-use pupper_core::grid::Cell;
-use pupper_core::metrics::Status;
-use pupper_core::model::{ModelInfo, ModelSource};
-use pupper_core::output::{self, Manifest, ModelRecord, ShardRecord};
-use pupper_core::physics::{CellSetup, Mode};
-use pupper_core::pose::StandPose;
-use pupper_core::rundir::RunWriter;
-use pupper_core::schedule::InitialState;
-use pupper_core::spec::{GridInput, Sweep, SweepSpec};
-use pupper_core::variant::Variant;
+use pupper_core::plan::backend::Backend;
+use pupper_core::plan::config::SweepConfig;
+use pupper_core::plan::grid::Cell;
+use pupper_core::plan::mode::Mode;
+use pupper_core::plan::schedule::InitialState;
+use pupper_core::plan::setup::CellSetup;
+use pupper_core::request::spec::{GridInput, Sweep, SweepSpec};
+use pupper_core::results::best;
+use pupper_core::results::output::{self, Manifest, ModelRecord, ShardRecord};
+use pupper_core::results::rundir::RunWriter;
+use pupper_core::robot::model::{ModelInfo, ModelSource};
+use pupper_core::robot::pose::StandPose;
+use pupper_core::robot::variant::Variant;
+use pupper_core::sim::cluster::{self, Job, Outcome, Task};
+use pupper_core::sim::metrics::Status;
+use pupper_core::sim::runner::{self, CellResult, Hooks, RunOptions};
 
 /// A cluster worker's part of `--ray`: runs one task's cells of a job
 /// here, as one batch on `threads` threads, and encodes the [`Outcome`].
@@ -33,7 +35,7 @@ pub fn run_task(job: &[u8], task: &[u8], threads: usize) -> Result<Vec<u8>> {
     let outcome = match task_results(job, task, threads) {
         Ok(results) => Outcome::Done(results),
         Err(e) => Outcome::Failed {
-            host: pupper_core::rundir::hostname(),
+            host: pupper_core::results::rundir::hostname(),
             user: e.is_user_error(),
             message: e.to_string(),
         },
@@ -53,7 +55,7 @@ fn task_results(job: &[u8], task: &[u8], threads: usize) -> Result<Vec<CellResul
         )));
     }
     let cfg = &job.config;
-    bridge::with_model(&cfg.model, true, |model| {
+    bridge::with_config_model(cfg, |model| {
         if model.mujoco_version() != job.mujoco_version {
             return Err(Error::Cluster(format!(
                 "this node has mujoco {}, the driver {}: {fix}",
@@ -65,8 +67,8 @@ fn task_results(job: &[u8], task: &[u8], threads: usize) -> Result<Vec<CellResul
             return Err(Error::Cluster(format!(
                 "the model '{}' here is not the driver's (SHA-256 {} here, {} there): put the same file at the same path on every node (a shared filesystem)",
                 cfg.model.display(),
-                pupper_core::rundir::short(&model.info().sha256),
-                pupper_core::rundir::short(&job.model_sha256)
+                pupper_core::results::rundir::short(&model.info().sha256),
+                pupper_core::results::rundir::short(&job.model_sha256)
             )));
         }
         let physics = bridge::physics(model, &cfg.backend)?;
@@ -78,12 +80,12 @@ fn task_results(job: &[u8], task: &[u8], threads: usize) -> Result<Vec<CellResul
             chunk_steps: job.chunk_steps,
             frame_rate: None,
         };
-        experiment::run_cells(
+        runner::run_cells(
             physics.as_ref(),
             cfg,
             &task.cells,
             opts,
-            &mut experiment::NoHooks,
+            &mut runner::NoHooks,
         )
     })
 }
@@ -112,7 +114,56 @@ pub fn pose(source: &ModelSource, variant: &Variant, depth: Option<f64>) -> Resu
         )));
     }
     let info = info(source, variant)?;
-    pupper_core::pose::stand_pose(&info, variant.leg_scale, depth)
+    pupper_core::robot::pose::stand_pose(&info, variant.leg_scale, depth)
+}
+
+/// `pupper gains`: each joint's reflected inertia on the robot hung in the
+/// air at the stand pose (or the pose given), and the gains a bandwidth and
+/// damping ratio ask for, or what given gains give.
+pub fn gains(
+    source: &ModelSource,
+    pose: Option<Vec<f64>>,
+    ask: pupper_core::robot::gains::Ask,
+) -> Result<pupper_core::robot::gains::GainsReport> {
+    use pupper_core::robot::gains::Ask;
+    let bad = |what: String| Err(Error::Config(what));
+    match ask {
+        Ask::Bandwidth { hz, zeta }
+            if !(hz.is_finite() && hz > 0.0 && zeta.is_finite() && zeta > 0.0) =>
+        {
+            return bad(format!(
+                "--bandwidth {hz} --damping {zeta}: give a positive bandwidth (Hz) and damping ratio, e.g. --bandwidth 8 --damping 0.7"
+            ));
+        }
+        Ask::Gains { kp, kd } if !(kp.is_finite() && kp > 0.0 && kd.is_finite() && kd >= 0.0) => {
+            return bad(format!("--kp {kp} --kd {kd}: give kp > 0 and kd >= 0"));
+        }
+        _ => {}
+    }
+    Python::attach(|py| {
+        let mj = bridge::Mujoco::import(py)?;
+        let model = mj.load_on(source, true)?.floating()?;
+        let info = model.info();
+        let targets = match pose {
+            Some(p) => {
+                info.check_pose(&p)?;
+                p
+            }
+            None => pupper_core::robot::pose::stand_pose(info, 1.0, None)?.targets,
+        };
+        let layout = pupper_core::robot::layout::Layout::suspended(info)?;
+        let mut q = info.qpos0.clone();
+        for (a, &t) in targets.iter().enumerate() {
+            q[layout.act_qpos[a]] = t;
+        }
+        let inertia = model.joint_inertia(&q)?;
+        Ok(pupper_core::robot::gains::report(
+            info,
+            &inertia,
+            info.timestep,
+            ask,
+        ))
+    })
 }
 
 /// The compiled `MjModel` of a model source, for Python callers.
@@ -157,12 +208,12 @@ pub fn stand(spec: &SweepSpec) -> Result<StandReport> {
         let note = check_start(model.info(), &cfg.schedule.initial)?;
         let cells = cfg.grid.cells();
         let physics = bridge::physics(model, &cfg.backend)?;
-        let r = experiment::run_cells(
+        let r = runner::run_cells(
             physics.as_ref(),
             cfg,
             &cells,
             sweep.options,
-            &mut experiment::NoHooks,
+            &mut runner::NoHooks,
         )?;
         let setup = cfg.setup(&cells[0], model.info());
         Ok((r, note, setup))
@@ -215,11 +266,11 @@ pub fn record(cfg: &SweepConfig, cells: &[Cell], fps: f64) -> Result<Vec<Recordi
         frame_rate: Some(fps),
         ..RunOptions::default()
     };
-    bridge::with_model(&cfg.model, true, |model| {
+    bridge::with_config_model(cfg, |model| {
+        let cfg = &resolved(cfg, model)?;
         check_start(model.info(), &cfg.schedule.initial)?;
         let physics = bridge::physics(model, &cfg.backend)?;
-        let results =
-            experiment::run_cells(physics.as_ref(), cfg, cells, opts, &mut experiment::NoHooks)?;
+        let results = runner::run_cells(physics.as_ref(), cfg, cells, opts, &mut runner::NoHooks)?;
         results
             .into_iter()
             .map(|result| {
@@ -258,6 +309,24 @@ pub fn record_run(dir: &std::path::Path, indices: &[usize], fps: f64) -> Result<
 /// start is a fallback (no `home` keyframe) or asks a joint to go past its
 /// range.
 fn check_start(info: &ModelInfo, initial: &InitialState) -> Result<Vec<String>> {
+    let (targets, notes) = start_targets(info, initial)?;
+    let mut notes = notes;
+    // the stand-pose search keeps inside the ranges
+    if !matches!(initial, InitialState::Auto | InitialState::AutoDepth(_))
+        && let Some(t) = targets
+    {
+        notes.extend(info.targets_outside_ranges(&t));
+    }
+    Ok(notes)
+}
+
+/// The joint targets cells start from on the nominal body (None where the
+/// model gives none), and what the user should know about them. A body
+/// pupper cannot pose is refused here, before anything is written.
+fn start_targets(
+    info: &ModelInfo,
+    initial: &InitialState,
+) -> Result<(Option<Vec<f64>>, Vec<String>)> {
     let mut notes = Vec::new();
     let targets = match initial {
         InitialState::Pose(p) => {
@@ -267,7 +336,9 @@ fn check_start(info: &ModelInfo, initial: &InitialState) -> Result<Vec<String>> 
         InitialState::Keyframe(k) => {
             let (key, note) = info.start_keyframe(k)?;
             notes.extend(note);
-            let layout = pupper_core::layout::Layout::floating(info).ok();
+            let layout = pupper_core::robot::layout::Layout::floating(info)
+                .or_else(|_| pupper_core::robot::layout::Layout::suspended(info))
+                .ok();
             match (key, layout) {
                 (Some(k), _) if info.keyframes[k].ctrl.len() == info.nu => {
                     Some(info.keyframes[k].ctrl.clone())
@@ -277,17 +348,94 @@ fn check_start(info: &ModelInfo, initial: &InitialState) -> Result<Vec<String>> 
                 _ => None,
             }
         }
-        // a body pupper cannot pose is refused before anything is written;
-        // the search keeps inside the ranges
-        InitialState::Auto | InitialState::AutoDepth(_) => {
-            pupper_core::pose::stand_pose(info, 1.0, initial.auto_depth().flatten())?;
-            None
-        }
+        InitialState::Auto | InitialState::AutoDepth(_) => Some(
+            pupper_core::robot::pose::stand_pose(info, 1.0, initial.auto_depth().flatten())?
+                .targets,
+        ),
     };
-    if let Some(t) = targets {
-        notes.extend(info.targets_outside_ranges(&t));
+    Ok((targets, notes))
+}
+
+/// Each actuated joint's reflected inertia at the cells' start pose on
+/// the nominal body (None where the model gives no start targets).
+fn start_inertia(
+    model: &bridge::LoadedModel<'_>,
+    initial: &InitialState,
+) -> Result<Option<Vec<f64>>> {
+    let info = model.info();
+    let Some(layout) = model.layout() else {
+        return Ok(None);
+    };
+    let (Some(targets), _) = start_targets(info, initial)? else {
+        return Ok(None);
+    };
+    let mut q = match initial {
+        InitialState::Keyframe(k) => match info.start_keyframe(k)?.0 {
+            Some(key) => info.keyframes[key].qpos.clone(),
+            None => info.qpos0.clone(),
+        },
+        _ => info.qpos0.clone(),
+    };
+    for (a, &t) in targets.iter().enumerate() {
+        q[layout.act_qpos[a]] = t;
     }
-    Ok(notes)
+    Ok(Some(model.joint_inertia(&q)?))
+}
+
+/// Cells whose gains lie past the explicit PD's stability bound on some
+/// joint (torque mode, or MuJoCo's Euler integrator, where the servo's
+/// damping is explicit too): a note naming how many and the worst.
+fn stability_note(cfg: &SweepConfig, info: &ModelInfo, inertia: &[f64]) -> Option<String> {
+    use pupper_core::math::response::explicit_pd_margin;
+    if cfg.mode == Mode::Servo && info.integrator != 0 {
+        return None;
+    }
+    let mut past = 0usize;
+    let mut worst: Option<(f64, String, String)> = None;
+    for cell in cfg.grid.cells() {
+        let s = cfg.setup(&cell, info);
+        let dt = s.timestep.unwrap_or(info.timestep);
+        let (m, a) = (0..info.nu)
+            .map(|a| (explicit_pd_margin(inertia[a], s.kp(a), s.kd(a), dt), a))
+            .fold((0.0, 0), |x, y| if y.0 > x.0 { y } else { x });
+        if m >= 1.0 {
+            past += 1;
+            if worst.as_ref().is_none_or(|w| m > w.0) {
+                worst = Some((m, cell.id.clone(), info.actuators[a].name.clone()));
+            }
+        }
+    }
+    let (m, id, joint) = worst?;
+    Some(format!(
+        "{past} cell(s) lie past the stability bound of an explicitly integrated PD at the timestep (worst: {id} on {joint}, margin {m:.2}): they may chatter at the torque limit or diverge; `pupper gains --kp KP --kd KD` shows the bound per joint"
+    ))
+}
+
+/// `cfg` with a response run's excited joints resolved on `info` and its
+/// signal checked against every timestep of its grid.
+fn resolved(cfg: &SweepConfig, model: &bridge::LoadedModel<'_>) -> Result<SweepConfig> {
+    let info = model.info();
+    let mut c = cfg.clone();
+    if let Some(e) = &mut c.response {
+        if e.joints.is_empty() {
+            e.resolve(info)?;
+            if let Some(all) = start_inertia(model, &cfg.schedule.initial)? {
+                e.inertia = e.joints.iter().map(|&a| all[a]).collect();
+            }
+        }
+        if let (Some(t), _) = start_targets(info, &cfg.schedule.initial)? {
+            e.check_ranges(info, &t)?;
+        }
+        let mut seen: Vec<u64> = Vec::new();
+        for cell in cfg.grid.cells() {
+            let dt = cfg.setup(&cell, info).timestep.unwrap_or(info.timestep);
+            if !seen.contains(&dt.to_bits()) {
+                seen.push(dt.to_bits());
+                e.validate(cfg.schedule.duration, dt)?;
+            }
+        }
+    }
+    Ok(c)
 }
 
 /// A validated sweep and the command line that asked for it (for the manifest).
@@ -308,6 +456,9 @@ pub struct SweepOutcome {
     /// replicates.csv's header and rows, for a replicated sweep.
     pub replicate_header: Vec<String>,
     pub replicate_rows: Vec<Vec<String>>,
+    /// Every table beside summary.csv (replicates.csv; response.csv and
+    /// bode.csv): file name, header, rows in cell order.
+    pub details: Vec<(String, Vec<String>, Vec<Vec<String>>)>,
     pub out: Option<PathBuf>,
     pub cells_total: usize,
     /// Cells this call ran (a resume skips finished ones).
@@ -359,8 +510,14 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
         .filter(|c| shard.is_none_or(|s| s.holds(c.index)))
         .collect();
     let started = std::time::Instant::now();
-    bridge::with_model(&cfg.model, true, |model| {
+    bridge::with_config_model(cfg, |model| {
         let info = model.info();
+        // a response run's joints, named on this compiled model
+        let cfg = &resolved(cfg, model)?;
+        let unstable = start_inertia(model, &cfg.schedule.initial)
+            .ok()
+            .flatten()
+            .and_then(|i| stability_note(cfg, info, &i));
         let note = check_start(info, &cfg.schedule.initial)?;
         // Warp and its device are checked before anything is written; on
         // Ray the workers run the physics
@@ -402,7 +559,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             command: req.command.clone(),
             shard: shard.map(|shard| ShardRecord {
                 shard,
-                host: pupper_core::rundir::hostname(),
+                host: pupper_core::results::rundir::hostname(),
             }),
             merged: Vec::new(),
             ray: None,
@@ -432,7 +589,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                     s
                 }
             };
-            total += steps * cfg.replicate_count() as u64;
+            total += steps * cfg.sims_per_cell() as u64;
         }
         // the cluster last: the user's own mistakes (grid, run directory)
         // are named first, and a stop while connecting writes nothing
@@ -469,8 +626,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             };
             match (&physics, &mut cluster) {
                 (Some(physics), _) => {
-                    experiment::run_cells(physics.as_ref(), cfg, &todo, *options, &mut hooks)
-                        .map(drop)
+                    runner::run_cells(physics.as_ref(), cfg, &todo, *options, &mut hooks).map(drop)
                 }
                 (None, Some((cluster, job))) => cluster::run_cells(
                     cluster,
@@ -505,7 +661,8 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             rows: writer.rows().cloned().collect(),
             traces: writer.traces().cloned().collect(),
             replicate_header: writer.replicate_header().to_vec(),
-            replicate_rows: writer.replicate_rows().cloned().collect(),
+            replicate_rows: writer.replicate_rows(),
+            details: writer.detail_tables(),
             out: writer.dir().map(|p| p.to_path_buf()),
             cells_total: writer.manifest.cells_total,
             cells_run: todo.len(),
@@ -515,6 +672,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             notes: note
                 .into_iter()
                 .chain(unclipped)
+                .chain(unstable)
                 .chain(
                     (cfg.replicates.count > 1 && cfg.replicates.randomize.is_empty()).then(|| {
                         format!(
@@ -523,7 +681,8 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                         )
                     }),
                 )
-                .chain(cfg.schedule.shortfalls())
+                // the standing metrics' windows mean nothing to a response run
+                .chain(cfg.schedule.shortfalls().into_iter().filter(|_| cfg.response.is_none()))
                 .collect(),
         })
     })
@@ -583,7 +742,10 @@ pub fn write_best(outcome: &SweepOutcome, rule: &best::Rule) -> Result<Vec<best:
     let groups = best::best(&outcome.header, &outcome.rows, rule)?;
     if let Some(dir) = &outcome.out {
         let (h, rows) = best::table(&outcome.header, &outcome.rows, rule, &groups);
-        pupper_core::rundir::write_atomic(&dir.join(output::BEST), &output::csv_bytes(&h, &rows)?)?;
+        pupper_core::results::rundir::write_atomic(
+            &dir.join(output::BEST),
+            &output::csv_bytes(&h, &rows)?,
+        )?;
     }
     Ok(groups)
 }

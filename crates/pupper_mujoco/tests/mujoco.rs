@@ -4,13 +4,14 @@
 
 use std::sync::Once;
 
-use pupper_core::experiment::{self, CellResult, Defaults, NoHooks, RunOptions, SweepConfig};
-use pupper_core::grid::Grid;
-use pupper_core::metrics::Status;
-use pupper_core::model::ModelSource;
-use pupper_core::physics::Mode;
-use pupper_core::schedule::Schedule;
-use pupper_core::spec::SweepSpec;
+use pupper_core::plan::config::{Defaults, SweepConfig};
+use pupper_core::plan::grid::Grid;
+use pupper_core::plan::mode::Mode;
+use pupper_core::plan::schedule::Schedule;
+use pupper_core::request::spec::SweepSpec;
+use pupper_core::robot::model::ModelSource;
+use pupper_core::sim::metrics::Status;
+use pupper_core::sim::runner::{self, CellResult, NoHooks, RunOptions};
 use pupper_mujoco::{api, bridge};
 
 fn init() {
@@ -28,7 +29,11 @@ fn builtin(name: &str) -> ModelSource {
 #[test]
 fn builtin_models_have_the_expected_sizes() {
     init();
-    let f = api::info(&builtin("pupper_v3"), &pupper_core::variant::VARIANTS[0]).unwrap();
+    let f = api::info(
+        &builtin("pupper_v3"),
+        &pupper_core::robot::variant::VARIANTS[0],
+    )
+    .unwrap();
     assert_eq!((f.nq, f.nv, f.nu, f.nbody), (19, 18, 12, 14));
     assert_eq!(f.joints[0].kind, "free");
     assert_eq!(f.actuators[0].name, "leg_front_r_1");
@@ -41,7 +46,7 @@ fn builtin_models_have_the_expected_sizes() {
     assert!((f.total_mass - 3.17).abs() < 1e-9, "{}", f.total_mass);
     let x = api::info(
         &builtin("pupper_v3_fixed"),
-        &pupper_core::variant::VARIANTS[0],
+        &pupper_core::robot::variant::VARIANTS[0],
     )
     .unwrap();
     assert_eq!((x.nq, x.nv, x.nu, x.nbody), (12, 12, 12, 14));
@@ -82,6 +87,7 @@ fn small_sweep(mode: Mode, threads: usize, chunk_cells: usize) -> Vec<CellResult
         defaults: Defaults::default(),
         replicates: Default::default(),
         backend: Default::default(),
+        response: None,
     };
     let opts = RunOptions {
         threads,
@@ -94,7 +100,7 @@ fn small_sweep(mode: Mode, threads: usize, chunk_cells: usize) -> Vec<CellResult
 /// Every cell of `cfg` on the CPU backend.
 fn run(cfg: &SweepConfig, opts: RunOptions) -> Vec<CellResult> {
     bridge::with_model(&cfg.model, true, |m| {
-        experiment::run_cells(m, cfg, &cfg.grid.cells(), opts, &mut NoHooks)
+        runner::run_cells(m, cfg, &cfg.grid.cells(), opts, &mut NoHooks)
     })
     .unwrap()
 }
@@ -141,7 +147,7 @@ fn a_broken_model_is_a_model_error() {
     let p = dir.path().join("broken.xml");
     std::fs::write(&p, "<mujoco><worldbody><body></mujoco>").unwrap();
     let source = ModelSource::parse(p.to_str().unwrap()).unwrap();
-    let e = api::info(&source, &pupper_core::variant::VARIANTS[0]).unwrap_err();
+    let e = api::info(&source, &pupper_core::robot::variant::VARIANTS[0]).unwrap_err();
     assert_eq!(e.kind(), pupper_core::ErrorKind::Model, "{e}");
     assert!(!e.to_string().contains('\n'), "one line: {e}");
 }
@@ -162,6 +168,7 @@ fn body_variants_change_the_stance() {
         defaults: Defaults::default(),
         replicates: Default::default(),
         backend: Default::default(),
+        response: None,
     };
     let r = run(&cfg, RunOptions::default());
     let z: Vec<f64> = r.iter().map(|c| c.metrics.final_z).collect();
@@ -179,7 +186,7 @@ fn body_variants_change_the_stance() {
 /// (another pupper or mujoco, another model file) refuses, naming the fix.
 #[test]
 fn a_cluster_task_gives_the_local_numbers_or_refuses() {
-    use pupper_core::cluster::{self, Job, Outcome, Task};
+    use pupper_core::sim::cluster::{self, Job, Outcome, Task};
     init();
     let cfg = SweepConfig {
         model: builtin("pupper_v3"),

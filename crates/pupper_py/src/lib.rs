@@ -15,12 +15,12 @@ use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyTypeError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use pupper_core::best;
 use pupper_core::error::{Error, ErrorKind};
-use pupper_core::experiment::Hooks;
-use pupper_core::model::ModelSource;
-use pupper_core::output;
-use pupper_core::spec::{AxisInput, GridInput, SweepSpec};
+use pupper_core::request::spec::{AxisInput, GridInput, SweepSpec};
+use pupper_core::results::best;
+use pupper_core::results::output;
+use pupper_core::robot::model::ModelSource;
+use pupper_core::sim::runner::Hooks;
 use pupper_mujoco::api::{self, Recording, SweepRequest, SweepUi};
 
 create_exception!(
@@ -354,7 +354,7 @@ fn out_from(out: Option<&Bound<'_, PyAny>>) -> PyResult<Option<PathBuf>> {
 #[pyo3(signature = (model=PathBuf::from("pupper_v3"), variant="original"))]
 fn info<'py>(py: Python<'py>, model: PathBuf, variant: &str) -> PyResult<Bound<'py, PyAny>> {
     let source = ModelSource::parse(&model.to_string_lossy()).map_err(to_py)?;
-    let body = pupper_core::variant::variant(variant).map_err(to_py)?;
+    let body = pupper_core::robot::variant::variant(variant).map_err(to_py)?;
     to_dict(py, &api::info(&source, body).map_err(to_py)?)
 }
 
@@ -495,6 +495,53 @@ fn sweep(
     run_spec(py, spec, progress, "python: pupper_core.sweep", None)
 }
 
+/// `pupper_core.response`: the response experiment, as `pupper response`
+/// runs it. `options` are the sweep keywords (model, mode, kp, kd, seconds,
+/// pose, threads, replicates, ...); the signal comes in its own keywords.
+#[pyfunction]
+#[pyo3(signature = (grid=None, *, out=None, progress=None, signal="step".to_string(), amplitude=pupper_core::plan::excitation::AMPLITUDE, frequency=None, chirp=None, hold=pupper_core::request::response::DEFAULT_HOLD, joints=Vec::new(), standing=false, **options))]
+#[allow(clippy::too_many_arguments)]
+fn response(
+    py: Python<'_>,
+    grid: Option<&Bound<'_, PyAny>>,
+    out: Option<&Bound<'_, PyAny>>,
+    progress: Option<Bound<'_, PyAny>>,
+    signal: String,
+    amplitude: f64,
+    frequency: Option<f64>,
+    chirp: Option<[f64; 2]>,
+    hold: f64,
+    joints: Vec<String>,
+    standing: bool,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<result::SweepResult> {
+    let given = |k: &str| options.is_some_and(|o| o.contains(k).unwrap_or(false));
+    let mut base = SweepSpec {
+        grid: grid_from(grid, None)?,
+        out: out_from(out)?,
+        ..spec_from(py, options)?
+    };
+    if !given("seconds") {
+        base.seconds = pupper_core::request::response::SECONDS;
+    }
+    let input = pupper_core::request::response::SignalInput {
+        kind: signal,
+        amplitude,
+        frequency,
+        chirp,
+    };
+    let spec = pupper_core::request::response::spec(
+        base,
+        &input,
+        hold,
+        &joints,
+        standing,
+        given("keyframe"),
+    )
+    .map_err(to_py)?;
+    run_spec(py, spec, progress, "python: pupper_core.response", None)
+}
+
 /// Runs a spec with Python progress and Ctrl-C; writes best.csv by `rule`.
 fn run_spec(
     py: Python<'_>,
@@ -560,7 +607,7 @@ fn run_spec(
             complete: outcome.complete,
             wall_seconds: outcome.wall_seconds,
             config: &req.sweep.config,
-            replicates: Some((outcome.replicate_header, outcome.replicate_rows)),
+            tables: outcome.details,
         },
     )
 }
@@ -570,7 +617,7 @@ fn run_spec(
 /// best.csv (the best gains per body) in `out`. Plots and rendering are the
 /// Python wrapper's.
 #[pyfunction]
-#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::lab::SECONDS, sine=pupper_core::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, rank=None, replicates=1, seed=0, randomize=Vec::new(), backend="cpu".to_string(), device=None, ray=None, depth=None, progress=None),
+#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::request::lab::SECONDS, sine=pupper_core::request::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, rank=None, replicates=1, seed=0, randomize=Vec::new(), backend="cpu".to_string(), device=None, ray=None, depth=None, progress=None),
     text_signature = "(variants=None, grid=None, *, seconds=6.0, sine=(2.0, 1.2), model='pupper_v3', out=None, force=False, resume=False, threads=0, max_saturation=0.05, rank=None, replicates=1, seed=0, randomize=(), backend='cpu', device=None, ray=None, depth=None, progress=None)")]
 #[allow(clippy::too_many_arguments)]
 fn lab(
@@ -609,8 +656,11 @@ fn lab(
     };
     let replicates = whole("replicates", replicates, u32::MAX as u64)? as u32;
     let seed = whole("seed", seed, u64::MAX)?;
-    let variants =
-        variants.unwrap_or_else(|| pupper_core::lab::VARIANTS.map(String::from).to_vec());
+    let variants = variants.unwrap_or_else(|| {
+        pupper_core::request::lab::VARIANTS
+            .map(String::from)
+            .to_vec()
+    });
     let spec = SweepSpec {
         model,
         out: out_from(out)?,
@@ -624,7 +674,7 @@ fn lab(
         device,
         ray,
         depth,
-        ..pupper_core::lab::spec(&variants, &grid.unwrap_or_default(), seconds, sine)
+        ..pupper_core::request::lab::spec(&variants, &grid.unwrap_or_default(), seconds, sine)
     };
     let metric = rank.unwrap_or_else(|| {
         if replicates > 1 || !randomize.is_empty() {
@@ -651,17 +701,17 @@ fn merge(
     force: bool,
 ) -> PyResult<result::SweepResult> {
     let existing = match force {
-        true => pupper_core::rundir::Existing::Overwrite,
-        false => pupper_core::rundir::Existing::Refuse,
+        true => pupper_core::results::rundir::Existing::Overwrite,
+        false => pupper_core::results::rundir::Existing::Refuse,
     };
-    let (dir, _) = pupper_core::rundir::merge(&dirs, &out, existing).map_err(to_py)?;
+    let (dir, _) = pupper_core::results::rundir::merge(&dirs, &out, existing).map_err(to_py)?;
     load_run(py, dir)
 }
 
 /// A run directory read back: its rows checked against its manifest.
 #[pyfunction]
 fn load_run(py: Python<'_>, run_dir: PathBuf) -> PyResult<result::SweepResult> {
-    let run = output::read_run(&run_dir).map_err(to_py)?;
+    let run = pupper_core::results::tables::read_run(&run_dir).map_err(to_py)?;
     result::SweepResult::new(
         py,
         result::Parts {
@@ -672,7 +722,7 @@ fn load_run(py: Python<'_>, run_dir: PathBuf) -> PyResult<result::SweepResult> {
             complete: run.manifest.complete,
             wall_seconds: f64::NAN,
             config: &run.manifest.config,
-            replicates: Some((run.replicate_header, run.replicate_rows)),
+            tables: run.details,
         },
     )
 }
@@ -687,7 +737,7 @@ fn recording_dict<'py>(py: Python<'py>, r: Recording, fps: f64) -> PyResult<Boun
     d.set_item("name", &cell.name)?;
     let values = PyDict::new(py);
     for (axis, v) in &cell.values {
-        if *axis == pupper_core::grid::Axis::Variant {
+        if *axis == pupper_core::plan::grid::Axis::Variant {
             values.set_item(axis.name(), axis.text(*v))?;
         } else {
             values.set_item(axis.name(), v)?;
@@ -784,7 +834,7 @@ fn builtin_model(name: &str) -> PyResult<Py<PyAny>> {
     if source.builtin().is_none() {
         return Err(ModelError::new_err(format!(
             "no built-in model '{name}': use one of {}",
-            pupper_core::model::BUILTIN_NAMES.join(", ")
+            pupper_core::robot::model::BUILTIN_NAMES.join(", ")
         )));
     }
     api::compiled(&source).map_err(to_py)
@@ -849,7 +899,7 @@ fn _run_task<'py>(
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add("__version__", pupper_core::VERSION)?;
-    m.add("METRICS", pupper_core::metrics::METRIC_NAMES.to_vec())?;
+    m.add("METRICS", pupper_core::sim::metrics::METRIC_NAMES.to_vec())?;
     m.add("PupperError", py.get_type::<PupperError>())?;
     m.add("GridError", py.get_type::<GridError>())?;
     m.add("ConfigError", py.get_type::<ConfigError>())?;
@@ -878,6 +928,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load_run, m)?)?;
     m.add_function(wrap_pyfunction!(merge, m)?)?;
     m.add_function(wrap_pyfunction!(lab, m)?)?;
+    m.add_function(wrap_pyfunction!(response, m)?)?;
     m.add_class::<result::SweepResult>()?;
     m.add_function(wrap_pyfunction!(record, m)?)?;
     m.add_function(wrap_pyfunction!(record_run, m)?)?;

@@ -10,17 +10,22 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::ConfigError;
-use pupper_core::best;
-use pupper_core::metrics::METRIC_NAMES;
+use pupper_core::results::best;
+use pupper_core::sim::metrics::METRIC_NAMES;
 
 /// Columns of text in summary.csv.
-const TEXT: [&str; 4] = ["id", "name", "status", "variant"];
+const TEXT: [&str; 6] = ["id", "name", "status", "variant", "joint", "group"];
 
 /// Where a table's axis columns end: its first column that is not an axis.
 fn axes_end(header: &[String]) -> usize {
     header
         .iter()
-        .position(|h| h == METRIC_NAMES[0] || h == "replicates" || h == "replicate")
+        .position(|h| {
+            h == METRIC_NAMES[0]
+                || ["replicates", "replicate", "joint", "status"].contains(&h.as_str())
+                // a response run's per-group figures, e.g. rise_time_s.hfe
+                || h.contains('.')
+        })
         .unwrap_or(header.len())
 }
 
@@ -53,6 +58,12 @@ pub struct SweepResult {
     /// replicates.
     #[pyo3(get)]
     replicates: Option<Py<SweepResult>>,
+    /// Every table beside summary.csv by name ("replicates"; a response
+    /// run's "response" and "bode"), each a SweepResult.
+    #[pyo3(get)]
+    tables: Py<PyDict>,
+    /// The tables as text, for pickling: file name, header, rows.
+    detail_text: Vec<(String, Vec<String>, Vec<Vec<String>>)>,
 }
 
 /// What a result is made from.
@@ -63,9 +74,9 @@ pub struct Parts<'a> {
     pub out: Option<&'a Path>,
     pub complete: bool,
     pub wall_seconds: f64,
-    pub config: &'a pupper_core::experiment::SweepConfig,
-    /// replicates.csv's header and rows, for a replicated sweep.
-    pub replicates: Option<(Vec<String>, Vec<Vec<String>>)>,
+    pub config: &'a pupper_core::plan::config::SweepConfig,
+    /// Every table beside summary.csv: file name, header, rows.
+    pub tables: Vec<(String, Vec<String>, Vec<Vec<String>>)>,
 }
 
 fn number(text: &str) -> f64 {
@@ -107,27 +118,38 @@ impl SweepResult {
             .getattr("loads")?
             .call1((config_text,))?
             .unbind();
-        let replicates = match p.replicates {
-            Some((header, rows)) if !header.is_empty() => {
-                let table = SweepResult::new(
+        let tables = PyDict::new(py);
+        let mut replicates = None;
+        for (file, header, rows) in &p.tables {
+            if header.is_empty() {
+                continue;
+            }
+            let table = Py::new(
+                py,
+                SweepResult::new(
                     py,
                     Parts {
-                        header,
-                        rows,
+                        header: header.clone(),
+                        rows: rows.clone(),
                         traces: &[],
                         out: p.out,
                         complete: p.complete,
                         wall_seconds: p.wall_seconds,
                         config: p.config,
-                        replicates: None,
+                        tables: Vec::new(),
                     },
-                )?;
-                Some(Py::new(py, table)?)
+                )?,
+            )?;
+            let stem = file.trim_end_matches(".csv");
+            if stem == "replicates" {
+                replicates = Some(table.clone_ref(py));
             }
-            _ => None,
-        };
+            tables.set_item(stem, table)?;
+        }
         Ok(SweepResult {
             replicates,
+            tables: tables.unbind(),
+            detail_text: p.tables,
             header: p.header,
             rows: p.rows,
             columns: columns.unbind(),
@@ -169,14 +191,7 @@ impl SweepResult {
             .call1((self.config.bind(py),))?
             .extract()?;
         d.set_item("config", text)?;
-        let reps = match &self.replicates {
-            Some(r) => {
-                let r = r.borrow(py);
-                Some((r.header.clone(), r.rows.clone()))
-            }
-            None => None,
-        };
-        d.set_item("replicates", reps)?;
+        d.set_item("tables", self.detail_text.clone())?;
         Ok(d)
     }
 
@@ -502,13 +517,13 @@ pub fn _result_from_state(py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult
     }
     let out: Option<String> = get("out")?.extract()?;
     let text: String = get("config")?.extract()?;
-    let config: pupper_core::experiment::SweepConfig =
+    let config: pupper_core::plan::config::SweepConfig =
         serde_json::from_str(&text).map_err(|e| {
             pyo3::exceptions::PyValueError::new_err(format!(
                 "a result's inputs do not read back: {e}"
             ))
         })?;
-    let replicates: Option<(Vec<String>, Vec<Vec<String>>)> = get("replicates")?.extract()?;
+    let tables: Vec<(String, Vec<String>, Vec<Vec<String>>)> = get("tables")?.extract()?;
     SweepResult::new(
         py,
         Parts {
@@ -519,7 +534,7 @@ pub fn _result_from_state(py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult
             complete: get("complete")?.extract()?,
             wall_seconds: get("wall_seconds")?.extract()?,
             config: &config,
-            replicates,
+            tables,
         },
     )
 }

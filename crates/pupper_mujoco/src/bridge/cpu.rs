@@ -11,10 +11,12 @@ use super::model::LoadedModel;
 use super::python::{PyResultExt, py_err};
 use super::setup::{StartStates, prepare_model};
 use pupper_core::error::{Error, Result};
-use pupper_core::layout::Layout;
-use pupper_core::model::ModelInfo;
-use pupper_core::physics::{CellSetup, Controller, Force, Mode, Observer, Physics, SimBatch};
-use pupper_core::schedule::InitialState;
+use pupper_core::plan::mode::Mode;
+use pupper_core::plan::schedule::InitialState;
+use pupper_core::plan::setup::CellSetup;
+use pupper_core::robot::layout::Layout;
+use pupper_core::robot::model::ModelInfo;
+use pupper_core::sim::physics::{Controller, Force, Observer, Physics, SimBatch};
 
 impl Physics for LoadedModel<'_> {
     fn info(&self) -> &ModelInfo {

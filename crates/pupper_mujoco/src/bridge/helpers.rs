@@ -8,10 +8,11 @@ use super::cpu::CpuPhysics;
 use super::model::LoadedModel;
 use super::python::{Mujoco, PyResultExt, exception_name, python_message};
 use super::warp::WarpPhysics;
-use pupper_core::backend::Backend;
 use pupper_core::error::{Error, Result};
-use pupper_core::model::ModelSource;
-use pupper_core::physics::Physics;
+use pupper_core::plan::backend::Backend;
+use pupper_core::plan::config::SweepConfig;
+use pupper_core::robot::model::ModelSource;
+use pupper_core::sim::physics::Physics;
 
 /// Runs `f` with the imported `mujoco` and the model, floating-checked.
 pub fn with_model<T>(
@@ -23,6 +24,20 @@ pub fn with_model<T>(
         let mj = Mujoco::import(py)?;
         let model = mj.load(source)?;
         let model = if floating { model.floating()? } else { model };
+        f(&model)
+    })
+}
+
+/// Runs `f` with the model a config runs on: floating, or for a response
+/// run not `standing` hung in the air (base fixed, no contacts).
+pub fn with_config_model<T>(
+    cfg: &SweepConfig,
+    f: impl for<'py> FnOnce(&LoadedModel<'py>) -> Result<T>,
+) -> Result<T> {
+    let suspended = cfg.response.as_ref().is_some_and(|e| !e.standing);
+    Python::attach(|py| {
+        let mj = Mujoco::import(py)?;
+        let model = mj.load_on(&cfg.model, suspended)?.floating()?;
         f(&model)
     })
 }

@@ -5,7 +5,7 @@ use pyo3::prelude::*;
 
 use super::python::{Mujoco, PyResultExt};
 use pupper_core::error::Result;
-use pupper_core::model::{
+use pupper_core::robot::model::{
     ActuatorInfo, JointInfo, KeyframeInfo, LegInfo, ModelInfo, ModelSource, SensorInfo,
 };
 
@@ -143,8 +143,17 @@ impl<'py> Mujoco<'py> {
             nu,
             nbody,
             timestep,
+            integrator: model
+                .getattr("opt")
+                .and_then(|o| o.getattr("integrator"))
+                .and_then(|i| i.extract())
+                .internal()?,
             total_mass: masses.iter().sum(),
             bodies,
+            body_parent: ints("body_parentid")?
+                .into_iter()
+                .map(|p| p as usize)
+                .collect(),
             joints,
             actuators,
             keyframes,
@@ -179,7 +188,7 @@ impl<'py> Mujoco<'py> {
             .call1((model, py.None(), &buf))?;
         let bytes = buf.call_method0("tobytes")?;
         let bytes = bytes.cast::<pyo3::types::PyBytes>()?.as_bytes();
-        Ok(pupper_core::model::sha256_hex(bytes))
+        Ok(pupper_core::robot::model::sha256_hex(bytes))
     }
 
     /// The legs of a model at its default pose: below the base (body 1),

@@ -8,9 +8,9 @@ use pyo3::types::{PyBytes, PyDict, PyList};
 
 use super::python::{Mujoco, PyResultExt, python_message};
 use pupper_core::error::{Error, Result};
-use pupper_core::layout::Layout;
-use pupper_core::model::{Builtin, ModelInfo, ModelSource};
-use pupper_core::pose::StandPose;
+use pupper_core::robot::layout::Layout;
+use pupper_core::robot::model::{Builtin, ModelInfo, ModelSource};
+use pupper_core::robot::pose::StandPose;
 
 impl<'py> Mujoco<'py> {
     /// Parses the model's MJCF into an `MjSpec`.
@@ -52,7 +52,13 @@ impl<'py> Mujoco<'py> {
 
     /// Loads and compiles a model.
     pub fn load(&self, source: &ModelSource) -> Result<LoadedModel<'py>> {
-        let spec = self.spec(source)?;
+        self.load_on(source, false)
+    }
+
+    /// Loads a model, `suspended` on the response test bench (base fixed,
+    /// no contacts).
+    pub fn load_on(&self, source: &ModelSource, suspended: bool) -> Result<LoadedModel<'py>> {
+        let spec = self.spec_on(source, suspended)?;
         let model = self.compile(source, &spec)?;
         let info = self.info(source, &model)?;
         Ok(LoadedModel {
@@ -61,8 +67,17 @@ impl<'py> Mujoco<'py> {
             model,
             info,
             layout: None,
+            suspended,
             variants: RefCell::new(Vec::new()),
         })
+    }
+
+    fn spec_on(&self, source: &ModelSource, suspended: bool) -> Result<Bound<'py, PyAny>> {
+        let spec = self.spec(source)?;
+        if suspended {
+            suspend(&spec).internal()?;
+        }
+        Ok(spec)
     }
 }
 
@@ -80,23 +95,46 @@ fn builtin_spec<'py>(spec_cls: &Bound<'py, PyAny>, b: &Builtin) -> PyResult<Boun
     let spec = spec_cls.call_method("from_string", (b.main,), Some(&kw))?;
     spec.setattr("modelname", b.name)?;
     if b.fixed_base {
-        for joint in spec.getattr("joints")?.try_iter()? {
-            let joint = joint?;
-            if joint.getattr("type")?.getattr("value")?.extract::<i64>()? == 0 {
-                // mjJNT_FREE: weld the base where the file puts it
-                spec.call_method1("delete", (joint,))?;
-                for key in spec.getattr("keys")?.try_iter()? {
-                    let key = key?;
-                    let qpos: Vec<f64> = key.getattr("qpos")?.extract()?;
-                    if qpos.len() >= 7 {
-                        key.setattr("qpos", qpos[7..].to_vec())?;
-                    }
-                }
-                break;
-            }
-        }
+        fix_base(&spec)?;
     }
     Ok(spec)
+}
+
+/// Welds the base where the file puts it: the root's free joint deleted
+/// (and the keyframes' base coordinates with it). Only a free joint that
+/// comes first (the root's, as MJCF puts it) is removed.
+fn fix_base(spec: &Bound<'_, PyAny>) -> PyResult<()> {
+    let Some(first) = spec.getattr("joints")?.try_iter()?.next() else {
+        return Ok(());
+    };
+    let joint = first?;
+    if joint.getattr("type")?.getattr("value")?.extract::<i64>()? != 0 {
+        return Ok(()); // mjJNT_FREE is 0
+    }
+    spec.call_method1("delete", (joint,))?;
+    for key in spec.getattr("keys")?.try_iter()? {
+        let key = key?;
+        let qpos: Vec<f64> = key.getattr("qpos")?.extract()?;
+        if qpos.len() >= 7 {
+            key.setattr("qpos", qpos[7..].to_vec())?;
+        }
+    }
+    Ok(())
+}
+
+/// The response test bench: the robot hung in the air, its base fixed and
+/// no contacts (MuJoCo's contact pass disabled).
+fn suspend(spec: &Bound<'_, PyAny>) -> PyResult<()> {
+    fix_base(spec)?;
+    let py = spec.py();
+    let bit: i64 = PyModule::import(py, "mujoco")?
+        .getattr("mjtDisableBit")?
+        .getattr("mjDSBL_CONTACT")?
+        .getattr("value")?
+        .extract()?;
+    let option = spec.getattr("option")?;
+    let flags: i64 = option.getattr("disableflags")?.extract()?;
+    option.setattr("disableflags", flags | bit)
 }
 
 /// A compiled body variant, keyed by the bits of (leg_scale, torso_mass_scale).
@@ -109,6 +147,8 @@ pub struct LoadedModel<'py> {
     model: Bound<'py, PyAny>,
     pub(crate) info: ModelInfo,
     pub(crate) layout: Option<Layout>,
+    /// Hung in the air: base fixed, no contacts.
+    suspended: bool,
     /// Compiled body variants by (leg_scale, torso_mass_scale) bits.
     variants: RefCell<Vec<Variant<'py>>>,
 }
@@ -118,10 +158,19 @@ impl<'py> LoadedModel<'py> {
         &self.info
     }
 
-    /// Requires a floating base with joint actuators (for stand and sweep).
+    /// Requires a floating base with joint actuators (for stand and
+    /// sweep), or on the suspended bench joint actuators alone.
     pub fn floating(mut self) -> Result<LoadedModel<'py>> {
-        self.layout = Some(Layout::floating(&self.info)?);
+        self.layout = Some(match self.suspended {
+            false => Layout::floating(&self.info)?,
+            true => Layout::suspended(&self.info)?,
+        });
         Ok(self)
+    }
+
+    /// The state layout, once [`LoadedModel::floating`] checked the model.
+    pub fn layout(&self) -> Option<&Layout> {
+        self.layout.as_ref()
     }
 
     pub fn mujoco_version(&self) -> &str {
@@ -149,7 +198,7 @@ impl<'py> LoadedModel<'py> {
     ) -> Result<StandPose> {
         let body = self.variant(leg_scale, torso_mass_scale)?;
         let info = self.mj.info(&self.source, &body)?;
-        pupper_core::pose::stand_pose(&info, leg_scale, depth)
+        pupper_core::robot::pose::stand_pose(&info, leg_scale, depth)
     }
 
     /// The stance height of `body` with the joints of `qpos`: the base
@@ -161,6 +210,10 @@ impl<'py> LoadedModel<'py> {
             .layout
             .as_ref()
             .ok_or_else(|| Error::Internal("stance needs a floating model".into()))?;
+        // a fixed base stands on nothing: no stance, no falls
+        let Some(zi) = layout.base.z() else {
+            return Ok(f64::NAN);
+        };
         let lowest = (|| -> PyResult<f64> {
             let data = self.mj.module.getattr("MjData")?.call1((body,))?;
             let q = data.getattr("qpos")?;
@@ -194,7 +247,7 @@ impl<'py> LoadedModel<'py> {
                 .fold(f64::INFINITY, f64::min))
         })()
         .internal()?;
-        let z = qpos[layout.base.z()];
+        let z = qpos[zi];
         let stance = z - lowest;
         // a robot without a foot below its base: judge it by where it starts
         Ok(if stance.is_finite() && stance > 0.0 {
@@ -202,6 +255,35 @@ impl<'py> LoadedModel<'py> {
         } else {
             z
         })
+    }
+
+    /// Each actuated joint's reflected inertia at `qpos`: the joint-space
+    /// inertia matrix's diagonal (armature included), in ctrl order.
+    pub fn joint_inertia(&self, qpos: &[f64]) -> Result<Vec<f64>> {
+        let layout = self
+            .layout
+            .as_ref()
+            .ok_or_else(|| Error::Internal("joint inertia needs a floating model".into()))?;
+        let nv = self.info.nv;
+        let diag = (|| -> PyResult<Vec<f64>> {
+            let m = &self.mj.module;
+            let data = m.getattr("MjData")?.call1((&self.model,))?;
+            let q = data.getattr("qpos")?;
+            for (i, v) in qpos.iter().enumerate() {
+                q.set_item(i, *v)?;
+            }
+            m.getattr("mj_forward")?.call1((&self.model, &data))?;
+            let np = PyModule::import(self.mj.py, "numpy")?;
+            let dense = np.getattr("zeros")?.call1(((nv, nv),))?;
+            // mujoco 4: mj_fullM(m, d, dst) reads d's sparse inertia itself
+            m.getattr("mj_fullM")?.call1((&self.model, &data, &dense))?;
+            np.getattr("diag")?
+                .call1((dense,))?
+                .call_method0("tolist")?
+                .extract()
+        })()
+        .internal()?;
+        Ok(layout.act_dof.iter().map(|&d| diag[d]).collect())
     }
 
     /// A model with scaled legs and torso, compiled from an edited spec.
@@ -213,7 +295,7 @@ impl<'py> LoadedModel<'py> {
         if let Some((_, m)) = self.variants.borrow().iter().find(|(k, _)| *k == key) {
             return Ok(m.clone());
         }
-        let spec = self.mj.spec(&self.source)?;
+        let spec = self.mj.spec_on(&self.source, self.suspended)?;
         let layout = self
             .layout
             .as_ref()

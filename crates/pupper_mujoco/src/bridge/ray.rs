@@ -1,7 +1,7 @@
 //! The driver's side of `--ray`: a [`Cluster`] over `pupper_core._ray`,
 //! which connects to Ray, keeps the job in its object store and runs tasks
 //! there. What goes in a task and what is written when is the Rust core's
-//! ([`pupper_core::cluster`]); a worker runs [`crate::api::run_task`].
+//! ([`pupper_core::sim::cluster`]); a worker runs [`crate::api::run_task`].
 
 use std::time::Duration;
 
@@ -9,9 +9,9 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
 use super::python::{exception_name, python_message};
-use pupper_core::cluster::{self, Address, Capacity, Cluster, Job};
 use pupper_core::error::{Error, Result};
-use pupper_core::output::{RayNode, RayRecord};
+use pupper_core::results::output::{RayNode, RayRecord};
+use pupper_core::sim::cluster::{self, Address, Capacity, Cluster, Job};
 
 /// The Python module that talks to Ray.
 const MODULE: &str = "pupper_core._ray";

@@ -7,8 +7,10 @@ use pyo3::prelude::*;
 use super::model::LoadedModel;
 use super::python::Mujoco;
 use pupper_core::error::Result;
-use pupper_core::physics::{CellSetup, Mode, Physics};
-use pupper_core::schedule::InitialState;
+use pupper_core::plan::mode::Mode;
+use pupper_core::plan::schedule::InitialState;
+use pupper_core::plan::setup::CellSetup;
+use pupper_core::sim::physics::Physics;
 
 /// A copy of `m` with timestep `dt` whose actuators, whatever the file
 /// declares (a position servo, a motor), are fixed-gain with an affine bias
@@ -146,8 +148,8 @@ impl StartStates {
                 reset[layout.act_qpos[a]] = q;
             }
         }
-        if let Some(z) = base_z {
-            reset[layout.base.z()] = *z;
+        if let (Some(z), Some(zi)) = (base_z, layout.base.z()) {
+            reset[zi] = *z;
         }
     }
 }

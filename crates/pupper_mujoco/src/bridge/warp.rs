@@ -14,12 +14,14 @@ use super::cpu::{actuator_params, colliding_geoms, scale_masses};
 use super::model::LoadedModel;
 use super::python::{PyResultExt, exception_name, python_message};
 use super::setup::{StartStates, prepare_model};
-use pupper_core::backend::ActuatorPd;
 use pupper_core::error::{Error, Result};
-use pupper_core::layout::Layout;
-use pupper_core::model::ModelInfo;
-use pupper_core::physics::{CellSetup, Controller, Force, Mode, Observer, Physics, SimBatch};
-use pupper_core::schedule::InitialState;
+use pupper_core::plan::backend::ActuatorPd;
+use pupper_core::plan::mode::Mode;
+use pupper_core::plan::schedule::InitialState;
+use pupper_core::plan::setup::CellSetup;
+use pupper_core::robot::layout::Layout;
+use pupper_core::robot::model::ModelInfo;
+use pupper_core::sim::physics::{Controller, Force, Observer, Physics, SimBatch};
 
 /// The device-side module of the package.
 const MODULE: &str = "pupper_core._warp";

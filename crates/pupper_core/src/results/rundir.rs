@@ -16,12 +16,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
-use crate::experiment::CellResult;
-use crate::output::{
+use crate::results::output::Detail;
+use crate::results::output::{
     MANIFEST, Manifest, MergedShard, REPLICATES, SUMMARY, TRACES, Trace, config_diff, csv_bytes,
-    fmt_f64, header_of, read_manifest, read_replicates, read_rows, read_traces, replicate_row,
-    replicates_header, robust_row, row,
+    fmt_f64, header_of, read_detail, read_manifest, read_rows, read_traces,
 };
+use crate::results::tables::{self, BODE, RESPONSE};
+use crate::sim::runner::CellResult;
 
 /// The lock file every writer of a run directory holds.
 pub const LOCK: &str = ".pupper.lock";
@@ -146,7 +147,11 @@ fn only_ours(dir: &Path) -> bool {
         let name = e.file_name().to_string_lossy().into_owned();
         name == LOCK
             || (name.starts_with('.') && name.contains(".tmp"))
-            || ((name == SUMMARY || name == TRACES || name == REPLICATES)
+            || ((name == SUMMARY
+                || name == TRACES
+                || name == REPLICATES
+                || name == RESPONSE
+                || name == BODE)
                 && std::fs::read_to_string(e.path()).is_ok_and(|t| t.lines().count() <= 1))
     })
 }
@@ -203,7 +208,8 @@ struct Open {
     _lock: File,
     summary: Option<Appender>,
     traces: Option<Appender>,
-    replicates: Option<Appender>,
+    /// One per table of [`RunWriter::details`].
+    details: Vec<Appender>,
     synced: Instant,
 }
 
@@ -216,9 +222,10 @@ pub struct RunWriter {
     rows: BTreeMap<usize, Vec<String>>,
     traces: BTreeMap<usize, Trace>,
     want_traces: bool,
-    /// replicates.csv's header (empty for a plain sweep) and rows by cell.
-    rep_header: Vec<String>,
-    reps: BTreeMap<usize, Vec<Vec<String>>>,
+    /// The tables of rows per cell beside summary.csv (replicates.csv;
+    /// response.csv, bode.csv) and their rows by cell.
+    details: Vec<Detail>,
+    detail_rows: Vec<BTreeMap<usize, Vec<Vec<String>>>>,
     pub manifest: Manifest,
     lock: Option<File>,
     open: Option<Open>,
@@ -238,16 +245,14 @@ impl RunWriter {
             rows: BTreeMap::new(),
             traces: BTreeMap::new(),
             want_traces: manifest.config.schedule.trace_every > 0,
-            rep_header: match manifest.config.replicates.is_plain() {
-                true => Vec::new(),
-                false => replicates_header(&manifest.config, manifest.torque_limits.len()),
-            },
-            reps: BTreeMap::new(),
+            details: tables::details_of(&manifest.config, manifest.torque_limits.len()),
+            detail_rows: Vec::new(),
             manifest,
             lock: None,
             open: None,
             started: Instant::now(),
         };
+        w.detail_rows = vec![BTreeMap::new(); w.details.len()];
         let Some(dir) = dir else { return Ok(w) };
         if dir.exists() && !dir.is_dir() {
             return Err(Error::Output(format!(
@@ -301,13 +306,13 @@ impl RunWriter {
                     )));
                 }
                 w.rows = read_rows(dir, &w.manifest.config)?;
-                if w.replicated() {
-                    let count = w.manifest.config.replicate_count();
-                    w.reps = read_replicates(dir, &w.rep_header, count, &w.rows)?;
-                    // a cell without all its replicates on disk runs again
-                    let reps = &w.reps;
-                    w.rows.retain(|i, _| reps.contains_key(i));
+                for (k, d) in w.details.iter().enumerate() {
+                    w.detail_rows[k] = read_detail(dir, d, &w.rows)?;
                 }
+                // a cell without all its rows on disk runs again
+                let details = &w.detail_rows;
+                w.rows
+                    .retain(|i, _| details.iter().all(|d| d.contains_key(i)));
                 if w.want_traces {
                     w.traces = read_traces(dir, &w.rows)?;
                 }
@@ -322,18 +327,44 @@ impl RunWriter {
         self.dir.as_deref()
     }
 
-    fn replicated(&self) -> bool {
-        !self.rep_header.is_empty()
+    fn detail(&self, file: &str) -> Option<usize> {
+        self.details.iter().position(|d| d.file == file)
     }
 
     /// replicates.csv's header (empty for a plain sweep).
     pub fn replicate_header(&self) -> &[String] {
-        &self.rep_header
+        match self.detail(REPLICATES) {
+            Some(k) => &self.details[k].header,
+            None => &[],
+        }
     }
 
     /// replicates.csv's rows so far, by cell then replicate.
-    pub fn replicate_rows(&self) -> impl Iterator<Item = &Vec<String>> {
-        self.reps.values().flatten()
+    pub fn replicate_rows(&self) -> Vec<Vec<String>> {
+        self.detail_table(REPLICATES).1
+    }
+
+    /// Every table beside summary.csv: file name, header, rows so far.
+    pub fn detail_tables(&self) -> Vec<(String, Vec<String>, Vec<Vec<String>>)> {
+        self.details
+            .iter()
+            .map(|d| {
+                let (h, rows) = self.detail_table(d.file);
+                (d.file.to_string(), h, rows)
+            })
+            .collect()
+    }
+
+    /// A table beside summary.csv by file name: its header and its rows
+    /// so far, in cell order (empty when the run has no such table).
+    pub fn detail_table(&self, file: &str) -> (Vec<String>, Vec<Vec<String>>) {
+        match self.detail(file) {
+            Some(k) => (
+                self.details[k].header.clone(),
+                self.detail_rows[k].values().flatten().cloned().collect(),
+            ),
+            None => (Vec::new(), Vec::new()),
+        }
     }
 
     pub fn header(&self) -> &[String] {
@@ -380,7 +411,14 @@ impl RunWriter {
         if self.existing == Existing::Overwrite {
             // an overwritten run must not keep files of the old one: its
             // tables, its ranking, MuJoCo's log, the figures pupper drew
-            for name in [TRACES, REPLICATES, crate::output::BEST, "MUJOCO_LOG.TXT"] {
+            for name in [
+                TRACES,
+                REPLICATES,
+                RESPONSE,
+                BODE,
+                crate::results::output::BEST,
+                "MUJOCO_LOG.TXT",
+            ] {
                 let _ = std::fs::remove_file(dir.join(name));
             }
             if let Ok(entries) = std::fs::read_dir(dir.join("plots")) {
@@ -406,10 +444,11 @@ impl RunWriter {
                 true => Some(Appender::open(dir.join(TRACES))?),
                 false => None,
             },
-            replicates: match self.replicated() {
-                true => Some(Appender::open(dir.join(REPLICATES))?),
-                false => None,
-            },
+            details: self
+                .details
+                .iter()
+                .map(|d| Appender::open(dir.join(d.file)))
+                .collect::<Result<_>>()?,
             synced: Instant::now(),
         });
         self.dir = Some(dir);
@@ -426,9 +465,9 @@ impl RunWriter {
             }
             write_atomic(&dir.join(TRACES), out.as_bytes())?;
         }
-        if self.replicated() {
-            let rows: Vec<Vec<String>> = self.reps.values().flatten().cloned().collect();
-            write_atomic(&dir.join(REPLICATES), &csv_bytes(&self.rep_header, &rows)?)?;
+        for (d, rows) in self.details.iter().zip(&self.detail_rows) {
+            let rows: Vec<Vec<String>> = rows.values().flatten().cloned().collect();
+            write_atomic(&dir.join(d.file), &csv_bytes(&d.header, &rows)?)?;
         }
         let rows: Vec<Vec<String>> = self.rows.values().cloned().collect();
         write_atomic(&dir.join(SUMMARY), &csv_bytes(&self.header, &rows)?)
@@ -449,26 +488,15 @@ impl RunWriter {
         if self.dir.is_some() && self.open.is_none() {
             self.create()?;
         }
-        let replicated = self.replicated();
+        let config = &self.manifest.config;
         let new_rows: Vec<Vec<String>> = results
             .iter()
-            .map(|r| match replicated {
-                false => row(&r.cell, &r.metrics),
-                true => robust_row(
-                    &r.cell,
-                    &r.replicates.iter().map(|p| &p.metrics).collect::<Vec<_>>(),
-                ),
-            })
+            .map(|r| tables::summary_row(config, r))
             .collect();
-        let new_reps: Vec<Vec<Vec<String>>> = results
+        // per cell, its rows of each detail table
+        let new_details: Vec<Vec<Vec<Vec<String>>>> = results
             .iter()
-            .map(|r| {
-                r.replicates
-                    .iter()
-                    .enumerate()
-                    .map(|(k, p)| replicate_row(&r.cell, k, &p.drawn, &p.metrics))
-                    .collect()
-            })
+            .map(|r| tables::detail_rows(config, r))
             .collect();
         if let Some(open) = &mut self.open {
             let mut traces = String::new();
@@ -478,7 +506,15 @@ impl RunWriter {
                 }
             }
             let rows = csv_bytes(&[], &new_rows)?;
-            let reps = csv_bytes(&[], &new_reps.concat())?;
+            let details = (0..self.details.len())
+                .map(|k| {
+                    let rows: Vec<Vec<String>> = new_details
+                        .iter()
+                        .flat_map(|d| d[k].iter().cloned())
+                        .collect();
+                    csv_bytes(&[], &rows)
+                })
+                .collect::<Result<Vec<_>>>()?;
             let cells_done = self.rows.len() + results.len();
             let mut manifest = self.manifest.clone();
             manifest.cells_done = cells_done;
@@ -490,17 +526,15 @@ impl RunWriter {
                 if let Some(t) = &mut open.traces {
                     t.append(traces.as_bytes())?;
                 }
-                if let Some(t) = &mut open.replicates {
-                    t.append(&reps)?;
+                for (a, bytes) in open.details.iter_mut().zip(&details) {
+                    a.append(bytes)?;
                 }
+                // the summary last: a row promises the rest is on disk
                 if let Some(s) = &mut open.summary {
                     s.append(&rows)?;
                 }
                 if sync {
-                    for a in [&open.traces, &open.replicates, &open.summary]
-                        .into_iter()
-                        .flatten()
-                    {
+                    for a in open.traces.iter().chain(&open.details).chain(&open.summary) {
                         a.sync()?;
                     }
                 }
@@ -509,17 +543,21 @@ impl RunWriter {
                 write_atomic(&dir.join(MANIFEST), (text + "\n").as_bytes())
             })();
             if let Err(e) = written {
-                for a in [&mut open.traces, &mut open.replicates, &mut open.summary]
-                    .into_iter()
-                    .flatten()
+                for a in open
+                    .traces
+                    .iter_mut()
+                    .chain(open.details.iter_mut())
+                    .chain(open.summary.iter_mut())
                 {
                     a.roll_back();
                 }
                 return Err(e);
             }
-            for a in [&mut open.traces, &mut open.replicates, &mut open.summary]
-                .into_iter()
-                .flatten()
+            for a in open
+                .traces
+                .iter_mut()
+                .chain(open.details.iter_mut())
+                .chain(open.summary.iter_mut())
             {
                 a.commit()?;
             }
@@ -527,10 +565,10 @@ impl RunWriter {
                 open.synced = Instant::now();
             }
         }
-        for ((r, fields), reps) in results.iter().zip(new_rows).zip(new_reps) {
+        for ((r, fields), details) in results.iter().zip(new_rows).zip(new_details) {
             self.rows.insert(r.cell.index, fields);
-            if replicated {
-                self.reps.insert(r.cell.index, reps);
+            for (k, rows) in details.into_iter().enumerate() {
+                self.detail_rows[k].insert(r.cell.index, rows);
             }
             if self.want_traces {
                 self.traces
@@ -692,7 +730,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, existing: Existing) -> Result<(PathBu
             .map(|(d, m)| {
                 let s = m.shard.as_ref().map(|s| (s.shard, s.host.clone()));
                 let (shard, host) =
-                    s.unwrap_or((crate::shard::Shard { index: 0, count }, String::new()));
+                    s.unwrap_or((crate::plan::shard::Shard { index: 0, count }, String::new()));
                 MergedShard {
                     dir: d.display().to_string(),
                     index: shard.index,
@@ -734,14 +772,14 @@ pub fn merge(dirs: &[PathBuf], out: &Path, existing: Existing) -> Result<(PathBu
                 ))),
             }
         };
-        if w.replicated() {
-            let reps = read_replicates(d, &w.rep_header, config.replicate_count(), &rows)?;
-            lacking(crate::output::REPLICATES, &|i| reps.contains_key(i))?;
-            w.reps.extend(reps);
+        for (k, detail) in w.details.iter().enumerate() {
+            let got = read_detail(d, detail, &rows)?;
+            lacking(detail.file, &|i| got.contains_key(i))?;
+            w.detail_rows[k].extend(got);
         }
         if w.want_traces {
             let traces = read_traces(d, &rows)?;
-            lacking(crate::output::TRACES, &|i| traces.contains_key(i))?;
+            lacking(crate::results::output::TRACES, &|i| traces.contains_key(i))?;
             w.traces.extend(traces);
         }
         w.rows.extend(rows);
@@ -807,10 +845,10 @@ fn create_unique(base: &Path) -> Result<PathBuf> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::experiment::SweepConfig;
-    use crate::grid::{Cell, Grid};
-    use crate::metrics::{Metrics, Status};
-    use crate::output::ModelRecord;
+    use crate::plan::config::SweepConfig;
+    use crate::plan::grid::{Cell, Grid};
+    use crate::results::output::ModelRecord;
+    use crate::sim::metrics::{Metrics, Status};
 
     fn manifest(cfg: SweepConfig) -> Manifest {
         Manifest {
@@ -855,6 +893,7 @@ mod tests {
             },
             trace: vec![(0.002, 0.25)],
             frames: None,
+            joints: Vec::new(),
             replicates: Vec::new(),
         }
     }
@@ -871,7 +910,7 @@ mod tests {
                     m.status = Status::Fell;
                     m.event_time = 1.5;
                 }
-                crate::experiment::Replicate {
+                crate::sim::runner::Replicate {
                     drawn: vec![1.0 + k as f64 / 10.0],
                     metrics: m,
                 }
@@ -903,10 +942,10 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().join("run");
         let mut c = cfg("kp=1,2,3", false);
-        c.replicates = crate::randomize::Replicates {
+        c.replicates = crate::plan::randomize::Replicates {
             count: 3,
             seed: 7,
-            randomize: vec![crate::randomize::Randomize::parse("friction=0.5:1.2").unwrap()],
+            randomize: vec![crate::plan::randomize::Randomize::parse("friction=0.5:1.2").unwrap()],
         };
         let cells = c.grid.cells();
         let mut w = RunWriter::new(Some(&dir), Existing::Refuse, manifest(c.clone())).unwrap();
@@ -966,7 +1005,7 @@ mod tests {
             again.lines().take(7).collect::<Vec<_>>(),
             reps.lines().take(7).collect::<Vec<_>>()
         );
-        let back = crate::output::read_run(&dir).unwrap();
+        let back = crate::results::tables::read_run(&dir).unwrap();
         assert_eq!((back.rows.len(), back.replicate_rows.len()), (3, 9));
         assert_eq!(names(&dir), [LOCK, MANIFEST, REPLICATES, SUMMARY]);
     }

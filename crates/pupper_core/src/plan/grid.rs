@@ -7,7 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::variant::VARIANTS;
+use crate::robot::variant::VARIANTS;
 
 /// A named experiment parameter that a grid can vary.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -30,7 +30,7 @@ pub enum Axis {
     /// Scale of the torso mass and inertia.
     TorsoMassScale,
     /// A named body (original, long-leg, heavy); values are indices into
-    /// [`crate::variant::VARIANTS`], shown by name.
+    /// [`crate::robot::variant::VARIANTS`], shown by name.
     Variant,
 }
 
@@ -68,7 +68,7 @@ impl Axis {
             Axis::Variant => VARIANTS
                 .get(v as usize)
                 .map_or_else(|| format!("{v}"), |b| b.name.to_string()),
-            _ => crate::output::fmt_f64(v),
+            _ => crate::math::decimal::fmt_f64(v),
         }
     }
 

@@ -10,9 +10,11 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::experiment::SweepConfig;
-use crate::grid::Cell;
-use crate::metrics::{METRIC_NAMES, Metrics};
+pub use crate::math::decimal::fmt_f64;
+use crate::plan::config::SweepConfig;
+use crate::plan::excitation::{Excitation, Signal};
+use crate::plan::grid::Cell;
+use crate::sim::metrics::{METRIC_NAMES, Metrics};
 
 pub const SUMMARY: &str = "summary.csv";
 pub const MANIFEST: &str = "manifest.json";
@@ -39,15 +41,6 @@ pub fn worse_high(metric: &str) -> bool {
     metric != "final_z"
 }
 
-/// A float as the shortest text that reads back to the same bits; NaN empty.
-pub fn fmt_f64(v: f64) -> String {
-    if v.is_nan() {
-        String::new()
-    } else {
-        format!("{v}")
-    }
-}
-
 /// The header of `summary.csv` for a grid with these axis names.
 pub fn header(axes: &[String]) -> Vec<String> {
     let mut h: Vec<String> = ["index", "id", "name"].map(String::from).to_vec();
@@ -65,9 +58,91 @@ fn axis_names(config: &SweepConfig) -> Vec<String> {
         .collect()
 }
 
-/// The header of a sweep's `summary.csv`: the metrics of each cell, or for
-/// a replicated sweep their statistics over the replicates.
+/// A table of rows per cell beside summary.csv.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Detail {
+    pub file: &'static str,
+    pub header: Vec<String>,
+    /// Rows every finished cell has (a cell with fewer runs again).
+    pub per_cell: usize,
+    /// A column numbering each cell's rows 0, 1, ... (checked on reading).
+    pub sequence: Option<usize>,
+}
+
+pub fn cell_fields(cell: &Cell) -> Vec<String> {
+    let mut r = vec![cell.index.to_string(), cell.id.clone(), cell.name.clone()];
+    r.extend(cell.values.iter().map(|(a, v)| a.text(*v)));
+    r
+}
+
+/// The columns naming a cell: index, id, name and its axes.
+pub fn cell_columns(config: &SweepConfig) -> Vec<String> {
+    let mut h: Vec<String> = ["index", "id", "name"].map(String::from).to_vec();
+    h.extend(axis_names(config));
+    h
+}
+
+/// The figures a response run's summary shows per joint group.
+pub fn group_metrics(e: &Excitation) -> &'static [&'static str] {
+    match e.signal {
+        Signal::Step { .. } => &[
+            "rise_time_s",
+            "settling_time_s",
+            "overshoot_pct",
+            "ss_error_pct",
+            "peak_torque",
+            "saturation_frac",
+        ],
+        Signal::Sine { .. } => &["gain_db", "phase_deg", "peak_torque", "saturation_frac"],
+        Signal::Chirp { .. } => &[
+            "bandwidth_hz",
+            "phase_at_bw_deg",
+            "resonance_db",
+            "peak_torque",
+            "saturation_frac",
+        ],
+    }
+}
+
+/// The joint groups of a response run, in a leg's order.
+pub fn groups(e: &Excitation) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for g in &e.groups {
+        if !out.contains(g) {
+            out.push(g.clone());
+        }
+    }
+    // a leg's order (abduction, hip, knee), then any other
+    let rank = |g: &String| {
+        crate::robot::model::JOINT_GROUPS
+            .iter()
+            .position(|x| x == g)
+            .unwrap_or(usize::MAX)
+    };
+    out.sort_by_key(rank);
+    out
+}
+
+/// summary.csv's header for a response run: per joint group, each figure
+/// (mean over the group's joints; the largest for torque and saturation).
+pub fn response_summary_header(config: &SweepConfig, e: &Excitation) -> Vec<String> {
+    let mut h = cell_columns(config);
+    for g in groups(e) {
+        for m in group_metrics(e) {
+            h.push(format!("{m}.{g}"));
+        }
+    }
+    h.push("status".into());
+    h
+}
+
+/// The header of a run's `summary.csv`: the metrics of each cell, or for
+/// a replicated sweep their statistics over the replicates, or for a
+/// response run each joint group's figures.
 pub fn header_of(config: &SweepConfig) -> Vec<String> {
+    if let Some(e) = &config.response {
+        return response_summary_header(config, e);
+    }
     if config.replicates.is_plain() {
         return header(&axis_names(config));
     }
@@ -120,10 +195,10 @@ pub fn robust_row(cell: &Cell, runs: &[&Metrics]) -> Vec<String> {
             continue;
         }
         xs.sort_by(f64::total_cmp);
-        let mean = crate::stats::mean(&xs);
+        let mean = crate::math::stats::mean(&xs);
         let p = if worse_high(name) { 0.95 } else { 0.05 };
         r.push(fmt_f64(mean));
-        r.push(fmt_f64(crate::stats::percentile(&xs, p)));
+        r.push(fmt_f64(crate::math::stats::percentile(&xs, p)));
     }
     r
 }
@@ -219,7 +294,7 @@ pub struct RayNode {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ShardRecord {
     #[serde(flatten)]
-    pub shard: crate::shard::Shard,
+    pub shard: crate::plan::shard::Shard,
     pub host: String,
 }
 
@@ -401,24 +476,22 @@ pub(crate) fn read_traces(
     Ok(out)
 }
 
-/// The rows of a run's `replicates.csv` for the finished cells in `keep`,
-/// by cell index, each cell's replicates in order. A cell whose replicates
-/// are not all there is left out (it runs again); a truncated last line is
-/// dropped.
-pub(crate) fn read_replicates(
+/// The rows of a table beside summary.csv (replicates.csv, response.csv,
+/// bode.csv) for the finished cells in `keep`, by cell index. A cell whose
+/// rows are not all there is left out (it runs again); a truncated last
+/// line is dropped.
+pub(crate) fn read_detail(
     dir: &Path,
-    header: &[String],
-    count: usize,
+    detail: &Detail,
     keep: &BTreeMap<usize, Vec<String>>,
 ) -> Result<BTreeMap<usize, Vec<Vec<String>>>> {
-    let p = dir.join(REPLICATES);
+    let p = dir.join(detail.file);
     let mut out: BTreeMap<usize, Vec<Vec<String>>> = BTreeMap::new();
     let Some(text) = read_if_there(&p)? else {
         return Ok(out);
     };
     let broken = |line: usize, what: String| broken_row(&p, line, what);
-    let at = header.iter().position(|h| h == "replicate").unwrap_or(0);
-    for (n, fields) in table_rows(&p, &text, header)? {
+    for (n, fields) in table_rows(&p, &text, &detail.header)? {
         let Some(index) = fields[0].parse::<usize>().ok() else {
             return Err(broken(n, format!("index '{}' is not a cell", fields[0])));
         };
@@ -426,7 +499,11 @@ pub(crate) fn read_replicates(
             continue; // its cell did not finish: it runs again
         };
         let rows = out.entry(index).or_default();
-        if fields[1] != cell_row[1] || fields[at] != rows.len().to_string() {
+        let in_order = detail
+            .sequence
+            .is_none_or(|at| fields[at] == rows.len().to_string());
+        if fields[1] != cell_row[1] || !in_order {
+            let at = detail.sequence.unwrap_or(0);
             return Err(broken(
                 n,
                 format!(
@@ -440,64 +517,8 @@ pub(crate) fn read_replicates(
         }
         rows.push(fields);
     }
-    out.retain(|_, rows| rows.len() == count);
+    out.retain(|_, rows| rows.len() == detail.per_cell);
     Ok(out)
-}
-
-/// A run directory read back (what Python's `load_run` returns).
-#[derive(Debug, Clone)]
-pub struct RunTables {
-    pub manifest: Manifest,
-    pub header: Vec<String>,
-    /// summary.csv's rows in cell order.
-    pub rows: Vec<Vec<String>>,
-    /// (cell id, (t, z) samples) in cell order, for traced runs.
-    pub traces: Vec<(String, Vec<(f64, f64)>)>,
-    /// replicates.csv's header and rows (cell, then replicate order), for
-    /// replicated runs.
-    pub replicate_header: Vec<String>,
-    pub replicate_rows: Vec<Vec<String>>,
-}
-
-/// Reads a run directory, checking its rows against its manifest.
-pub fn read_run(dir: &Path) -> Result<RunTables> {
-    let manifest = read_manifest(dir)?;
-    let mut rows = read_rows(dir, &manifest.config)?;
-    let (replicate_header, replicate_rows) = if manifest.config.replicates.is_plain() {
-        (Vec::new(), Vec::new())
-    } else {
-        let h = replicates_header(&manifest.config, manifest.torque_limits.len());
-        let count = manifest.config.replicate_count();
-        let reps = read_replicates(dir, &h, count, &rows)?;
-        rows.retain(|i, _| reps.contains_key(i));
-        (h, reps.into_values().flatten().collect())
-    };
-    // traces of the cells kept (not of one whose replicates are cut short)
-    let traces = read_traces(dir, &rows)?;
-    let mut manifest = manifest;
-    let traced = manifest.config.schedule.trace_every > 0;
-    if traced {
-        rows.retain(|i, _| traces.contains_key(i));
-    }
-    // a run whose files lost rows is not complete, whatever its manifest
-    // says: --resume recomputes what is missing
-    if rows.len() < manifest.cells_done {
-        manifest.complete = false;
-        manifest.cells_done = rows.len();
-    }
-    let traces: Vec<Trace> = traces
-        .into_iter()
-        .filter(|(i, _)| rows.contains_key(i))
-        .map(|(_, t)| t)
-        .collect();
-    Ok(RunTables {
-        replicate_header,
-        replicate_rows,
-        header: header_of(&manifest.config),
-        rows: rows.into_values().collect(),
-        traces,
-        manifest,
-    })
 }
 
 /// The fields in which two configs differ, as `path: old -> new` (only

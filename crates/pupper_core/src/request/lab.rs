@@ -1,11 +1,11 @@
 //! The chapter's lab as one sweep: every body variant, each from a stand
 //! pose searched on its own body, a Kp x Kd grid in torque mode under a
 //! small vertical sine force, no push; the best gains per body by the rule
-//! of [`crate::best`]. Its defaults are written here once, for the CLI's
+//! of [`crate::results::best`]. Its defaults are written here once, for the CLI's
 //! `pupper lab` and Python's `pupper_core.lab()`.
 
-use crate::physics::Mode;
-use crate::spec::{AutoPose, GridInput, PoseInput, SweepSpec};
+use crate::plan::mode::Mode;
+use crate::request::spec::{AutoPose, GridInput, PoseInput, SweepSpec};
 
 /// The bodies of the lab, by default.
 pub const VARIANTS: [&str; 3] = ["original", "long-leg", "heavy"];
@@ -46,7 +46,7 @@ pub fn spec(variants: &[String], grid: &[String], seconds: f64, sine: [f64; 2]) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::Axis;
+    use crate::plan::grid::Axis;
 
     #[test]
     fn three_bodies_times_sixteen_gains_in_torque_mode() {

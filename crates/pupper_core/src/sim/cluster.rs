@@ -10,8 +10,9 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize, de::DeserializeOwned};
 
 use crate::error::{Error, Result};
-use crate::experiment::{CellResult, DEFAULT_CHUNK_CELLS, Hooks, SweepConfig};
-use crate::grid::Cell;
+use crate::plan::config::SweepConfig;
+use crate::plan::grid::Cell;
+use crate::sim::runner::{CellResult, DEFAULT_CHUNK_CELLS, Hooks};
 
 /// Tasks per slot the cells are cut into when `--chunk-cells` does not
 /// say: enough that a lost task costs little, fast nodes take more and the
@@ -166,7 +167,7 @@ pub fn run_cells(
     hooks: &mut dyn Hooks,
 ) -> Result<()> {
     let capacity = cluster.capacity();
-    let replicates = job.config.replicate_count();
+    let replicates = job.config.sims_per_cell();
     let all = tasks(cells, capacity, replicates, chunk_cells);
     let in_flight = (IN_FLIGHT_PER_SLOT * capacity.slots).max(1);
     let mut state = InFlight {
@@ -267,8 +268,8 @@ impl InFlight<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::Grid;
-    use crate::metrics::{Metrics, Status};
+    use crate::plan::grid::Grid;
+    use crate::sim::metrics::{Metrics, Status};
 
     fn cells(n: usize) -> Vec<Cell> {
         let kp: Vec<String> = (0..n).map(|i| (i + 1).to_string()).collect();
@@ -296,6 +297,7 @@ mod tests {
             replicates: Vec::new(),
             trace: vec![(0.002, 0.14)],
             frames: None,
+            joints: Vec::new(),
         }
     }
 

@@ -6,8 +6,8 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::physics::Mode;
-use crate::randomize::{Quantity, Replicates};
+use crate::plan::mode::Mode;
+use crate::plan::randomize::{Quantity, Replicates};
 
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(tag = "name", rename_all = "snake_case")]
@@ -138,7 +138,7 @@ impl ActuatorPd {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pd;
+    use crate::math::pd;
     use rand_chacha::ChaCha8Rng;
     use rand_chacha::rand_core::SeedableRng;
     use rand_distr::{Distribution, Uniform};

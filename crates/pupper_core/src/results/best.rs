@@ -18,12 +18,12 @@
 //! appearance; without `by` the whole table is one group.
 
 use crate::error::{Error, Result};
-use crate::metrics::METRIC_NAMES;
-use crate::output::{STATISTICS, aggregated};
+use crate::results::output::{STATISTICS, aggregated};
+use crate::sim::metrics::METRIC_NAMES;
 
 /// The default saturation threshold: cells whose actuators sit at their
 /// torque limit in 5 % or more of the steps are not trusted as "best".
-pub const MAX_SATURATION: f64 = crate::metrics::SATURATED;
+pub const MAX_SATURATION: f64 = crate::sim::metrics::SATURATED;
 /// Cells whose `*_mm` metric lies within this many mm of the group's best
 /// are tied (nanometres of last-second std are no difference): the smaller
 /// push dip decides, then grid order.
@@ -320,7 +320,7 @@ mod tests {
     }
 
     use super::*;
-    use crate::output::header;
+    use crate::results::output::header;
 
     fn table(rows: &[(&str, &str, &str, &str, &str)]) -> (Vec<String>, Vec<Vec<String>>) {
         // (kp, kd, std, saturation, status)

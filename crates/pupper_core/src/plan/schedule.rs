@@ -258,7 +258,7 @@ impl Schedule {
     pub fn dip_end(&self) -> Option<f64> {
         self.push
             .as_ref()
-            .map(|p| p.start + p.duration + crate::stats::DIP_AFTER)
+            .map(|p| p.start + p.duration + crate::math::stats::DIP_AFTER)
     }
 
     /// What a run of this length cannot measure, one line each (empty for
@@ -280,7 +280,7 @@ impl Schedule {
                 "--seconds {} ends before the push at {} s and the {} s after it are over: push_dip_mm and settle_time_s are left empty; use --seconds {end} or more, or --push-at earlier",
                 self.duration,
                 p.start,
-                crate::stats::DIP_AFTER + p.duration
+                crate::math::stats::DIP_AFTER + p.duration
             ));
         }
         if self.duration <= self.measure_from() {

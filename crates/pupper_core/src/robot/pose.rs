@@ -29,7 +29,7 @@
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::model::{LegInfo, ModelInfo};
+use crate::robot::model::{LegInfo, ModelInfo};
 
 /// Grid spacing of the coarse search, and of the fine one around its best
 /// point (rad): the score is smooth, so this finds the fine grid's optimum
@@ -319,7 +319,7 @@ fn qpos0_of(info: &ModelInfo, joint: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{ActuatorInfo, JointInfo};
+    use crate::robot::model::{ActuatorInfo, JointInfo};
 
     /// Two mirrored legs: thigh 0.1 m straight down, calf 0.1 m straight
     /// down, right leg axes -y, left +y; hip 0.2 m above the base origin.

@@ -4,25 +4,27 @@
 //! hard-coded.
 
 use crate::error::{Error, Result};
-use crate::model::ModelInfo;
+use crate::robot::model::ModelInfo;
 
-/// The floating base: a free joint.
+/// The base: the body a free joint moves, or on a suspended robot the
+/// same body fixed to the world (no free joint, no base coordinates).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Base {
     /// The body the free joint moves (pushes act on it).
     pub body: usize,
-    /// qpos address of the free joint (x, y, z, then the quaternion).
-    pub qpos: usize,
+    /// qpos address of the free joint (x, y, z, then the quaternion);
+    /// None when the base is fixed.
+    pub qpos: Option<usize>,
 }
 
 impl Base {
     /// Index of base z in qpos.
-    pub fn z(&self) -> usize {
-        self.qpos + 2
+    pub fn z(&self) -> Option<usize> {
+        self.qpos.map(|q| q + 2)
     }
     /// Index of the (w, x, y, z) quaternion's first entry in qpos.
-    pub fn quat(&self) -> usize {
-        self.qpos + 3
+    pub fn quat(&self) -> Option<usize> {
+        self.qpos.map(|q| q + 3)
     }
 }
 
@@ -49,6 +51,46 @@ impl Layout {
                     info.name
                 ))
             })?;
+        Layout::with_base(
+            info,
+            Base {
+                body: base.body,
+                qpos: Some(base.qpos_adr),
+            },
+        )
+    }
+
+    /// The layout of a robot whose base is fixed to the world (a free
+    /// joint removed, or none): the base is the body nearest the world
+    /// that carries every actuated joint.
+    pub fn suspended(info: &ModelInfo) -> Result<Layout> {
+        let bodies: Vec<usize> = info
+            .actuators
+            .iter()
+            .filter_map(|a| a.joint.and_then(|j| info.joints.get(j)).map(|j| j.body))
+            .collect();
+        let ancestors = |mut b: usize| {
+            let mut up = vec![b];
+            while b != 0 {
+                b = info.body_parent.get(b).copied().unwrap_or(0);
+                up.push(b);
+            }
+            up
+        };
+        // the deepest common ancestor below the world; the world itself if none
+        let common = bodies
+            .iter()
+            .map(|&b| ancestors(b))
+            .reduce(|a, b| a.into_iter().filter(|x| b.contains(x)).collect())
+            .unwrap_or_default();
+        let body = common
+            .into_iter()
+            .find(|&b| b != 0 && !bodies.contains(&b))
+            .unwrap_or(0);
+        Layout::with_base(info, Base { body, qpos: None })
+    }
+
+    fn with_base(info: &ModelInfo, base: Base) -> Result<Layout> {
         if info.actuators.is_empty() {
             return Err(Error::Model(format!(
                 "model '{}' has no actuators: the controller needs one actuator per leg joint",
@@ -73,10 +115,7 @@ impl Layout {
         }
         Ok(Layout {
             nu: info.nu,
-            base: Base {
-                body: base.body,
-                qpos: base.qpos_adr,
-            },
+            base,
             act_qpos,
             act_dof,
         })
@@ -91,7 +130,7 @@ impl Layout {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::model::{ActuatorInfo, JointInfo};
+    use crate::robot::model::{ActuatorInfo, JointInfo};
 
     /// A free base plus `legs` three-joint legs, actuated in an order that
     /// differs from the joint order, like a user model might.
@@ -127,7 +166,10 @@ pub(crate) mod tests {
     fn free_joint_bookkeeping() {
         let l = Layout::floating(&quadruped_info(4)).unwrap();
         assert_eq!(l.nu, 12);
-        assert_eq!((l.base.body, l.base.z(), l.base.quat()), (1, 2, 3));
+        assert_eq!(
+            (l.base.body, l.base.z(), l.base.quat()),
+            (1, Some(2), Some(3))
+        );
         // actuator 0 drives the last joint: qpos 18, qvel 17
         assert_eq!(l.act_qpos[0], 18);
         assert_eq!(l.act_dof[0], 17);
@@ -144,8 +186,8 @@ pub(crate) mod tests {
         info.joints[0].qpos_adr = 3;
         info.joints[0].dof_adr = 3;
         let l = Layout::floating(&info).unwrap();
-        assert_eq!(l.base.z(), 5);
-        assert_eq!(l.base.quat(), 6);
+        assert_eq!(l.base.z(), Some(5));
+        assert_eq!(l.base.quat(), Some(6));
     }
 
     #[test]
@@ -190,7 +232,7 @@ pub(crate) mod tests {
         assert_eq!(info.torque_limits().unwrap(), vec![2.5, 4.0, 3.0]);
         info.actuators[2].forcerange = None;
         let l = info.torque_limits().unwrap();
-        assert_eq!(l[2], crate::model::UNLIMITED);
+        assert_eq!(l[2], crate::robot::model::UNLIMITED);
         let note = info.unlimited_note().unwrap();
         assert!(
             note.contains("actuators a0 ") && note.contains("--max-torque"),

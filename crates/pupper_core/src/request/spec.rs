@@ -9,18 +9,20 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-use crate::backend::Backend;
-use crate::cluster::Address;
 use crate::error::{Error, Result};
-use crate::experiment::{Defaults, RunOptions, SweepConfig};
-use crate::grid::{Axis, AxisValues, DEFAULT_MAX_CELLS, Grid, parse_values};
-use crate::model::ModelSource;
-use crate::physics::Mode;
-use crate::randomize::{Randomize, Replicates};
-use crate::rundir::Existing;
-use crate::schedule::{InitialState, Push, Schedule, SineForce};
-use crate::shard::Shard;
-use crate::variant::variant;
+use crate::plan::backend::Backend;
+use crate::plan::config::{Defaults, SweepConfig};
+use crate::plan::excitation::Excitation;
+use crate::plan::grid::{Axis, AxisValues, DEFAULT_MAX_CELLS, Grid, parse_values};
+use crate::plan::mode::Mode;
+use crate::plan::randomize::{Randomize, Replicates};
+use crate::plan::schedule::{InitialState, Push, Schedule, SineForce};
+use crate::plan::shard::Shard;
+use crate::results::rundir::Existing;
+use crate::robot::model::ModelSource;
+use crate::robot::variant::variant;
+use crate::sim::cluster::Address;
+use crate::sim::runner::RunOptions;
 
 /// Where the grid comes from.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -109,6 +111,9 @@ pub struct SweepSpec {
     /// Run the cells as tasks on this Ray cluster (`auto`, `ray://HOST:PORT`
     /// or `HOST:PORT`); None runs them here.
     pub ray: Option<String>,
+    /// The response experiment (`pupper response`); None: a sweep.
+    #[serde(skip)]
+    pub response: Option<Excitation>,
 }
 
 impl Default for SweepSpec {
@@ -145,6 +150,7 @@ impl Default for SweepSpec {
             resume: false,
             shard: None,
             ray: None,
+            response: None,
         }
     }
 }
@@ -232,7 +238,8 @@ impl SweepSpec {
                 Some(PoseInput::Angles(p)) => InitialState::Pose(p.clone()),
                 None => InitialState::Keyframe(self.keyframe.clone()),
             },
-            push: self.push.then(|| Push {
+            // a response run excites joints, it does not push the robot
+            push: (self.push && self.response.is_none()).then(|| Push {
                 start: self.push_at,
                 duration: self.push_duration,
                 force: [0.0, 0.0, self.push_force],
@@ -267,6 +274,7 @@ impl SweepSpec {
                 randomize,
             },
             backend: Backend::parse(&self.backend, self.device.as_deref())?,
+            response: self.response.clone(),
         };
         config.validate()?;
         let existing = match (self.resume, self.force) {

@@ -3,8 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::schedule::Schedule;
-use crate::stats::{PushDip, Settle, Tail};
+use crate::math::stats::{PushDip, Settle, Tail};
+use crate::plan::schedule::Schedule;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -78,6 +78,24 @@ pub const METRIC_NAMES: [&str; 10] = [
 ];
 
 impl Metrics {
+    /// No measurement (every number NaN): a response run's cell, whose
+    /// figures are its joints'.
+    pub fn empty() -> Metrics {
+        let nan = f64::NAN;
+        Metrics {
+            final_z: nan,
+            last_1s_std_mm: nan,
+            push_dip_mm: nan,
+            settle_time_s: nan,
+            max_tilt_deg: nan,
+            peak_torque: nan,
+            saturation_frac: nan,
+            tracking_rms: nan,
+            status: Status::Ok,
+            event_time: nan,
+        }
+    }
+
     /// A numeric metric by name (`status` is not numeric).
     pub fn get(&self, name: &str) -> Option<f64> {
         Some(match name {
@@ -152,7 +170,7 @@ impl Recorder {
                 Some(Settle::new(
                     p.start,
                     schedule.settle_fraction,
-                    crate::schedule::SETTLE_FLOOR,
+                    crate::plan::schedule::SETTLE_FLOOR,
                 )),
             ),
             None => (None, None),

@@ -10,9 +10,9 @@ use crate::error::{Error, Result};
 
 /// The Pupper v3 robot alone (models/pupper_v3/, laid out as in MuJoCo
 /// Menagerie: the robot file, and a scene that includes it).
-pub const PUPPER_V3_ROBOT_XML: &str = include_str!("../../../models/pupper_v3/pupper_v3.xml");
+pub const PUPPER_V3_ROBOT_XML: &str = include_str!("../../../../models/pupper_v3/pupper_v3.xml");
 /// Pupper v3 on a floor, under a light and a sky.
-pub const PUPPER_V3_SCENE_XML: &str = include_str!("../../../models/pupper_v3/scene.xml");
+pub const PUPPER_V3_SCENE_XML: &str = include_str!("../../../../models/pupper_v3/scene.xml");
 
 /// A model compiled into pupper: a main MJCF text, the files it includes
 /// (by the name it includes them under), and whether the base is welded to
@@ -174,8 +174,10 @@ impl ModelInfo {
             nu: actuators.len(),
             nbody: 2 + hinges,
             timestep: 0.002,
+            integrator: 0,
             total_mass: 1.0,
             bodies: vec![],
+            body_parent: vec![],
             joints,
             actuators,
             keyframes: vec![],
@@ -261,8 +263,15 @@ pub struct ModelInfo {
     pub nu: usize,
     pub nbody: usize,
     pub timestep: f64,
+    /// MuJoCo's `mjtIntegrator`: 0 Euler (explicit actuator forces), 1
+    /// RK4, 2 implicit, 3 implicitfast.
+    #[serde(default)]
+    pub integrator: i64,
     pub total_mass: f64,
     pub bodies: Vec<String>,
+    /// Each body's parent (the world, 0, is its own).
+    #[serde(default)]
+    pub body_parent: Vec<usize>,
     pub joints: Vec<JointInfo>,
     pub actuators: Vec<ActuatorInfo>,
     pub keyframes: Vec<KeyframeInfo>,
@@ -276,7 +285,24 @@ pub struct ModelInfo {
     pub legs: Vec<LegInfo>,
 }
 
+/// Joint groups by what a leg joint does, in a leg's joint order:
+/// abduction/adduction, hip flexion/extension, knee flexion/extension.
+pub const JOINT_GROUPS: [&str; 3] = ["haa", "hfe", "kfe"];
+
 impl ModelInfo {
+    /// The joint group of actuator `a`: what its joint does in its leg, as
+    /// measured on the compiled model (see [`LegInfo::joints`]); None for
+    /// a joint in no leg.
+    pub fn actuator_group(&self, a: usize) -> Option<&'static str> {
+        let joint = self.actuators.get(a)?.joint?;
+        self.legs.iter().find_map(|leg| {
+            leg.joints
+                .iter()
+                .position(|&j| j == joint)
+                .map(|i| JOINT_GROUPS[i.min(2)])
+        })
+    }
+
     /// Each actuator's own torque limit, the default of `--max-torque`: its
     /// force range, else its control range (the force a unit-gain actuator
     /// makes at full control; times the gear at the joint). Pupper v3: 3 N·m.

@@ -1,0 +1,214 @@
+//! Everything that decides a sweep's numbers (the manifest's `config`),
+//! and each cell's physical setting resolved from it.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::plan::backend::Backend;
+use crate::plan::excitation::Excitation;
+use crate::plan::grid::{Axis, Cell, Grid};
+use crate::plan::mode::Mode;
+use crate::plan::randomize::{Draws, Replicates};
+use crate::plan::schedule::Schedule;
+use crate::plan::setup::CellSetup;
+use crate::robot::model::{ModelInfo, ModelSource};
+
+/// Values used for any axis the grid does not vary.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Defaults {
+    /// None: each actuator's own gains, as the model declares them.
+    pub kp: Option<f64>,
+    pub kd: Option<f64>,
+    /// None: each actuator's own limit (the model's force or control range).
+    #[serde(default)]
+    pub max_torque: Option<f64>,
+    /// The body (a named variant's scales).
+    #[serde(default = "one")]
+    pub leg_scale: f64,
+    #[serde(default = "one")]
+    pub torso_mass_scale: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+impl Default for Defaults {
+    fn default() -> Self {
+        Defaults {
+            kp: None,
+            kd: None,
+            max_torque: None,
+            leg_scale: 1.0,
+            torso_mass_scale: 1.0,
+        }
+    }
+}
+
+/// Everything that decides a sweep's numbers. Stored in the manifest; a
+/// resume must match it exactly.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepConfig {
+    pub model: ModelSource,
+    pub grid: Grid,
+    pub schedule: Schedule,
+    pub mode: Mode,
+    pub defaults: Defaults,
+    /// Randomized replicates of every cell; a plain sweep leaves it out of
+    /// the manifest (so its manifest is what it always was).
+    #[serde(default, skip_serializing_if = "Replicates::is_plain")]
+    pub replicates: Replicates,
+    /// What steps the physics; the cpu backend is left out of the manifest.
+    #[serde(default, skip_serializing_if = "Backend::is_cpu")]
+    pub backend: Backend,
+    /// The response experiment: joints excited one per simulation; None
+    /// for a sweep (and left out of its manifest).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub response: Option<Excitation>,
+}
+
+impl Default for SweepConfig {
+    fn default() -> Self {
+        SweepConfig {
+            model: ModelSource::default(),
+            grid: Grid::default(),
+            schedule: Schedule::default(),
+            mode: Mode::Servo,
+            defaults: Defaults::default(),
+            replicates: Replicates::default(),
+            backend: Backend::Cpu,
+            response: None,
+        }
+    }
+}
+
+impl SweepConfig {
+    pub fn validate(&self) -> Result<()> {
+        self.schedule.validate()?;
+        let d = &self.defaults;
+        for (flag, v) in [("kp", d.kp), ("kd", d.kd)] {
+            let Some(v) = v else { continue };
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::Config(format!(
+                    "--{flag} {v} is negative or not finite: gains must be >= 0"
+                )));
+            }
+        }
+        if self.grid.has_axis(Axis::Variant) && (d.leg_scale, d.torso_mass_scale) != (1.0, 1.0) {
+            return Err(Error::Config(
+                "both --variant and a variant grid axis name the body: drop one of them".into(),
+            ));
+        }
+        if self.schedule.push.is_none() && self.grid.has_axis(Axis::PushForce) {
+            return Err(Error::Config(
+                "the grid varies push_force but the push is off: drop --no-push or the push_force axis"
+                    .into(),
+            ));
+        }
+        if let Some(t) = d.max_torque
+            && !(t.is_finite() && t > 0.0)
+        {
+            return Err(Error::Config(format!(
+                "max torque {t} is not positive: give --max-torque a value > 0"
+            )));
+        }
+        let axes: Vec<&str> = self.grid.axes.iter().map(|a| a.axis.name()).collect();
+        self.replicates
+            .check(self.mode, self.schedule.push.is_some(), &axes)?;
+        self.backend.check(self.mode, &self.replicates)
+    }
+
+    /// The replicates of each cell.
+    pub fn replicate_count(&self) -> usize {
+        self.replicates.count.max(1) as usize
+    }
+
+    /// The simulations each cell runs: its replicates, times the excited
+    /// joints in a response run.
+    pub fn sims_per_cell(&self) -> usize {
+        self.replicate_count() * self.response.as_ref().map_or(1, |e| e.joints.len().max(1))
+    }
+
+    /// The physical setting of one replicate of a cell, with its draws.
+    pub fn setup_replicate(&self, cell: &Cell, d: &Draws, info: &ModelInfo) -> CellSetup {
+        let mut s = self.setup(cell, info);
+        s.torso_mass_factor = d.torso_mass;
+        s.leg_mass_factor = d.leg_mass;
+        s.motor_gain = d.motor_gain.clone();
+        if d.friction.is_some() {
+            s.friction = d.friction;
+        }
+        if let Some(f) = d.push_force {
+            s.push_force[2] = f;
+        }
+        s.push_at = d.push_at;
+        s
+    }
+
+    /// Checks that every gain a cell may need has a value: the model's own
+    /// gains stand in for a gain neither the grid nor the defaults give.
+    pub fn check_gains(&self, info: &ModelInfo) -> Result<()> {
+        let given = |axis: Axis, d: Option<f64>| d.is_some() || self.grid.has_axis(axis);
+        if given(Axis::Kp, self.defaults.kp) && given(Axis::Kd, self.defaults.kd) {
+            return Ok(());
+        }
+        match info.actuators.iter().find(|a| a.own_gains().is_none()) {
+            Some(a) => Err(Error::Config(format!(
+                "actuator '{}' of model '{}' has no PD gains of its own (it is not a position servo), so there is no default to run it at: give --kp and --kd",
+                a.name, info.name
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// The physical setting of one cell on a model (whose actuators give
+    /// the gains the grid and the defaults leave open).
+    pub fn setup(&self, cell: &Cell, info: &ModelInfo) -> CellSetup {
+        let get = |a: Axis, d: f64| cell.get(a).unwrap_or(d);
+        let body = match cell.get(Axis::Variant) {
+            Some(i) => {
+                let b = crate::robot::variant::VARIANTS
+                    [(i as usize).min(crate::robot::variant::VARIANTS.len() - 1)];
+                (b.leg_scale, b.torso_mass_scale)
+            }
+            None => (self.defaults.leg_scale, self.defaults.torso_mass_scale),
+        };
+        let body = crate::robot::variant::Scales {
+            leg_scale: body.0,
+            torso_mass_scale: body.1,
+        };
+        let base_push = self.schedule.push.as_ref().map(|p| p.force);
+        // The push_force axis sets the push's world-z component (N).
+        let push_force = match (cell.get(Axis::PushForce), base_push) {
+            (Some(f), Some(p)) => [p[0], p[1], f],
+            (Some(f), None) => [0.0, 0.0, f],
+            (None, Some(p)) => p,
+            (None, None) => [0.0; 3],
+        };
+        let own = |i: usize| -> Vec<f64> {
+            info.actuators
+                .iter()
+                .map(|a| a.own_gains().map_or(0.0, |g| g[i]))
+                .collect()
+        };
+        let gain = |axis: Axis, default: Option<f64>, i: usize| match cell.get(axis).or(default) {
+            Some(v) => vec![v; info.nu],
+            None => own(i),
+        };
+        CellSetup {
+            kp: gain(Axis::Kp, self.defaults.kp, 0),
+            kd: gain(Axis::Kd, self.defaults.kd, 1),
+            max_torque: cell.get(Axis::MaxTorque).or(self.defaults.max_torque),
+            push_force,
+            friction: cell.get(Axis::Friction),
+            timestep: cell.get(Axis::Timestep),
+            // a named body sets the scales; numeric scale axes multiply them
+            leg_scale: body.leg_scale * get(Axis::LegScale, 1.0),
+            torso_mass_scale: body.torso_mass_scale * get(Axis::TorsoMassScale, 1.0),
+            torso_mass_factor: 1.0,
+            leg_mass_factor: 1.0,
+            motor_gain: Vec::new(),
+            push_at: None,
+        }
+    }
+}

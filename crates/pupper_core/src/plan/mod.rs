@@ -1,0 +1,12 @@
+//! Layer 2, what to run: grids of cells, the schedule, the population of
+//! replicates, the backend, shards, and the config that holds them all.
+
+pub mod backend;
+pub mod config;
+pub mod excitation;
+pub mod grid;
+pub mod mode;
+pub mod randomize;
+pub mod schedule;
+pub mod setup;
+pub mod shard;

@@ -1,0 +1,7 @@
+//! Layer 4, what a run leaves: the CSV and manifest formats, the run
+//! directory (atomic writes, resume, merge) and the ranking rule.
+
+pub mod best;
+pub mod output;
+pub mod rundir;
+pub mod tables;

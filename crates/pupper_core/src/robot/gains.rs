@@ -1,0 +1,142 @@
+//! PD gains from a joint's reflected inertia: what a bandwidth and damping
+//! ratio ask for, what given gains give, and whether an explicitly
+//! integrated PD at the model's timestep is stable.
+
+use serde::Serialize;
+
+use crate::math::response::{explicit_pd_margin, gains_for, natural};
+use crate::robot::model::ModelInfo;
+
+/// One actuated joint's figures.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JointGains {
+    pub actuator: String,
+    pub group: String,
+    /// Joint-space inertia diagonal at the pose, armature included (kg·m²).
+    pub inertia: f64,
+    pub kp: f64,
+    pub kd: f64,
+    /// The natural frequency (Hz) and damping ratio these gains give.
+    pub natural_hz: f64,
+    pub damping_ratio: f64,
+    /// [`explicit_pd_margin`] at the timestep: 1 or more is past the bound.
+    pub stability_margin: f64,
+}
+
+/// A joint group's gains: for a bandwidth, on the group's mean inertia.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GroupGains {
+    pub group: String,
+    pub joints: usize,
+    pub inertia: f64,
+    pub kp: f64,
+    pub kd: f64,
+    pub natural_hz: f64,
+    pub damping_ratio: f64,
+    pub stability_margin: f64,
+}
+
+/// What `pupper gains` reports.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GainsReport {
+    pub model: String,
+    pub timestep: f64,
+    /// The bandwidth (Hz) and damping ratio asked for, if any.
+    pub bandwidth_hz: Option<f64>,
+    pub damping: Option<f64>,
+    pub groups: Vec<GroupGains>,
+    pub joints: Vec<JointGains>,
+}
+
+/// What the gains are for: a bandwidth and damping, or given gains.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Ask {
+    Bandwidth { hz: f64, zeta: f64 },
+    Gains { kp: f64, kd: f64 },
+}
+
+/// The report for `inertia` (one per actuator, in ctrl order) on `info`.
+pub fn report(info: &ModelInfo, inertia: &[f64], timestep: f64, ask: Ask) -> GainsReport {
+    let group = |a: usize| info.actuator_group(a).unwrap_or("other").to_string();
+    let gains_of = |i: f64| match ask {
+        Ask::Bandwidth { hz, zeta } => gains_for(i, hz, zeta),
+        Ask::Gains { kp, kd } => (kp, kd),
+    };
+    let mut names: Vec<String> = Vec::new();
+    for a in 0..info.nu {
+        if !names.contains(&group(a)) {
+            names.push(group(a));
+        }
+    }
+    let order = |g: &String| {
+        crate::robot::model::JOINT_GROUPS
+            .iter()
+            .position(|x| x == g)
+            .unwrap_or(usize::MAX)
+    };
+    names.sort_by_key(order);
+    let groups = names
+        .iter()
+        .map(|g| {
+            let members: Vec<f64> = (0..info.nu)
+                .filter(|&a| &group(a) == g)
+                .map(|a| inertia[a])
+                .collect();
+            let i = members.iter().sum::<f64>() / members.len().max(1) as f64;
+            let (kp, kd) = gains_of(i);
+            let (natural_hz, damping_ratio) = natural(i, kp, kd);
+            // the group's gains on its heaviest and lightest joint: the
+            // lightest is the first past the bound
+            let margin = members
+                .iter()
+                .map(|&m| explicit_pd_margin(m, kp, kd, timestep))
+                .fold(0.0, f64::max);
+            GroupGains {
+                group: g.clone(),
+                joints: members.len(),
+                inertia: i,
+                kp,
+                kd,
+                natural_hz,
+                damping_ratio,
+                stability_margin: margin,
+            }
+        })
+        .collect::<Vec<_>>();
+    let joints = (0..info.nu)
+        .map(|a| {
+            let g = group(a);
+            // a bandwidth's gains are the group's, as a grid would run them
+            let (kp, kd) = match ask {
+                Ask::Gains { kp, kd } => (kp, kd),
+                Ask::Bandwidth { .. } => groups
+                    .iter()
+                    .find(|x| x.group == g)
+                    .map_or((0.0, 0.0), |x| (x.kp, x.kd)),
+            };
+            let (natural_hz, damping_ratio) = natural(inertia[a], kp, kd);
+            JointGains {
+                actuator: info.actuators[a].name.clone(),
+                group: g,
+                inertia: inertia[a],
+                kp,
+                kd,
+                natural_hz,
+                damping_ratio,
+                stability_margin: explicit_pd_margin(inertia[a], kp, kd, timestep),
+            }
+        })
+        .collect();
+    let (bandwidth_hz, damping) = match ask {
+        Ask::Bandwidth { hz, zeta } => (Some(hz), Some(zeta)),
+        Ask::Gains { .. } => (None, None),
+    };
+    GainsReport {
+        model: info.name.clone(),
+        timestep,
+        bandwidth_hz,
+        damping,
+        groups,
+        joints,
+    }
+}

@@ -1,0 +1,866 @@
+//! The experiment runner: cells in chunks, each chunk one batch stepped to
+//! the schedule, metrics streamed per cell. Pure Rust over [`Physics`].
+
+use std::cell::RefCell;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::math::pd;
+use crate::math::quat;
+use crate::math::response::explicit_pd_margin;
+use crate::plan::config::SweepConfig;
+use crate::plan::grid::Cell;
+use crate::plan::mode::Mode;
+use crate::plan::randomize::Noise;
+use crate::plan::schedule::Schedule;
+use crate::plan::setup::CellSetup;
+use crate::robot::layout::Layout;
+use crate::robot::model::ModelInfo;
+use crate::sim::frames::{FrameRecorder, Frames, frame_count};
+use crate::sim::metrics::{Metrics, Recorder, Status};
+use crate::sim::physics::SimBatch;
+use crate::sim::physics::{Force, Physics};
+use crate::sim::response::{JointProbe, JointResult};
+
+/// Most cells per batch on the cpu backend unless `--chunk-cells` says.
+pub const DEFAULT_CHUNK_CELLS: usize = 256;
+
+/// How to run (not what): changes speed and what is kept, never numbers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RunOptions {
+    /// Threads of the batch; 0 for all cores.
+    pub threads: usize,
+    /// Most cells per batch; None: [`DEFAULT_CHUNK_CELLS`], or what the
+    /// physics' [`Physics::batch_limit`] holds.
+    pub chunk_cells: Option<usize>,
+    /// Wall seconds of work a batch aims at: the most a stop (Ctrl-C, a
+    /// kill) can lose, whatever the grid. Batches grow or shrink with the
+    /// measured speed; numbers never depend on it.
+    pub chunk_seconds: f64,
+    /// Steps per open-loop call in servo mode.
+    pub chunk_steps: usize,
+    /// Record qpos at this many frames per second (for drawing).
+    pub frame_rate: Option<f64>,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            threads: 0,
+            chunk_cells: None,
+            chunk_seconds: 10.0,
+            chunk_steps: 250,
+            frame_rate: None,
+        }
+    }
+}
+
+/// One replicate of a cell: its drawn values (in the order of
+/// [`Replicates::columns`]) and its metrics.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Replicate {
+    pub drawn: Vec<f64>,
+    pub metrics: Metrics,
+}
+
+/// One finished cell.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CellResult {
+    pub cell: Cell,
+    /// The cell's metrics (of replicate 0 in a replicated sweep).
+    pub metrics: Metrics,
+    /// Every replicate, in a replicated sweep; empty in a plain one.
+    #[serde(default)]
+    pub replicates: Vec<Replicate>,
+    /// Decimated (time, base z) samples when a trace was asked for (of
+    /// replicate 0 in a replicated sweep, as are the frames).
+    pub trace: Vec<(f64, f64)>,
+    /// States at the frame rate, when [`RunOptions::frame_rate`] is set.
+    pub frames: Option<Frames>,
+    /// A response run's excited joints (by joint, then replicate); empty
+    /// in a sweep.
+    #[serde(default)]
+    pub joints: Vec<JointResult>,
+}
+
+/// Callbacks from a running sweep.
+pub trait Hooks {
+    /// `steps` more cell-steps are done.
+    fn progress(&mut self, _steps: u64) {}
+    /// True to stop now; checked about every 50 ms of simulation work.
+    fn should_stop(&mut self) -> bool {
+        false
+    }
+    /// A chunk of cells finished (in grid order within the chunk).
+    fn chunk_done(&mut self, _results: &[CellResult]) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// Hooks that do nothing.
+pub struct NoHooks;
+impl Hooks for NoHooks {}
+
+/// Runs `cells` (any subset of the grid, e.g. the ones a resume still
+/// needs). Results come back in the order of `cells`. On interrupt returns
+/// `Error::Interrupted` after the finished chunks were passed to `hooks`.
+pub fn run_cells(
+    physics: &dyn Physics,
+    cfg: &SweepConfig,
+    cells: &[Cell],
+    opts: RunOptions,
+    hooks: &mut dyn Hooks,
+) -> Result<Vec<CellResult>> {
+    cfg.validate()?;
+    cfg.check_gains(physics.info())?;
+    if let Some(fps) = opts.frame_rate {
+        frame_count(cfg.schedule.duration, fps)?;
+    }
+    // Cells of one batch must share a timestep: group, keeping grid order within.
+    let model_dt = physics.info().timestep;
+    let mut groups: Vec<(u64, Vec<&Cell>)> = Vec::new();
+    for c in cells {
+        let dt = cfg.setup(c, physics.info()).timestep.unwrap_or(model_dt);
+        match groups.iter_mut().find(|(b, _)| *b == dt.to_bits()) {
+            Some((_, g)) => g.push(c),
+            None => groups.push((dt.to_bits(), vec![c])),
+        }
+    }
+    let mut plans = Vec::with_capacity(groups.len());
+    for (bits, _) in &groups {
+        plans.push(cfg.schedule.plan(f64::from_bits(*bits))?.steps);
+    }
+    let mut pace = Pace::new(opts);
+    let per_cell = cfg.sims_per_cell();
+    let limit = physics.batch_limit();
+    let most_cells = opts
+        .chunk_cells
+        .or(limit.map(|l| l / per_cell))
+        .unwrap_or(DEFAULT_CHUNK_CELLS)
+        .max(1);
+    let mut out: Vec<CellResult> = Vec::with_capacity(cells.len());
+    for ((bits, group), steps) in groups.iter().zip(plans) {
+        let dt = f64::from_bits(*bits);
+        let mut rest: &[&Cell] = group;
+        while !rest.is_empty() {
+            // a cell's replicates always share its batch
+            let fit = match limit {
+                Some(most) => most / per_cell,
+                None => pace.sims(steps).div_ceil(per_cell),
+            }
+            .max(1);
+            let (chunk, more) = rest.split_at(fit.min(most_cells).min(rest.len()));
+            let started = std::time::Instant::now();
+            let results = run_chunk(physics, cfg, chunk, dt, opts, hooks)?;
+            pace.measured(
+                chunk.len() * per_cell,
+                steps,
+                started.elapsed().as_secs_f64(),
+            );
+            hooks.chunk_done(&results)?;
+            out.extend(results);
+            rest = more;
+        }
+    }
+    // back to the caller's order
+    let pos = |c: &Cell| {
+        cells
+            .iter()
+            .position(|x| x.index == c.index)
+            .unwrap_or(usize::MAX)
+    };
+    out.sort_by_key(|r| pos(&r.cell));
+    Ok(out)
+}
+
+/// Sizes batches to about `chunk_seconds` of work from the speed measured
+/// so far (a cautious guess before the first batch). Up to one simulation
+/// per thread costs the same wall time, so a batch is never smaller than
+/// that. `--chunk-cells` caps the cells of a batch separately.
+struct Pace {
+    seconds: f64,
+    threads: usize,
+    /// Steps per wall second of one thread.
+    lane_rate: f64,
+}
+
+impl Pace {
+    fn new(opts: RunOptions) -> Pace {
+        let threads = match opts.threads {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            n => n,
+        };
+        Pace {
+            seconds: opts.chunk_seconds,
+            threads,
+            // 40 µs per step: Pupper on a slow core (measured again after
+            // the first batch)
+            lane_rate: 2.5e4,
+        }
+    }
+
+    /// Simulations of `steps` steps for the next batch.
+    fn sims(&self, steps: usize) -> usize {
+        let fit = self.seconds * self.lane_rate * self.threads as f64 / steps.max(1) as f64;
+        (fit.floor() as usize).max(self.threads).max(1)
+    }
+
+    /// A batch of `sims` simulations of `steps` steps took `seconds`.
+    fn measured(&mut self, sims: usize, steps: usize, seconds: f64) {
+        if seconds > 0.05 {
+            let lanes = sims.min(self.threads).max(1);
+            self.lane_rate = (sims * steps) as f64 / seconds / lanes as f64;
+        }
+    }
+}
+
+/// What a simulation measures: the sweep's standing figures, or one
+/// excited joint's response.
+enum Probe {
+    Stand(Box<Recorder>),
+    Joint(JointProbe),
+}
+
+/// Per-simulation accumulators of a chunk.
+struct ChunkState<'a> {
+    layout: &'a Layout,
+    /// Joint targets per simulation (before any excitation).
+    targets: &'a [Vec<f64>],
+    probes: Vec<Probe>,
+    frames: Vec<Option<FrameRecorder>>,
+}
+
+impl ChunkState<'_> {
+    /// One post-step sample of simulation `sim`, whose step ended at `t`;
+    /// `act` the actuator forces, `peak`/`nsat` over all actuators.
+    #[allow(clippy::too_many_arguments)]
+    fn sample(
+        &mut self,
+        sim: usize,
+        t: f64,
+        pushing: bool,
+        qpos: &[f64],
+        act: &[f64],
+        peak: f64,
+        nsat: usize,
+    ) {
+        let layout = self.layout;
+        match &mut self.probes[sim] {
+            Probe::Stand(r) => {
+                let (Some(zi), Some(qi)) = (layout.base.z(), layout.base.quat()) else {
+                    return;
+                };
+                let z = qpos[zi];
+                let tilt =
+                    quat::tilt([qpos[qi], qpos[qi + 1], qpos[qi + 2], qpos[qi + 3]]).to_degrees();
+                let track: f64 = layout
+                    .act_qpos
+                    .iter()
+                    .zip(&self.targets[sim])
+                    .map(|(&i, &q)| (q - qpos[i]) * (q - qpos[i]))
+                    .sum();
+                let nu = layout.nu;
+                r.observe(z, tilt, track, nu, peak, nsat, nu);
+            }
+            Probe::Joint(j) => j.observe(t, qpos, act.get(j.actuator()).copied().unwrap_or(0.0)),
+        }
+        if let Some(f) = &mut self.frames[sim] {
+            f.offer(t, qpos, pushing);
+        }
+    }
+
+    fn diverge(&mut self, sim: usize, t: f64) {
+        match &mut self.probes[sim] {
+            Probe::Stand(r) => r.diverge(t),
+            Probe::Joint(j) => j.diverge(),
+        }
+    }
+}
+
+/// Torque-mode simulations stepped together per thread (see `run_chunk`):
+/// measured on a 2-core EPYC (1 MB L2 per core): 32 per thread when
+/// simulations share models, half that when each has its own.
+const TORQUE_LANE_PER_THREAD: usize = 32;
+
+/// What the controller of one simulation worked out for its step: the
+/// largest delivered force, how many actuators were at their limit, and
+/// (servo mode) each actuator's force.
+struct TorqueScratch {
+    peak: f64,
+    nsat: usize,
+    forces: Vec<f64>,
+}
+
+/// What the torque-mode PD of one simulation reads: its joint angles and
+/// velocities `delay` control steps late (the start state until then), the
+/// angles with Gaussian noise.
+struct Sensing {
+    delay: usize,
+    noise: Option<Noise>,
+    /// The last `delay + 1` (angles, velocities) of the actuated joints,
+    /// oldest first.
+    history: std::collections::VecDeque<(Vec<f64>, Vec<f64>)>,
+}
+
+impl Sensing {
+    fn exact(&self) -> bool {
+        self.delay == 0 && self.noise.is_none()
+    }
+
+    /// Records the state just read and returns what the PD sees of
+    /// actuator `a` through `read(a) -> (angle, velocity)`.
+    fn remember(&mut self, layout: &Layout, qpos: &[f64], qvel: &[f64]) {
+        if self.exact() {
+            return;
+        }
+        // the oldest entry's buffers take the newest state
+        let (mut q, mut v) = if self.history.len() > self.delay {
+            self.history.pop_front().unwrap_or_default()
+        } else {
+            Default::default()
+        };
+        q.clear();
+        q.extend(layout.act_qpos.iter().map(|&i| qpos[i]));
+        v.clear();
+        v.extend(layout.act_dof.iter().map(|&i| qvel[i]));
+        self.history.push_back((q, v));
+    }
+
+    /// Actuator `a`'s angle and velocity as the PD reads them.
+    fn read(&mut self, layout: &Layout, a: usize, qpos: &[f64], qvel: &[f64]) -> (f64, f64) {
+        let exact = self.exact();
+        let (q, v) = match self.history.front() {
+            Some((q, v)) if !exact => (q[a], v[a]),
+            _ => (qpos[layout.act_qpos[a]], qvel[layout.act_dof[a]]),
+        };
+        match &mut self.noise {
+            Some(noise) => (q + noise.sample(), v),
+            None => (q, v),
+        }
+    }
+}
+
+/// One simulation of a chunk: a replicate of a cell (of one excited joint,
+/// in a response run).
+struct SimPlan {
+    /// Position of its cell in the chunk.
+    cell: usize,
+    replicate: usize,
+    drawn: Vec<f64>,
+    /// Steps during which it is pushed.
+    push: std::ops::Range<usize>,
+    /// The actuator whose target follows the excitation.
+    excited: Option<usize>,
+}
+
+/// Every simulation of a chunk, cell by cell (then excited joint, then
+/// replicate): its plan, physical setting, schedule and sensing.
+struct ChunkPlan {
+    sims: Vec<SimPlan>,
+    setups: Vec<CellSetup>,
+    schedules: Vec<Schedule>,
+    sensing: Vec<Sensing>,
+}
+
+impl ChunkPlan {
+    fn new(cfg: &SweepConfig, cells: &[&Cell], dt: f64, info: &ModelInfo) -> Result<ChunkPlan> {
+        let schedule = &cfg.schedule;
+        let plan = schedule.plan(dt)?;
+        let per_cell = cfg.sims_per_cell();
+        let reps = &cfg.replicates;
+        let excited: Vec<Option<usize>> = match &cfg.response {
+            Some(e) => e.joints.iter().map(|&j| Some(j)).collect(),
+            None => vec![None],
+        };
+        let n = cells.len() * per_cell;
+        let mut out = ChunkPlan {
+            sims: Vec::with_capacity(n),
+            setups: Vec::with_capacity(n),
+            schedules: Vec::with_capacity(n),
+            sensing: Vec::with_capacity(n),
+        };
+        for (ci, c) in cells.iter().enumerate() {
+            for &joint in &excited {
+                for r in 0..cfg.replicate_count() {
+                    let d = reps.draws(&c.id, r as u32, info.nu);
+                    let setup = cfg.setup_replicate(c, &d, info);
+                    // a replicate's own push start moves its push window;
+                    // only replicate 0 keeps a trace
+                    let mut own = schedule.clone();
+                    if let (Some(at), Some(p)) = (setup.push_at, own.push.as_mut()) {
+                        p.start = at;
+                    }
+                    if r > 0 {
+                        own.trace_every = 0;
+                    }
+                    let push = match setup.push_at {
+                        Some(_) => own.plan(dt)?.push,
+                        None => plan.push.clone(),
+                    };
+                    out.schedules.push(own);
+                    out.sensing.push(Sensing {
+                        delay: d.delay,
+                        noise: reps.noise(&c.id, r as u32),
+                        history: Default::default(),
+                    });
+                    out.setups.push(setup);
+                    out.sims.push(SimPlan {
+                        cell: ci,
+                        replicate: r,
+                        drawn: d.values,
+                        push,
+                        excited: joint,
+                    });
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    fn len(&self) -> usize {
+        self.sims.len()
+    }
+}
+
+/// Lanes of simulations stepped one after another. Torque mode steps once
+/// per control step; stepping every simulation of a large batch in turn
+/// keeps none of their states in cache (measured: 512 simulations cost
+/// 1.23x the physics of 32), so lanes of a few simulations per thread run
+/// the whole schedule one after another. Simulations are independent, so
+/// the numbers do not depend on it.
+fn lanes(n: usize, per_step: bool, own_models: bool, threads: usize) -> Vec<Vec<usize>> {
+    if !per_step {
+        return vec![(0..n).collect()];
+    }
+    let threads = match threads {
+        0 => std::thread::available_parallelism().map_or(1, |t| t.get()),
+        t => t,
+    };
+    // a simulation with its own model (drawn masses) brings that model
+    // into cache too: half as many fit
+    let per_thread = TORQUE_LANE_PER_THREAD / if own_models { 2 } else { 1 };
+    // lanes of equal size (48 simulations: 24 + 24, not 32 + 16)
+    let most = (per_thread * threads).max(1);
+    let width = n.div_ceil(n.div_ceil(most).max(1)).max(1);
+    (0..n)
+        .collect::<Vec<usize>>()
+        .chunks(width)
+        .map(<[usize]>::to_vec)
+        .collect()
+}
+
+/// The peak |force| of `act` and how many are at their `limits`.
+fn peak_and_saturated(act: &[f64], limits: &[f64]) -> (f64, usize) {
+    let (mut peak, mut nsat) = (0.0f64, 0usize);
+    for (&f, &lim) in act.iter().zip(limits) {
+        peak = peak.max(f.abs());
+        // the actuator clamps at its force range
+        if f.abs() >= lim * (1.0 - 1e-12) {
+            nsat += 1;
+        }
+    }
+    (peak, nsat)
+}
+
+/// What stays fixed while a chunk steps.
+struct Stepping<'a> {
+    cfg: &'a SweepConfig,
+    plan: &'a ChunkPlan,
+    limits: &'a [Vec<f64>],
+    targets: &'a [Vec<f64>],
+    layout: &'a Layout,
+    dt: f64,
+    nsteps: usize,
+    /// Steps at which some simulation's push starts or ends: no call
+    /// crosses one.
+    bounds: Vec<usize>,
+    /// Control every step: torque mode's PD in Rust, or targets that move.
+    per_step: bool,
+    /// Torque mode's PD in Rust (else the actuators' servos follow ctrl).
+    host_pd: bool,
+    chunk_steps: usize,
+}
+
+impl Stepping<'_> {
+    /// Simulation `sim`'s target of actuator `a` at time `t`.
+    fn target(&self, sim: usize, a: usize, t: f64) -> f64 {
+        let base = self.targets[sim][a];
+        match (&self.cfg.response, self.plan.sims[sim].excited) {
+            (Some(e), Some(j)) if j == a => base + e.offset(t, self.cfg.schedule.duration),
+            _ => base,
+        }
+    }
+
+    /// The external base force on simulation `sim` at time `t` (pushed or not).
+    fn force(&self, sim: usize, pushing: bool, t: f64) -> [f64; 3] {
+        let mut f = if pushing {
+            self.plan.setups[sim].push_force
+        } else {
+            [0.0; 3]
+        };
+        if self.cfg.schedule.sine.is_some() {
+            let s = self.cfg.schedule.sine_force(t);
+            for i in 0..3 {
+                f[i] += s[i];
+            }
+        }
+        f
+    }
+}
+
+fn run_chunk(
+    physics: &dyn Physics,
+    cfg: &SweepConfig,
+    cells: &[&Cell],
+    dt: f64,
+    opts: RunOptions,
+    hooks: &mut dyn Hooks,
+) -> Result<Vec<CellResult>> {
+    let schedule = &cfg.schedule;
+    let info = physics.info();
+    let mut plan = ChunkPlan::new(cfg, cells, dt, info)?;
+    let limits: Vec<Vec<f64>> = plan
+        .setups
+        .iter()
+        .map(|s| s.torque_limits(info))
+        .collect::<Result<_>>()?;
+    let mut batch = physics.start(&plan.setups, cfg.mode, &schedule.initial, opts.threads)?;
+    let layout = physics.layout().clone();
+    let n = plan.len();
+    let probes: Vec<Probe> = (0..n)
+        .map(|sim| match (&cfg.response, plan.sims[sim].excited) {
+            (Some(e), Some(a)) => Probe::Joint(JointProbe::new(
+                a,
+                plan.sims[sim].replicate,
+                layout.act_qpos[a],
+                limits[sim][a],
+                e.hold,
+                dt,
+            )),
+            _ => Probe::Stand(Box::new(Recorder::new(
+                &plan.schedules[sim],
+                dt,
+                batch.stance(sim),
+            ))),
+        })
+        .collect();
+    let targets: Vec<Vec<f64>> = (0..n).map(|s| batch.targets(s).to_vec()).collect();
+    let per_cell = cfg.sims_per_cell();
+    let mut state = ChunkState {
+        layout: &layout,
+        targets: &targets,
+        probes,
+        frames: match opts.frame_rate {
+            Some(fps) => {
+                let count = frame_count(schedule.duration, fps)?;
+                (0..n)
+                    .map(|sim| {
+                        if sim % per_cell != 0 {
+                            return Ok(None);
+                        }
+                        Ok(Some(FrameRecorder::new(fps, count, &batch.qpos(sim)?)))
+                    })
+                    .collect::<Result<_>>()?
+            }
+            None => (0..n).map(|_| None).collect(),
+        },
+    };
+    let mut bounds: Vec<usize> = plan
+        .sims
+        .iter()
+        .flat_map(|s| [s.push.start, s.push.end])
+        .collect();
+    bounds.sort_unstable();
+    bounds.dedup();
+    // torque mode's PD in Rust, one control step per call; otherwise the
+    // actuators hold the PD and calls advance open-loop (unless targets move)
+    let host_pd = cfg.mode == Mode::Torque && !batch.actuator_pd();
+    let moving = cfg.response.is_some();
+    if moving && batch.actuator_pd() {
+        return Err(Error::Config(
+            "the response experiment moves targets every step, which this backend's batch cannot: use --backend cpu".into(),
+        ));
+    }
+    let own_models = plan.setups.iter().any(|s| !s.nominal_masses());
+    // the sensing changes as it steps; the rest of the plan stays
+    let mut sensing = std::mem::take(&mut plan.sensing);
+    let stepping = Stepping {
+        cfg,
+        plan: &plan,
+        limits: &limits,
+        targets: &targets,
+        layout: &layout,
+        dt,
+        nsteps: schedule.plan(dt)?.steps,
+        bounds,
+        per_step: host_pd || moving,
+        host_pd,
+        chunk_steps: opts.chunk_steps,
+    };
+    let mut since_check = 0usize;
+    for lane in lanes(n, stepping.per_step, own_models, opts.threads) {
+        step_lane(
+            &stepping,
+            batch.as_mut(),
+            &mut state,
+            &mut sensing,
+            lane,
+            hooks,
+            &mut since_check,
+        )?;
+    }
+    finish_chunk(cfg, cells, dt, plan, state)
+}
+
+/// Steps one lane of simulations through the whole schedule.
+fn step_lane(
+    st: &Stepping<'_>,
+    batch: &mut dyn SimBatch,
+    state: &mut ChunkState<'_>,
+    sensing: &mut [Sensing],
+    lane: Vec<usize>,
+    hooks: &mut dyn Hooks,
+    since_check: &mut usize,
+) -> Result<()> {
+    let dt = st.dt;
+    let mut alive = lane;
+    let n = alive.len();
+    let mut k = 0usize;
+    let mut t_before = 0.0f64;
+    // Time before each step of a call: the clock the schedule is written in.
+    let mut step_time = Vec::new();
+    let sine = st.cfg.schedule.sine.is_some();
+    while k < st.nsteps && !alive.is_empty() {
+        let mut end = (k + st.chunk_steps.max(1)).min(st.nsteps);
+        if st.per_step {
+            end = k + 1;
+        }
+        if let Some(&b) = st.bounds.iter().find(|&&b| b > k) {
+            end = end.min(b);
+        }
+        let pushing = |sim: usize| st.plan.sims[sim].push.contains(&k);
+        let nstep = end - k;
+        step_time.clear();
+        let mut t = t_before;
+        for _ in 0..nstep {
+            step_time.push(t);
+            t += dt;
+        }
+        let diverged: Vec<(usize, usize)> = if st.per_step {
+            let forces: Vec<[f64; 3]> = alive
+                .iter()
+                .map(|&s| st.force(s, pushing(s), step_time[0]))
+                .collect();
+            let d = step_controlled(
+                st,
+                batch,
+                state,
+                sensing,
+                &alive,
+                &forces,
+                step_time[0],
+                &pushing,
+            )?;
+            d.into_iter().map(|p| (p, 0)).collect()
+        } else {
+            let forces: Vec<[f64; 3]>;
+            let force = if sine {
+                forces = alive
+                    .iter()
+                    .flat_map(|&s| (0..nstep).map(move |j| (s, j)))
+                    .map(|(s, j)| st.force(s, pushing(s), step_time[j]))
+                    .collect();
+                Force::PerStep(&forces)
+            } else {
+                forces = alive
+                    .iter()
+                    .map(|&s| st.force(s, pushing(s), step_time[0]))
+                    .collect();
+                Force::Constant(&forces)
+            };
+            batch.advance(&alive, nstep, force, &mut |pos, step, qpos, act| {
+                let sim = alive[pos];
+                let (peak, nsat) = peak_and_saturated(act, &st.limits[sim]);
+                state.sample(
+                    sim,
+                    step_time[step] + dt,
+                    pushing(sim),
+                    qpos,
+                    act,
+                    peak,
+                    nsat,
+                );
+            })?
+        };
+        // Diverged cells leave the batch; their clock is set to the event.
+        let mut dead: Vec<usize> = Vec::new();
+        for (pos, step) in diverged {
+            let sim = alive[pos];
+            state.diverge(sim, step_time[step] + dt);
+            dead.push(sim);
+        }
+        alive.retain(|s| !dead.contains(s));
+        hooks.progress((nstep * (alive.len() + dead.len())) as u64);
+        t_before = t;
+        k = end;
+        *since_check += nstep * n;
+        if *since_check >= 2000 || !st.per_step {
+            *since_check = 0;
+            if hooks.should_stop() {
+                return Err(Error::Interrupted("stopped by a signal".into()));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// One controlled step of the simulations `alive` at time `t`: the PD in
+/// Rust (torque mode) or the servos' moving targets (servo mode) write
+/// ctrl from each state, then all step once and are sampled.
+#[allow(clippy::too_many_arguments)]
+fn step_controlled(
+    st: &Stepping<'_>,
+    batch: &mut dyn SimBatch,
+    state: &mut ChunkState<'_>,
+    sensing: &mut [Sensing],
+    alive: &[usize],
+    forces: &[[f64; 3]],
+    t: f64,
+    pushing: &dyn Fn(usize) -> bool,
+) -> Result<Vec<usize>> {
+    let layout = st.layout;
+    let nu = layout.nu;
+    let scratch: RefCell<Vec<TorqueScratch>> = RefCell::new(
+        (0..alive.len())
+            .map(|_| TorqueScratch {
+                peak: 0.0,
+                nsat: 0,
+                forces: Vec::new(),
+            })
+            .collect(),
+    );
+    batch.step_controlled(
+        alive,
+        forces,
+        &mut |pos, qpos, qvel, ctrl| {
+            let sim = alive[pos];
+            let s = &st.plan.setups[sim];
+            let lim = &st.limits[sim];
+            let mut scratch = scratch.borrow_mut();
+            let sc = &mut scratch[pos];
+            sc.peak = 0.0;
+            sc.nsat = 0;
+            if !st.host_pd {
+                // servo mode: ctrl is the position target; the force the
+                // servo makes from this state is MuJoCo's affine law,
+                // clamped at the force range
+                sc.forces.clear();
+                for (a, c) in ctrl.iter_mut().enumerate().take(nu) {
+                    *c = st.target(sim, a, t);
+                    let g = s.gain(a);
+                    let (q, v) = (qpos[layout.act_qpos[a]], qvel[layout.act_dof[a]]);
+                    let (f, _) = pd::torque(g * s.kp(a), g * s.kd(a), *c, q, v, lim[a]);
+                    sc.forces.push(f);
+                }
+                let (peak, nsat) = peak_and_saturated(&sc.forces, lim);
+                sc.peak = peak;
+                sc.nsat = nsat;
+                return;
+            }
+            let sense = &mut sensing[sim];
+            sense.remember(layout, qpos, qvel);
+            sc.forces.clear();
+            for a in 0..nu {
+                let (q, v) = sense.read(layout, a, qpos, qvel);
+                let (tau, sat) = pd::torque(s.kp(a), s.kd(a), st.target(sim, a, t), q, v, lim[a]);
+                ctrl[a] = tau;
+                // what the motor delivers: its gain times the command,
+                // clamped at its force range
+                let signed = s.gain(a) * tau;
+                sc.forces.push(signed.clamp(-lim[a], lim[a]));
+                let delivered = signed.abs();
+                sc.peak = sc.peak.max(if delivered > lim[a] {
+                    lim[a]
+                } else {
+                    delivered
+                });
+                sc.nsat += (sat || delivered >= lim[a] * (1.0 + 1e-12)) as usize;
+            }
+        },
+        &mut |pos, _step, qpos, act| {
+            let sim = alive[pos];
+            let scratch = scratch.borrow();
+            let sc = &scratch[pos];
+            // the cpu batch reports no forces here: the controller's own
+            let forces = if act.is_empty() { &sc.forces[..] } else { act };
+            state.sample(sim, t + st.dt, pushing(sim), qpos, forces, sc.peak, sc.nsat);
+        },
+    )
+}
+
+/// Back to cells: replicate 0 carries the trace and frames; a response
+/// run's cells carry each excited joint's result.
+fn finish_chunk(
+    cfg: &SweepConfig,
+    cells: &[&Cell],
+    dt: f64,
+    plan: ChunkPlan,
+    state: ChunkState<'_>,
+) -> Result<Vec<CellResult>> {
+    let replicated = !cfg.replicates.is_plain();
+    let mut out: Vec<CellResult> = Vec::with_capacity(cells.len());
+    for (((sim, probe), f), setup) in plan
+        .sims
+        .into_iter()
+        .zip(state.probes)
+        .zip(state.frames)
+        .zip(&plan.setups)
+    {
+        if out.len() == sim.cell {
+            out.push(CellResult {
+                cell: cells[sim.cell].clone(),
+                metrics: Metrics::empty(),
+                replicates: Vec::new(),
+                trace: Vec::new(),
+                frames: None,
+                joints: Vec::new(),
+            });
+        }
+        let cell = &mut out[sim.cell];
+        match probe {
+            Probe::Stand(r) => {
+                let (metrics, trace) = (*r).finish();
+                debug_assert!(metrics.status != Status::Diverged || metrics.event_time.is_finite());
+                if sim.replicate == 0 {
+                    cell.metrics = metrics.clone();
+                    cell.trace = trace;
+                    cell.frames = f.map(FrameRecorder::finish);
+                }
+                if replicated {
+                    cell.replicates.push(Replicate {
+                        drawn: sim.drawn,
+                        metrics,
+                    });
+                }
+            }
+            Probe::Joint(j) => {
+                if let Some(e) = &cfg.response {
+                    let a = j.actuator();
+                    let mut done = j.finish(e, cfg.schedule.duration);
+                    done.metrics.stability_margin = explicit_pd_margin(
+                        e.inertia_of(a),
+                        setup.gain(a) * setup.kp(a),
+                        setup.gain(a) * setup.kd(a),
+                        dt,
+                    );
+                    cell.joints.push(done);
+                }
+                if sim.replicate == 0 && cell.frames.is_none() {
+                    cell.frames = f.map(FrameRecorder::finish);
+                }
+            }
+        }
+    }
+    Ok(out)
+}
