@@ -42,6 +42,7 @@ bench: setup
 	$(PY) benches/bench_sweep.py
 	$(PY) benches/bench_lab.py
 	$(PY) benches/bench_replicates.py
+	$(PY) benches/bench_response.py
 
 # the warp backend against a bare MuJoCo Warp loop and the cpu backend
 bench-gpu: export PUPPER_EXTRAS := gpu

@@ -244,3 +244,92 @@ def test_gains_for_a_bandwidth_follow_the_closed_form_and_respond_as_asked(run, 
                             chirp=(0.5, 40), seconds=12.5, progress=False, out=tmp_path / f"chirp-{g['group']}")
         bw = float(chirp[f"bandwidth_hz.{g['group']}"][0])
         assert bw == pytest.approx(8, rel=0.25), (g["group"], bw)
+
+
+def test_gains_per_joint_group_are_grid_axes(run, tmp_path):
+    """kp.hfe overrides the common kp for the hip-pitch joints only."""
+    run("response", "--grid", "kp.hfe=10,40", "--kp", "20", "--kd", "0.5", "--joints", "hfe,kfe",
+        "--seconds", "1.5", "-o", tmp_path / "g", "-q", check=0)
+    header, rows = read_csv(tmp_path / "g" / "response.csv")
+    assert "kp.hfe" in header
+    rise = {(r["kp.hfe"], r["group"], r["joint"]): float(r["rise_time_s"]) for r in rows}
+    for (kp, group, joint), t in rise.items():
+        other = rise[("40" if kp == "10" else "10", group, joint)]
+        if group == "hfe":
+            assert (t > 1.2 * other) == (kp == "10"), (joint, t, other)
+        else:
+            # the knees keep kp 20; only the hips' sag under them differs
+            assert t == pytest.approx(other, rel=0.01), (joint, t, other)
+    ids = [r["id"] for r in read_csv(tmp_path / "g" / "summary.csv")[1]]
+    assert ids == ["kphfe10", "kphfe40"]
+    # `info` names each actuator's group
+    info = run("info", check=0).stdout
+    assert any(line.split()[1:4] == ["leg_front_r_2", "leg_front_r_2", "haa"] for line in info.splitlines()
+               if line.strip().startswith("1 ")), info
+
+
+def test_response_plots_read_back(run, tmp_path):
+    from pupper_core import plots
+
+    d = tmp_path / "p"
+    run("response", "--grid", "kp=5,30", "--grid", "kd=0.1,0.5", "--joints", "hfe,kfe", "--seconds", "1.5",
+        "--plot", "-o", d, "-q", check=0)
+    names = sorted(p.name for p in (d / "plots").iterdir())
+    assert names == ["response_overshoot_pct.png", "response_rise_time_s.png", "response_settling_time_s.png",
+                     "response_steps.png"], names
+    fig = plots.response_steps(d)
+    assert [a.get_title() for a in fig.axes if a.get_title()] == ["hip pitch (hfe)", "knee (kfe)"]
+    ax = fig.axes[0]
+    curves = [line for line in ax.lines if line.get_label() in fig.pupper_cells]
+    assert len(curves) == 4
+    # every cell ends near its target, normalised by the step
+    assert all(abs(line.get_ydata()[-1] - 1) < 0.1 for line in curves)
+    assert any(line.get_linestyle() == "--" and line.get_ydata()[0] == 1 for line in ax.lines)
+
+
+def test_standing_runs_the_same_excitation_on_the_floor(run, tmp_path):
+    import json
+
+    run("response", "--standing", "--joints", "kfe", "--kp", "20", "--kd", "0.5", "--seconds", "2",
+        "-o", tmp_path / "s", "-q", check=0)
+    manifest = json.loads((tmp_path / "s" / "manifest.json").read_text())
+    assert manifest["config"]["response"]["standing"] is True
+    _, rows = read_csv(tmp_path / "s" / "response.csv")
+    assert len(rows) == 4 and all(r["status"] == "ok" for r in rows)
+    # the suspended knee follows faster than one carrying the body
+    run("response", "--joints", "kfe", "--kp", "20", "--kd", "0.5", "--seconds", "2", "-o", tmp_path / "h", "-q",
+        check=0)
+    _, hung = read_csv(tmp_path / "h" / "response.csv")
+    assert [r["rise_time_s"] for r in rows] != [r["rise_time_s"] for r in hung]
+
+
+def test_shards_merge_into_the_unsharded_bytes(run, tmp_path):
+    args = ["response", "--grid", "kp=5,20,60", "--kd", "0.5", "--joints", "hfe", "--signal", "sine",
+            "--frequency", "3", "--amplitude", "0.1", "--seconds", "2", "-q"]
+    run(*args, "-o", tmp_path / "whole", check=0)
+    for i in (1, 2):
+        run(*args, "--shard", f"{i}/2", "-o", tmp_path / f"s{i}", check=0)
+    run("merge", tmp_path / "s1", tmp_path / "s2", "-o", tmp_path / "merged", check=0)
+    for name in ("summary.csv", "response.csv", "bode.csv"):
+        assert (tmp_path / "merged" / name).read_bytes() == (tmp_path / "whole" / name).read_bytes(), name
+
+
+def test_the_readme_sample_is_what_the_command_prints(run, tmp_path):
+    text = (REPO / "README.md").read_text()
+    cmd = "$ pupper response --grid kp=5,20,60 --grid kd=0.1,0.5 --joints kfe -q\n"
+    shown = text.split(cmd, 1)[1].split("```", 1)[0]
+    p = run("response", "--grid", "kp=5,20,60", "--grid", "kd=0.1,0.5", "--joints", "kfe", "-q",
+            "-o", tmp_path / "r", check=0)
+    assert p.stdout == shown
+
+
+def test_replicates_draw_each_joint_its_own_robot(run, tmp_path):
+    run("response", "--kp", "20", "--kd", "0.5", "--joints", "kfe", "--seconds", "1.5", "--replicates", "3",
+        "--randomize", "motor_gain=±20%", "-o", tmp_path / "r", "-q", check=0)
+    _, rows = read_csv(tmp_path / "r" / "response.csv")
+    assert len(rows) == 4 * 3
+    by_joint: dict[str, list[float]] = {}
+    for r in rows:
+        by_joint.setdefault(r["joint"], []).append(float(r["rise_time_s"]))
+    # each replicate's motor gain differs: so does its rise time
+    assert all(len(set(v)) == 3 for v in by_joint.values()), by_joint

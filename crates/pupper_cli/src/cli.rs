@@ -200,6 +200,18 @@ struct ResponseArgs {
     /// Most cells per batch. Never changes the numbers.
     #[arg(long, value_name = "N")]
     chunk_cells: Option<usize>,
+    /// Keep each excited joint's angle after the hold (response_traces.csv), every
+    /// --trace-every-th step.
+    #[arg(long)]
+    trace: bool,
+    /// Decimation of the traces.
+    #[arg(long, default_value_t = SweepSpec::default().trace_every, value_name = "N")]
+    trace_every: usize,
+    /// Write plots into DIR/plots: step responses per joint group (target dashed, the 2 %
+    /// band shaded), Bode gain and phase per group (sine, chirp), heatmaps of rise time,
+    /// overshoot and settling time over Kp x Kd.
+    #[arg(long)]
+    plot: bool,
     /// Print the rows as JSON instead of a table per joint group.
     #[arg(long)]
     json: bool,
@@ -234,6 +246,9 @@ impl ResponseArgs {
             chunk_cells: self.chunk_cells,
             force: self.force,
             shard: self.shard.clone(),
+            // the step plots draw the traces
+            trace: self.trace || self.plot,
+            trace_every: self.trace_every,
             ..self.backend.apply(self.population.apply(self.sim.spec()?))
         };
         pupper_core::request::response::spec(
@@ -1088,7 +1103,7 @@ fn response(a: ResponseArgs, stop: &'static AtomicBool) -> Result<u8> {
             preset: Some("response".into()),
             quiet: a.quiet,
             json: a.json,
-            plot: false,
+            plot: a.plot,
             render: false,
             rule: None,
             lab: false,
@@ -1290,6 +1305,8 @@ fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
     if a.plot {
         let helper = if a.lab {
             "write_lab_plots"
+        } else if a.spec.response.is_some() {
+            "write_response_plots"
         } else {
             "write_run_plots"
         };

@@ -43,8 +43,8 @@ pub fn info(m: &ModelInfo) -> String {
     let _ = writeln!(s, "\nactuators in ctrl order ({})", m.actuators.len());
     let _ = writeln!(
         s,
-        "  {:>3} {:<18} {:<18} {:>7} {:>7}  force range (N·m)",
-        "ctrl", "name", "joint", "kp", "kd"
+        "  {:>3} {:<18} {:<18} {:<5} {:>7} {:>7}  force range (N·m)",
+        "ctrl", "name", "joint", "group", "kp", "kd"
     );
     for (i, a) in m.actuators.iter().enumerate() {
         let joint = a
@@ -57,9 +57,11 @@ pub fn info(m: &ModelInfo) -> String {
             .forcerange
             .map(|r| format!("[{}, {}]", r[0], r[1]))
             .unwrap_or_else(|| "unlimited".into());
+        // what the joint does in its leg, measured: the group its gain axes use
+        let group = m.actuator_group(i).unwrap_or("-");
         let _ = writeln!(
             s,
-            "  {i:>3}  {:<18} {:<18} {kp:>7} {kd:>7}  {fr}",
+            "  {i:>3}  {:<18} {:<18} {group:<5} {kp:>7} {kd:>7}  {fr}",
             a.name, joint
         );
     }
@@ -587,13 +589,22 @@ pub fn response(o: &SweepOutcome) -> String {
         }
     }
     let mut s = String::new();
-    for g in groups {
+    for (k, g) in groups.into_iter().enumerate() {
+        if k > 0 {
+            s.push('\n');
+        }
         let cols: Vec<(usize, &str)> = o
             .header
             .iter()
             .enumerate()
             .filter_map(|(i, h)| h.strip_suffix(&format!(".{g}")).map(|m| (i, m)))
+            .filter(|(_, m)| *m != "status")
             .collect();
+        let status_of = o
+            .header
+            .iter()
+            .position(|h| *h == format!("status.{g}"))
+            .or(status_at);
         let _ = writeln!(s, "{}", group_title(g));
         let mut head = String::new();
         for (_, a) in &axes {
@@ -616,10 +627,9 @@ pub fn response(o: &SweepOutcome) -> String {
                 };
                 let _ = write!(line, "{:>16} ", text);
             }
-            let _ = write!(line, "{:>10}", status_at.map_or("", |i| r[i].as_str()));
+            let _ = write!(line, "{:>10}", status_of.map_or("", |i| r[i].as_str()));
             let _ = writeln!(s, "{}", line.trim_end());
         }
-        s.push('\n');
     }
     s
 }

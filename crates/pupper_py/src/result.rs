@@ -16,6 +16,12 @@ use pupper_core::sim::metrics::METRIC_NAMES;
 /// Columns of text in summary.csv.
 const TEXT: [&str; 6] = ["id", "name", "status", "variant", "joint", "group"];
 
+/// True for a text column: those above, and a response run's per-group
+/// status (`status.hfe`).
+fn is_text(name: &str) -> bool {
+    TEXT.contains(&name) || name.starts_with("status.")
+}
+
 /// Where a table's axis columns end: its first column that is not an axis.
 fn axes_end(header: &[String]) -> usize {
     header
@@ -89,7 +95,7 @@ impl SweepResult {
         let columns = PyDict::new(py);
         for (i, name) in p.header.iter().enumerate() {
             let values = p.rows.iter().map(|r| r[i].as_str());
-            if TEXT.contains(&name.as_str()) {
+            if is_text(name) {
                 columns.set_item(name, PyList::new(py, values)?)?;
             } else if name == "index" {
                 let v: Vec<i64> = values.map(|s| s.parse().unwrap_or(-1)).collect();
@@ -207,7 +213,7 @@ impl SweepResult {
     fn value<'py>(&self, py: Python<'py>, row: usize, col: usize) -> PyResult<Bound<'py, PyAny>> {
         let text = &self.rows[row][col];
         let name = self.header[col].as_str();
-        Ok(if TEXT.contains(&name) {
+        Ok(if is_text(name) {
             text.into_pyobject(py)?.into_any()
         } else if name == "index" {
             text.parse::<i64>()
@@ -408,7 +414,7 @@ impl SweepResult {
                 }
             };
             for (k, v) in &g.key {
-                if TEXT.contains(&k.as_str()) {
+                if is_text(k) {
                     d.set_item(k, v)?;
                 } else {
                     d.set_item(k, number(v))?;

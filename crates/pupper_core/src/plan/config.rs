@@ -115,6 +115,11 @@ impl SweepConfig {
         let axes: Vec<&str> = self.grid.axes.iter().map(|a| a.axis.name()).collect();
         self.replicates
             .check(self.mode, self.schedule.push.is_some(), &axes)?;
+        if self.response.is_some() && !self.backend.is_cpu() {
+            return Err(Error::Config(
+                "pupper response moves joint targets every step, which the warp backend's batch does not take yet: use --backend cpu".into(),
+            ));
+        }
         self.backend.check(self.mode, &self.replicates)
     }
 
@@ -191,9 +196,19 @@ impl SweepConfig {
                 .map(|a| a.own_gains().map_or(0.0, |g| g[i]))
                 .collect()
         };
-        let gain = |axis: Axis, default: Option<f64>, i: usize| match cell.get(axis).or(default) {
-            Some(v) => vec![v; info.nu],
-            None => own(i),
+        // a joint group's axis over the common axis over the default, else
+        // the actuator's own gain
+        let gain = |axis: Axis, default: Option<f64>, i: usize| -> Vec<f64> {
+            let own = own(i);
+            (0..info.nu)
+                .map(|a| {
+                    let group = info
+                        .actuator_group(a)
+                        .and_then(|g| Axis::group_gain(i == 1, g))
+                        .and_then(|g| cell.get(g));
+                    group.or(cell.get(axis)).or(default).unwrap_or(own[a])
+                })
+                .collect()
         };
         CellSetup {
             kp: gain(Axis::Kp, self.defaults.kp, 0),

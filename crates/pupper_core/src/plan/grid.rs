@@ -32,10 +32,18 @@ pub enum Axis {
     /// A named body (original, long-leg, heavy); values are indices into
     /// [`crate::robot::variant::VARIANTS`], shown by name.
     Variant,
+    /// Kp and Kd of one joint group (abduction, hip pitch, knee), over the
+    /// common `kp`/`kd` for the joints of that group.
+    KpHaa,
+    KpHfe,
+    KpKfe,
+    KdHaa,
+    KdHfe,
+    KdKfe,
 }
 
 impl Axis {
-    pub const ALL: [Axis; 9] = [
+    pub const ALL: [Axis; 15] = [
         Axis::Kp,
         Axis::Kd,
         Axis::PushForce,
@@ -45,7 +53,41 @@ impl Axis {
         Axis::LegScale,
         Axis::TorsoMassScale,
         Axis::Variant,
+        Axis::KpHaa,
+        Axis::KpHfe,
+        Axis::KpKfe,
+        Axis::KdHaa,
+        Axis::KdHfe,
+        Axis::KdKfe,
     ];
+
+    /// The axis of Kp (`kd`: Kd) for joint group `group`, if it has one.
+    pub fn group_gain(kd: bool, group: &str) -> Option<Axis> {
+        Some(match (kd, group) {
+            (false, "haa") => Axis::KpHaa,
+            (false, "hfe") => Axis::KpHfe,
+            (false, "kfe") => Axis::KpKfe,
+            (true, "haa") => Axis::KdHaa,
+            (true, "hfe") => Axis::KdHfe,
+            (true, "kfe") => Axis::KdKfe,
+            _ => return None,
+        })
+    }
+
+    /// True for an axis of gains (common or per group).
+    pub fn is_gain(self) -> bool {
+        matches!(
+            self,
+            Axis::Kp
+                | Axis::Kd
+                | Axis::KpHaa
+                | Axis::KpHfe
+                | Axis::KpKfe
+                | Axis::KdHaa
+                | Axis::KdHfe
+                | Axis::KdKfe
+        )
+    }
 
     pub fn name(self) -> &'static str {
         match self {
@@ -58,6 +100,12 @@ impl Axis {
             Axis::LegScale => "leg_scale",
             Axis::TorsoMassScale => "torso_mass_scale",
             Axis::Variant => "variant",
+            Axis::KpHaa => "kp.haa",
+            Axis::KpHfe => "kp.hfe",
+            Axis::KpKfe => "kp.kfe",
+            Axis::KdHaa => "kd.haa",
+            Axis::KdHfe => "kd.hfe",
+            Axis::KdKfe => "kd.kfe",
         }
     }
 
@@ -84,6 +132,12 @@ impl Axis {
             Axis::LegScale => "leg",
             Axis::TorsoMassScale => "torso",
             Axis::Variant => "",
+            Axis::KpHaa => "kphaa",
+            Axis::KpHfe => "kphfe",
+            Axis::KpKfe => "kpkfe",
+            Axis::KdHaa => "kdhaa",
+            Axis::KdHfe => "kdhfe",
+            Axis::KdKfe => "kdkfe",
         }
     }
 
@@ -119,7 +173,7 @@ impl Axis {
     /// Checks one value against the axis's physical domain.
     fn check(self, v: f64) -> Result<()> {
         let problem = match self {
-            Axis::Kp | Axis::Kd if v < 0.0 => Some("gains must be >= 0"),
+            a if a.is_gain() && v < 0.0 => Some("gains must be >= 0"),
             Axis::MaxTorque if v <= 0.0 => Some("max_torque must be > 0"),
             Axis::Friction if v <= 0.0 => Some("friction must be > 0"),
             Axis::Timestep if !(1e-6..=0.05).contains(&v) => {

@@ -64,7 +64,9 @@ pub struct Detail {
     pub file: &'static str,
     pub header: Vec<String>,
     /// Rows every finished cell has (a cell with fewer runs again).
-    pub per_cell: usize,
+    /// None: as many as the cell has (a trace's length varies with the
+    /// cell's timestep); its summary row, written last, vouches for them.
+    pub per_cell: Option<usize>,
     /// A column numbering each cell's rows 0, 1, ... (checked on reading).
     pub sequence: Option<usize>,
 }
@@ -131,6 +133,7 @@ pub fn response_summary_header(config: &SweepConfig, e: &Excitation) -> Vec<Stri
         for m in group_metrics(e) {
             h.push(format!("{m}.{g}"));
         }
+        h.push(format!("status.{g}"));
     }
     h.push("status".into());
     h
@@ -517,7 +520,7 @@ pub(crate) fn read_detail(
         }
         rows.push(fields);
     }
-    out.retain(|_, rows| rows.len() == detail.per_cell);
+    out.retain(|_, rows| detail.per_cell.is_none_or(|n| rows.len() == n));
     Ok(out)
 }
 

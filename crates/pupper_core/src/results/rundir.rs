@@ -21,7 +21,7 @@ use crate::results::output::{
     MANIFEST, Manifest, MergedShard, REPLICATES, SUMMARY, TRACES, Trace, config_diff, csv_bytes,
     fmt_f64, header_of, read_detail, read_manifest, read_rows, read_traces,
 };
-use crate::results::tables::{self, BODE, RESPONSE};
+use crate::results::tables::{self, BODE, RESPONSE, RESPONSE_TRACES};
 use crate::sim::runner::CellResult;
 
 /// The lock file every writer of a run directory holds.
@@ -151,7 +151,8 @@ fn only_ours(dir: &Path) -> bool {
                 || name == TRACES
                 || name == REPLICATES
                 || name == RESPONSE
-                || name == BODE)
+                || name == BODE
+                || name == RESPONSE_TRACES)
                 && std::fs::read_to_string(e.path()).is_ok_and(|t| t.lines().count() <= 1))
     })
 }
@@ -416,6 +417,7 @@ impl RunWriter {
                 REPLICATES,
                 RESPONSE,
                 BODE,
+                RESPONSE_TRACES,
                 crate::results::output::BEST,
                 "MUJOCO_LOG.TXT",
             ] {

@@ -20,6 +20,8 @@ use crate::sim::runner::CellResult;
 
 pub const RESPONSE: &str = "response.csv";
 pub const BODE: &str = "bode.csv";
+/// With `--trace`: each excited joint's angle after the hold (replicate 0).
+pub const RESPONSE_TRACES: &str = "response_traces.csv";
 
 /// The tables beside summary.csv, for a model of `nu` actuators.
 pub fn details_of(config: &SweepConfig, nu: usize) -> Vec<Detail> {
@@ -32,7 +34,7 @@ pub fn details_of(config: &SweepConfig, nu: usize) -> Vec<Detail> {
             vec![Detail {
                 file: REPLICATES,
                 header,
-                per_cell: reps,
+                per_cell: Some(reps),
                 sequence,
             }]
         }
@@ -41,7 +43,7 @@ pub fn details_of(config: &SweepConfig, nu: usize) -> Vec<Detail> {
             let mut out = vec![Detail {
                 file: RESPONSE,
                 header: response_header(config),
-                per_cell: joints * reps,
+                per_cell: Some(joints * reps),
                 sequence: None,
             }];
             if let Some(points) = bode_points(e) {
@@ -52,7 +54,18 @@ pub fn details_of(config: &SweepConfig, nu: usize) -> Vec<Detail> {
                 out.push(Detail {
                     file: BODE,
                     header,
-                    per_cell: joints * reps * points,
+                    per_cell: Some(joints * reps * points),
+                    sequence: None,
+                });
+            }
+            if config.schedule.trace_every > 0 {
+                let header = ["index", "id", "joint", "t", "angle"]
+                    .map(String::from)
+                    .to_vec();
+                out.push(Detail {
+                    file: RESPONSE_TRACES,
+                    header,
+                    per_cell: None,
                     sequence: None,
                 });
             }
@@ -107,6 +120,11 @@ fn summary_of_response(e: &Excitation, r: &CellResult) -> Vec<String> {
             };
             out.push(fmt_f64(v));
         }
+        out.push(
+            worst(of_group.iter().map(|j| j.metrics.status))
+                .as_str()
+                .into(),
+        );
     }
     out.push(
         worst(r.joints.iter().map(|j| j.metrics.status))
@@ -155,6 +173,22 @@ pub fn detail_rows(config: &SweepConfig, r: &CellResult) -> Vec<Vec<Vec<String>>
                 })
                 .collect();
             let mut out = vec![responses];
+            let traces: Vec<Vec<String>> = r
+                .joints
+                .iter()
+                .filter(|j| j.replicate == 0)
+                .flat_map(|j| {
+                    j.trace.iter().map(move |(t, q)| {
+                        vec![
+                            r.cell.index.to_string(),
+                            r.cell.id.clone(),
+                            name(j.actuator),
+                            fmt_f64(*t),
+                            fmt_f64(*q),
+                        ]
+                    })
+                })
+                .collect();
             if bode_points(e).is_some() {
                 out.push(
                     r.joints
@@ -174,6 +208,9 @@ pub fn detail_rows(config: &SweepConfig, r: &CellResult) -> Vec<Vec<Vec<String>>
                         })
                         .collect(),
                 );
+            }
+            if config.schedule.trace_every > 0 {
+                out.push(traces);
             }
             out
         }

@@ -88,6 +88,10 @@ pub struct JointResult {
     pub actuator: usize,
     pub replicate: usize,
     pub metrics: JointMetrics,
+    /// (seconds after the hold, angle) every `trace_every`-th step, when a
+    /// trace was asked for.
+    #[serde(default)]
+    pub trace: Vec<(f64, f64)>,
     /// The frequency response (sine: one point; chirp: [`CHIRP_POINTS`]).
     pub bode: Vec<Bode>,
 }
@@ -157,7 +161,7 @@ impl JointProbe {
         self.diverged = true;
     }
 
-    pub fn finish(self, ex: &Excitation, duration: f64) -> JointResult {
+    pub fn finish(self, ex: &Excitation, duration: f64, trace_every: usize) -> JointResult {
         let nan = f64::NAN;
         let mut m = JointMetrics {
             rise_time_s: nan,
@@ -223,10 +227,22 @@ impl JointProbe {
                 m.status = Status::Saturated;
             }
         }
+        let t0 = self.t.first().copied().unwrap_or(0.0);
+        let trace = match trace_every {
+            0 => Vec::new(),
+            k => self
+                .t
+                .iter()
+                .zip(&self.y)
+                .step_by(k)
+                .map(|(t, y)| (t - t0, *y))
+                .collect(),
+        };
         JointResult {
             actuator: self.actuator,
             replicate: self.replicate,
             metrics: m,
+            trace,
             bode,
         }
     }

@@ -475,8 +475,11 @@ struct Stepping<'a> {
     /// Steps at which some simulation's push starts or ends: no call
     /// crosses one.
     bounds: Vec<usize>,
-    /// Control every step: torque mode's PD in Rust, or targets that move.
+    /// Control every step: torque mode's PD in Rust.
     per_step: bool,
+    /// Targets that move on a schedule (the response): each call gets
+    /// every step's ctrl.
+    moving: bool,
     /// Torque mode's PD in Rust (else the actuators' servos follow ctrl).
     host_pd: bool,
     chunk_steps: usize,
@@ -594,7 +597,8 @@ fn run_chunk(
         dt,
         nsteps: schedule.plan(dt)?.steps,
         bounds,
-        per_step: host_pd || moving,
+        per_step: host_pd,
+        moving,
         host_pd,
         chunk_steps: opts.chunk_steps,
     };
@@ -679,7 +683,7 @@ fn step_lane(
                     .collect();
                 Force::Constant(&forces)
             };
-            batch.advance(&alive, nstep, force, &mut |pos, step, qpos, act| {
+            let mut observe = |pos: usize, step: usize, qpos: &[f64], act: &[f64]| {
                 let sim = alive[pos];
                 let (peak, nsat) = peak_and_saturated(act, &st.limits[sim]);
                 state.sample(
@@ -691,7 +695,21 @@ fn step_lane(
                     peak,
                     nsat,
                 );
-            })?
+            };
+            match st.moving {
+                false => batch.advance(&alive, nstep, force, &mut observe)?,
+                true => {
+                    // the servos' targets of every step, known in advance
+                    let nu = st.layout.nu;
+                    let mut ctrl = Vec::with_capacity(alive.len() * nstep * nu);
+                    for &sim in &alive {
+                        for &t in &step_time {
+                            ctrl.extend((0..nu).map(|a| st.target(sim, a, t)));
+                        }
+                    }
+                    batch.advance_driven(&alive, nstep, force, &ctrl, &mut observe)?
+                }
+            }
         };
         // Diverged cells leave the batch; their clock is set to the event.
         let mut dead: Vec<usize> = Vec::new();
@@ -847,7 +865,7 @@ fn finish_chunk(
             Probe::Joint(j) => {
                 if let Some(e) = &cfg.response {
                     let a = j.actuator();
-                    let mut done = j.finish(e, cfg.schedule.duration);
+                    let mut done = j.finish(e, cfg.schedule.duration, cfg.schedule.trace_every);
                     done.metrics.stability_margin = explicit_pd_margin(
                         e.inertia_of(a),
                         setup.gain(a) * setup.kp(a),

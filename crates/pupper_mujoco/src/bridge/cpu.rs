@@ -277,6 +277,140 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
     }
 
     /// Total warnings so far, per simulation.
+    /// One `rollout` call of simulations `ids` for `nstep` steps: the
+    /// base force constant or per step, and with `ctrl` each step's ctrl
+    /// (servo targets that move), both as the rollout's control input.
+    fn rollout(
+        &mut self,
+        ids: &[usize],
+        nstep: usize,
+        force: Force<'_>,
+        ctrl: Option<&[f64]>,
+        observe: &mut Observer<'_>,
+    ) -> Result<Vec<(usize, usize)>> {
+        let py = self.owner.mj.py;
+        let nq = self.owner.info.nq;
+        let nu = self.owner.info.nu;
+        let kw = PyDict::new(py);
+        let per_step = match force {
+            Force::Constant(f) => {
+                let mut s = self.state.readwrite();
+                let rows = s
+                    .as_slice_mut()
+                    .map_err(|e| Error::Internal(e.to_string()))?;
+                for (pos, &sim) in ids.iter().enumerate() {
+                    self.write_force(rows, sim, f[pos]);
+                }
+                None
+            }
+            Force::PerStep(f) => Some(f),
+        };
+        if per_step.is_some() || ctrl.is_some() {
+            // a control row: [ctrl (nu)] then [xfrc_applied (6 nbody)], in
+            // mjtState's order
+            let (cw, fw) = (
+                if ctrl.is_some() { nu } else { 0 },
+                if per_step.is_some() {
+                    6 * self.nbody
+                } else {
+                    0
+                },
+            );
+            let width = cw + fw;
+            let mut control = vec![0.0f64; ids.len() * nstep * width];
+            for pos in 0..ids.len() {
+                for j in 0..nstep {
+                    let row = (pos * nstep + j) * width;
+                    if let Some(c) = ctrl {
+                        let from = (pos * nstep + j) * nu;
+                        control[row..row + nu].copy_from_slice(&c[from..from + nu]);
+                    }
+                    if let Some(f) = per_step {
+                        let at = row + cw + 6 * self.force_body;
+                        control[at..at + 3].copy_from_slice(&f[pos * nstep + j]);
+                    }
+                }
+            }
+            let arr = PyArray1::from_vec(py, control)
+                .reshape([ids.len(), nstep, width])
+                .internal()?;
+            let bit = |name: &str| -> Result<i64> {
+                self.owner
+                    .mj
+                    .module
+                    .getattr("mjtState")
+                    .and_then(|s| s.getattr(name))
+                    .and_then(|s| s.getattr("value"))
+                    .and_then(|v| v.extract())
+                    .internal()
+            };
+            let mut spec = 0i64;
+            if ctrl.is_some() {
+                spec |= bit("mjSTATE_CTRL")?;
+            }
+            if per_step.is_some() {
+                spec |= bit("mjSTATE_XFRC_APPLIED")?;
+            }
+            kw.set_item("control", arr).internal()?;
+            kw.set_item("control_spec", spec).internal()?;
+        }
+        kw.set_item("record", ("qpos", "actuator_force"))
+            .internal()?;
+        kw.set_item("ids", self.ids_arg(ids)?).internal()?;
+        let out = match self.batch.call_method("rollout", (nstep,), Some(&kw)) {
+            Ok(out) => out,
+            Err(e) => {
+                // MuJoCo raised in some simulations: they diverged at this call
+                let failed = failed_ids(py, e)?;
+                return Ok(ids
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, s)| failed.contains(&(**s as i64)))
+                    .map(|(p, _)| (p, 0))
+                    .collect());
+            }
+        };
+        let qpos = out
+            .get_item("qpos")
+            .and_then(|a| a.cast_into::<PyArray3<f64>>().map_err(PyErr::from))
+            .internal()?;
+        let act = out
+            .get_item("actuator_force")
+            .and_then(|a| a.cast_into::<PyArray3<f64>>().map_err(PyErr::from))
+            .internal()?;
+        let warned = self.newly_warned(ids);
+        let qpos = qpos.readonly();
+        let act = act.readonly();
+        let qs = qpos
+            .as_slice()
+            .map_err(|e| Error::Internal(e.to_string()))?;
+        let acts = act.as_slice().map_err(|e| Error::Internal(e.to_string()))?;
+        let mut diverged = Vec::new();
+        for pos in 0..ids.len() {
+            let rec = |j: usize| &qs[(pos * nstep + j) * nq..(pos * nstep + j + 1) * nq];
+            // A warned simulation stopped stepping and repeats its last
+            // record; the step that warned is the one before the repeats.
+            let mut valid = nstep;
+            if warned.contains(&pos) {
+                let stop = (1..nstep).find(|&j| rec(j) == rec(j - 1)).unwrap_or(nstep);
+                valid = stop.saturating_sub(1);
+            }
+            for j in 0..valid {
+                let q = rec(j);
+                if q.iter().any(|x| !x.is_finite()) {
+                    valid = j;
+                    break;
+                }
+                let a = &acts[(pos * nstep + j) * nu..(pos * nstep + j + 1) * nu];
+                observe(pos, j, q, a);
+            }
+            if valid < nstep {
+                diverged.push((pos, valid));
+            }
+        }
+        Ok(diverged)
+    }
+
     fn warning_counts(&self) -> Vec<i64> {
         let w = self.warning.readonly();
         let w = w.as_array();
@@ -505,99 +639,18 @@ impl SimBatch for MujocoBatch<'_, '_> {
         force: Force<'_>,
         observe: &mut Observer<'_>,
     ) -> Result<Vec<(usize, usize)>> {
-        let py = self.owner.mj.py;
-        let nq = self.owner.info.nq;
-        let nu = self.owner.info.nu;
-        let kw = PyDict::new(py);
-        match force {
-            Force::Constant(f) => {
-                let mut s = self.state.readwrite();
-                let rows = s
-                    .as_slice_mut()
-                    .map_err(|e| Error::Internal(e.to_string()))?;
-                for (pos, &sim) in ids.iter().enumerate() {
-                    self.write_force(rows, sim, f[pos]);
-                }
-            }
-            Force::PerStep(f) => {
-                let width = 6 * self.nbody;
-                let mut control = vec![0.0f64; ids.len() * nstep * width];
-                for pos in 0..ids.len() {
-                    for j in 0..nstep {
-                        let at = (pos * nstep + j) * width + 6 * self.force_body;
-                        control[at..at + 3].copy_from_slice(&f[pos * nstep + j]);
-                    }
-                }
-                let arr = PyArray1::from_vec(py, control)
-                    .reshape([ids.len(), nstep, width])
-                    .internal()?;
-                let spec = self
-                    .owner
-                    .mj
-                    .module
-                    .getattr("mjtState")
-                    .and_then(|s| s.getattr("mjSTATE_XFRC_APPLIED"))
-                    .and_then(|s| s.getattr("value"))
-                    .internal()?;
-                kw.set_item("control", arr).internal()?;
-                kw.set_item("control_spec", spec).internal()?;
-            }
-        }
-        kw.set_item("record", ("qpos", "actuator_force"))
-            .internal()?;
-        kw.set_item("ids", self.ids_arg(ids)?).internal()?;
-        let out = match self.batch.call_method("rollout", (nstep,), Some(&kw)) {
-            Ok(out) => out,
-            Err(e) => {
-                // MuJoCo raised in some simulations: they diverged at this call
-                let failed = failed_ids(py, e)?;
-                return Ok(ids
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, s)| failed.contains(&(**s as i64)))
-                    .map(|(p, _)| (p, 0))
-                    .collect());
-            }
-        };
-        let qpos = out
-            .get_item("qpos")
-            .and_then(|a| a.cast_into::<PyArray3<f64>>().map_err(PyErr::from))
-            .internal()?;
-        let act = out
-            .get_item("actuator_force")
-            .and_then(|a| a.cast_into::<PyArray3<f64>>().map_err(PyErr::from))
-            .internal()?;
-        let warned = self.newly_warned(ids);
-        let qpos = qpos.readonly();
-        let act = act.readonly();
-        let qs = qpos
-            .as_slice()
-            .map_err(|e| Error::Internal(e.to_string()))?;
-        let acts = act.as_slice().map_err(|e| Error::Internal(e.to_string()))?;
-        let mut diverged = Vec::new();
-        for pos in 0..ids.len() {
-            let rec = |j: usize| &qs[(pos * nstep + j) * nq..(pos * nstep + j + 1) * nq];
-            // A warned simulation stopped stepping and repeats its last
-            // record; the step that warned is the one before the repeats.
-            let mut valid = nstep;
-            if warned.contains(&pos) {
-                let stop = (1..nstep).find(|&j| rec(j) == rec(j - 1)).unwrap_or(nstep);
-                valid = stop.saturating_sub(1);
-            }
-            for j in 0..valid {
-                let q = rec(j);
-                if q.iter().any(|x| !x.is_finite()) {
-                    valid = j;
-                    break;
-                }
-                let a = &acts[(pos * nstep + j) * nu..(pos * nstep + j + 1) * nu];
-                observe(pos, j, q, a);
-            }
-            if valid < nstep {
-                diverged.push((pos, valid));
-            }
-        }
-        Ok(diverged)
+        self.rollout(ids, nstep, force, None, observe)
+    }
+
+    fn advance_driven(
+        &mut self,
+        ids: &[usize],
+        nstep: usize,
+        force: Force<'_>,
+        ctrl: &[f64],
+        observe: &mut Observer<'_>,
+    ) -> Result<Vec<(usize, usize)>> {
+        self.rollout(ids, nstep, force, Some(ctrl), observe)
     }
 
     fn step_controlled(
