@@ -26,7 +26,7 @@ sweep: setup
 # every optional extra: the tests run the warp backend (on Warp's CPU device)
 # and --ray (on a two-node Ray cluster over loopback, in its own namespaces);
 # dev adds mypy for tests/test_types.py
-test: export PUPPER_EXTRAS := gpu,ray,dev
+test: export PUPPER_EXTRAS := gpu,ray,dev,tune
 test: setup test-rust test-python
 
 test-rust:

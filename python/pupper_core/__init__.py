@@ -80,6 +80,7 @@ __all__ = [
     "info",
     "lab",
     "response",
+    "tune",
     "load_run",
     "merge",
     "stand",
@@ -211,7 +212,8 @@ def _progress_printer() -> Callable[[int, int], None] | None:
 
 @_with_spec_signature(SweepOptions, after="preset")
 def sweep(
-    grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | str | None = None,
+    grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | Sequence[Mapping[str, float | str]]
+    | str | None = None,
     *,
     preset: str | None = None,
     out: str | os.PathLike[str] | None = None,
@@ -222,7 +224,8 @@ def sweep(
 
     grid: {"kp": [10, 30], "kd": 1} (a value may also be text parsed as the
     CLI parses it: "10,30" or "1:120:16:log"), or the CLI's strings
-    ["kp=10,30", "kd=1"] (or one such string). preset: "chapter-4.6" or
+    ["kp=10,30", "kd=1"] (or one such string), or cells one by one
+    [{"kp": 10, "kd": 1}, {"kp": 30, "kd": 0.5, "name": "b"}] (not a product). preset: "chapter-4.6" or
     "lab-grid" (the lab's Kp x Kd grid only) instead of a grid. Every other keyword is the CLI flag of the same
     name, with the same default and checks (`pupper sweep --help`).
     out: also write the run directory (summary.csv, manifest.json, traces.csv)
@@ -277,6 +280,18 @@ def response(
     return _native.response(grid, out=out, progress=callback, signal=signal, amplitude=amplitude,
                             frequency=frequency, chirp=None if chirp is None else list(chirp),
                             hold=hold, joints=list(joints), standing=standing, **_options(options))
+
+
+def tune(space: Sequence[str] | Mapping[str, Any], **options: Any) -> Any:
+    """Search gains (or any grid axis) with Optuna's ask/tell, a generation
+    of ``batch`` trials per batch of cells, as `pupper tune` does: see
+    ``help(pupper_core._tune.tune)`` for the keywords (objective, trials or
+    budget, batch, sampler, seed, aggregate, out, resume) and the sweep's
+    options. Needs the tune extra (Optuna); returns a TuneResult (the study,
+    its trials as trials.csv has them, the best trial or Pareto front)."""
+    from pupper_core import _tune
+
+    return _tune.tune(space, **options)
 
 
 def lab(

@@ -155,7 +155,7 @@ def stand(**options: Unpack[SimOptions]) -> StandReport:
     """What `pupper stand --json` prints, as a dict."""
 
 def sweep(
-    grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | str | None = ...,
+    grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | Sequence[Mapping[str, float | str]] | str | None = ...,
     *,
     preset: str | None = ...,
     out: str | PathLike[str] | None = ...,
@@ -163,6 +163,9 @@ def sweep(
     **options: Unpack[SweepOptions],
 ) -> SweepResult:
     """Runs a sweep; its table as a `SweepResult`."""
+
+def check_axes(names: Sequence[str]) -> None:
+    """Raises GridError for a name that is not a grid axis."""
 
 def response(
     grid: Any = ...,

@@ -96,6 +96,11 @@ enum Command {
     /// --kp/--kd give (natural frequency, damping ratio); and whether each lies past the
     /// stability bound of an explicitly integrated PD at the model's timestep.
     Gains(GainsArgs),
+    /// Search gains (or any grid axis) for the best objective with less simulation than a
+    /// grid: each generation asks --batch trials of Optuna's sampler, runs them as one batch
+    /// of cells and tells the results, until --trials or --budget. The study lives in the run
+    /// directory (study.db, trials.csv, best.json, pareto.csv for several objectives).
+    Tune(Box<TuneArgs>),
     /// Put the shards of one sweep (each run with --shard I/N) together into one run directory,
     /// whose summary.csv is the one the unsharded sweep writes. Checks that the shards share
     /// inputs and model and that together they hold every cell once; says which shard to
@@ -300,6 +305,149 @@ struct GainsArgs {
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
+}
+
+#[derive(Args, Debug)]
+#[command(
+    after_help = "A trial whose robot fell or diverged is told a penalty of 1e6 (the worst
+value) and keeps its status in trials.csv. The sampler of generation g is seeded from (--seed, g)
+and sees only finished trials, so the same command gives the same trials in the same order at any
+thread count and after --resume (which re-runs the trials a kill left unfinished). Show the study:
+optuna-dashboard sqlite:///DIR/study.db. Needs the tune extra (make setup PUPPER_EXTRAS=tune).
+
+Examples:
+  pupper tune --space kp=5:200:log --space kd=0.05:10:log --trials 64 --batch 16
+  pupper tune --space kp.hfe=5:100:log --space kp.kfe=5:100:log --kd 0.5 --budget 2000000
+  pupper tune --space kp=5:200:log --space kd=0.05:5:log --objective last_1s_std_mm,push_dip_mm --trials 48"
+)]
+struct TuneArgs {
+    /// A searched axis: AXIS=LOW:HIGH (linear), LOW:HIGH:log, LOW:HIGH:int, or choices A|B|C;
+    /// repeat for more. Any grid axis (kp, kd, kp.hfe, max_torque, variant, ...).
+    #[arg(long, value_name = "AXIS=RANGE", allow_hyphen_values = true)]
+    space: Vec<String>,
+    /// The summary.csv column to minimize, or several comma-separated (a Pareto front).
+    #[arg(long, default_value = "last_1s_std_mm", value_name = "COLUMN[,COLUMN]")]
+    objective: String,
+    /// Maximize the objective(s) instead.
+    #[arg(long)]
+    maximize: bool,
+    /// Stop after this many finished trials.
+    #[arg(long, value_name = "N", conflicts_with = "budget")]
+    trials: Option<u64>,
+    /// Stop once this many cell-steps are spent (whole generations).
+    #[arg(long, value_name = "CELL_STEPS")]
+    budget: Option<u64>,
+    /// Trials per generation, run as one batch.
+    #[arg(long, default_value_t = 8, value_name = "B")]
+    batch: u64,
+    /// tpe (with a constant liar), cmaes (population = --batch), gp (needs torch), random.
+    #[arg(long, default_value = "tpe", value_name = "NAME")]
+    sampler: String,
+    /// With replicates, the objective over them: mean, p95 (the worse side), worst, fail-rate.
+    #[arg(long, default_value = "mean", value_name = "NAME")]
+    aggregate: String,
+    #[command(flatten)]
+    sim: SimArgs,
+    /// No push.
+    #[arg(long)]
+    no_push: bool,
+    /// Run directory (default runs/<time>-tune).
+    #[arg(long, short = 'o', value_name = "DIR", conflicts_with = "resume")]
+    out: Option<PathBuf>,
+    /// Overwrite pupper's files in an existing --out directory.
+    #[arg(long)]
+    force: bool,
+    /// Continue an interrupted study in DIR (the same inputs, or --resume DIR alone).
+    #[arg(long, value_name = "DIR")]
+    resume: Option<PathBuf>,
+    /// Batch threads; 0 uses all cores. Never changes the numbers.
+    #[arg(long, short = 'j', default_value_t = 0, value_name = "N")]
+    threads: usize,
+    /// No line per generation.
+    #[arg(long, short = 'q')]
+    quiet: bool,
+    #[command(flatten)]
+    population: PopulationArgs,
+}
+
+impl TuneArgs {
+    fn run(&self) -> Result<u8> {
+        let spec = self.sim.spec()?;
+        let pose = match &self.sim.pose {
+            Some(p) if p.trim() == "auto" => serde_json::json!("auto"),
+            Some(_) => match &spec.pose {
+                Some(spec::PoseInput::Angles(a)) => serde_json::json!(a),
+                _ => serde_json::Value::Null,
+            },
+            None => serde_json::Value::Null,
+        };
+        let out = match (&self.resume, &self.out) {
+            (Some(d), _) | (None, Some(d)) => d.clone(),
+            (None, None) => PathBuf::from("runs").join(format!(
+                "{}-tune",
+                chrono::Local::now().format("%Y%m%d-%H%M%S")
+            )),
+        };
+        let mut options = serde_json::json!({
+            "model": spec.model,
+            "variant": spec.variant,
+            "mode": spec.mode,
+            "seconds": spec.seconds,
+            "push": !self.no_push,
+            "threads": self.threads,
+            "replicates": self.population.replicates,
+            "randomize": self.population.randomize,
+        });
+        let o = options
+            .as_object_mut()
+            .ok_or_else(|| Error::Internal("options".into()))?;
+        for (k, v) in [
+            ("kp", spec.kp),
+            ("kd", spec.kd),
+            ("max_torque", spec.max_torque),
+            ("depth", spec.depth),
+        ] {
+            if let Some(v) = v {
+                o.insert(k.into(), serde_json::json!(v));
+            }
+        }
+        if let Some(k) = &self.sim.keyframe {
+            o.insert("keyframe".into(), serde_json::json!(k));
+        }
+        if !pose.is_null() {
+            o.insert("pose".into(), pose);
+        }
+        let mut args = serde_json::json!({
+            "space": self.space,
+            "objective": self.objective,
+            "maximize": self.maximize,
+            "trials": self.trials,
+            "budget": self.budget,
+            "batch": self.batch,
+            "sampler": self.sampler,
+            "seed": self.population.seed,
+            "aggregate": self.aggregate,
+            "out": out,
+            "resume": self.resume.is_some(),
+            "force": self.force,
+            "progress": !self.quiet,
+        });
+        if let (Some(a), Some(o)) = (args.as_object_mut(), options.as_object()) {
+            for (k, v) in o {
+                a.insert(k.clone(), v.clone());
+            }
+        }
+        let wrote = bridge::call_helper(
+            "pupper_core._tune",
+            "_cli",
+            &[args.to_string()],
+            &serde_json::json!({}),
+        )?;
+        for p in wrote {
+            eprintln!("wrote {p}");
+        }
+        Ok(0)
+    }
 }
 
 /// `--grid`, repeatable.
@@ -947,6 +1095,7 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
         Command::Sweep(a) => return sweep(*a, stop),
         Command::Lab(a) => return lab(*a, stop),
         Command::Response(a) => return response(*a, stop),
+        Command::Tune(a) => return a.run(),
         Command::Gains(a) => {
             use pupper_core::robot::gains::Ask;
             let ask = match (a.bandwidth, a.kp, a.kd) {

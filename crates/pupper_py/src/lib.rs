@@ -280,6 +280,44 @@ fn grid_from(grid: Option<&Bound<'_, PyAny>>, preset: Option<String>) -> PyResul
     if let Ok(text) = grid.extract::<String>() {
         return Ok(GridInput::Specs(vec![text]));
     }
+    // a list of cells: [{"kp": 10, "kd": 0.5}, ...] (a "name" key names one)
+    if let Ok(cells) = grid.extract::<Vec<Bound<'_, PyDict>>>()
+        && !cells.is_empty()
+    {
+        let mut axes: Vec<String> = Vec::new();
+        for (k, _) in cells[0].iter() {
+            let k: String = k.str()?.to_string();
+            if k != "name" {
+                axes.push(k);
+            }
+        }
+        let mut rows = Vec::with_capacity(cells.len());
+        let mut names = Vec::new();
+        for (i, c) in cells.iter().enumerate() {
+            let mut row = Vec::with_capacity(axes.len());
+            for a in &axes {
+                let v = c.get_item(a)?.ok_or_else(|| {
+                    GridError::new_err(format!(
+                        "cell {i} has no '{a}': give every cell the same axes"
+                    ))
+                })?;
+                row.push(v.extract::<f64>().map_err(|_| {
+                    GridError::new_err(format!("cell {i}'s '{a}' is not a number"))
+                })?);
+            }
+            if c.len() != axes.len() + usize::from(c.contains("name")?) {
+                return Err(GridError::new_err(format!(
+                    "cell {i} has other axes than the first cell ({}): give every cell the same axes",
+                    axes.join(", ")
+                )));
+            }
+            if let Some(n) = c.get_item("name")? {
+                names.push(n.str()?.to_string());
+            }
+            rows.push(row);
+        }
+        return Ok(GridInput::Cells { axes, rows, names });
+    }
     if let Ok(dict) = grid.cast::<PyDict>() {
         let mut axes = Vec::with_capacity(dict.len());
         for (name, values) in dict.iter() {
@@ -493,6 +531,16 @@ fn sweep(
         ..spec_from(py, options)?
     };
     run_spec(py, spec, progress, "python: pupper_core.sweep", None)
+}
+
+/// Checks grid axis names as `--grid` does (GridError naming the known
+/// axes); what a search checks before it writes anything.
+#[pyfunction]
+fn check_axes(names: Vec<String>) -> PyResult<()> {
+    for n in names {
+        pupper_core::plan::grid::Axis::parse(&n).map_err(to_py)?;
+    }
+    Ok(())
 }
 
 /// `pupper_core.response`: the response experiment, as `pupper response`
@@ -929,6 +977,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(merge, m)?)?;
     m.add_function(wrap_pyfunction!(lab, m)?)?;
     m.add_function(wrap_pyfunction!(response, m)?)?;
+    m.add_function(wrap_pyfunction!(check_axes, m)?)?;
     m.add_class::<result::SweepResult>()?;
     m.add_function(wrap_pyfunction!(record, m)?)?;
     m.add_function(wrap_pyfunction!(record_run, m)?)?;

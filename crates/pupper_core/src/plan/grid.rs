@@ -414,6 +414,56 @@ impl Grid {
         })
     }
 
+    /// Cells given one by one (not a product): each row holds a value per
+    /// axis, in `axes` order; `names` (empty, or one per row) name them.
+    /// What a search asks for, a generation at a time.
+    pub fn explicit(axes: &[String], rows: Vec<Vec<f64>>, names: Vec<String>) -> Result<Grid> {
+        let parsed = axes
+            .iter()
+            .map(|a| Axis::parse(a))
+            .collect::<Result<Vec<_>>>()?;
+        if rows.is_empty() {
+            return Err(Error::Grid("no cells given: give at least one".into()));
+        }
+        if !names.is_empty() && names.len() != rows.len() {
+            return Err(Error::Grid(format!(
+                "{} names for {} cells: give one name per cell, or none",
+                names.len(),
+                rows.len()
+            )));
+        }
+        let mut columns = vec![Vec::with_capacity(rows.len()); parsed.len()];
+        for (i, row) in rows.iter().enumerate() {
+            if row.len() != parsed.len() {
+                return Err(Error::Grid(format!(
+                    "cell {i} has {} values for {} axes ({}): give one value per axis",
+                    row.len(),
+                    parsed.len(),
+                    axes.join(", ")
+                )));
+            }
+            for (k, (&axis, &v)) in parsed.iter().zip(row).enumerate() {
+                if !v.is_finite() {
+                    return Err(Error::Grid(format!(
+                        "cell {i} has {axis} = {v}: give finite numbers"
+                    )));
+                }
+                axis.check(v)?;
+                columns[k].push(v);
+            }
+        }
+        let axes = parsed
+            .into_iter()
+            .zip(columns)
+            .map(|(axis, values)| AxisValues { axis, values })
+            .collect();
+        Ok(Grid {
+            axes,
+            names,
+            explicit: rows,
+        })
+    }
+
     /// Named presets: `chapter-4.6` is the chapter's four servo cases.
     pub fn preset(name: &str) -> Result<Grid> {
         match name {

@@ -36,6 +36,13 @@ pub enum GridInput {
     Axes(Vec<(String, AxisInput)>),
     /// A named preset.
     Preset(String),
+    /// Cells one by one: axis names, a row of values per cell, and names
+    /// (empty, or one per cell).
+    Cells {
+        axes: Vec<String>,
+        rows: Vec<Vec<f64>>,
+        names: Vec<String>,
+    },
 }
 
 /// One axis's values as a Python dict gives them.
@@ -313,6 +320,9 @@ impl SweepSpec {
                 .collect::<Result<Vec<_>>>()
                 .and_then(Grid::from_axes),
             GridInput::Preset(p) => Grid::preset(p),
+            GridInput::Cells { axes, rows, names } => {
+                Grid::explicit(axes, rows.clone(), names.clone())
+            }
         }
     }
 }

@@ -86,6 +86,17 @@ pub fn call_helper(
                 let msg = python_message(py, &e);
                 if kind.ends_with("Unavailable") {
                     Error::Display(msg)
+                } else if [
+                    "TuneError",
+                    "ConfigError",
+                    "GridError",
+                    "ModelError",
+                    "ModelNotFoundError",
+                ]
+                .contains(&kind.as_str())
+                {
+                    // bad input said by our Python package: one line, exit 2
+                    Error::Config(msg)
                 } else {
                     Error::Internal(format!("{module}.{func}: {kind}: {msg}"))
                 }

@@ -1,0 +1,490 @@
+"""`pupper tune` (`pupper_core.tune`): the grid's answer with less simulation, by Optuna's
+ask/tell interface. Each generation asks ``batch`` trials, runs them as one
+batch of cells through pupper's runner, and tells the results.
+
+The study lives in the run directory: Optuna's SQLite storage
+(``study.db``; ``optuna-dashboard sqlite:///DIR/study.db`` shows it),
+``trials.csv`` (a row per finished trial, in the order they were asked),
+``best.json``, ``pareto.csv`` for several objectives, and
+``manifest.json`` (the inputs and the cell-steps spent).
+
+Determinism: the sampler of generation ``g`` is seeded from ``(seed, g)``
+and sees only the finished trials, so the same inputs give the same trials
+in the same order at any thread count and after a resume (``--resume``
+re-runs the trials a kill left unfinished, with the parameters they were
+asked with).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import sys
+import tempfile
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+__all__ = ["tune", "TuneResult", "parse_space"]
+
+#: The value a trial whose robot fell or diverged (or has no value) is told:
+#: worse than any real one, finite so every sampler takes it.
+PENALTY = 1e6
+STUDY = "pupper-tune"
+SAMPLERS = ("tpe", "cmaes", "gp", "random")
+AGGREGATES = ("mean", "p95", "worst", "fail-rate")
+#: The named bodies of the variant axis, in pupper's order (its values are indices).
+VARIANTS = ("original", "long-leg", "heavy")
+
+
+class TuneError(ValueError):
+    """Bad input to `tune`: one line naming the problem and the fix."""
+
+
+def _optuna() -> Any:
+    try:
+        import optuna
+    except ImportError:
+        raise TuneError("pupper tune needs Optuna: install the extra with "
+                        "`make setup PUPPER_EXTRAS=tune` (or pip install 'pupper_core[tune]')") from None
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    return optuna
+
+
+@dataclass(frozen=True)
+class Dimension:
+    """One searched axis: a float range (log or linear), an int range, or choices."""
+
+    axis: str
+    low: float = 0.0
+    high: float = 0.0
+    log: bool = False
+    integer: bool = False
+    choices: tuple[Any, ...] = ()
+
+    def distribution(self, optuna: Any) -> Any:
+        d = optuna.distributions
+        if self.choices:
+            return d.CategoricalDistribution(list(self.choices))
+        if self.integer:
+            return d.IntDistribution(int(self.low), int(self.high), log=self.log)
+        return d.FloatDistribution(self.low, self.high, log=self.log)
+
+    def text(self) -> str:
+        if self.choices:
+            return f"{self.axis}=" + "|".join(str(c) for c in self.choices)
+        kind = ":int" if self.integer else (":log" if self.log else "")
+        return f"{self.axis}={self.low:g}:{self.high:g}{kind}"
+
+
+def parse_space(specs: Sequence[str] | Mapping[str, Any]) -> list[Dimension]:
+    """``AXIS=LOW:HIGH[:log|:int]`` or ``AXIS=A|B|C`` (choices), or a dict
+    ``{axis: (low, high[, "log"|"int"]) or [choices]}``."""
+    items: list[tuple[str, Any]]
+    if isinstance(specs, Mapping):
+        items = list(specs.items())
+    else:
+        items = []
+        for s in [specs] if isinstance(specs, str) else specs:
+            if "=" not in s:
+                raise TuneError(f"--space '{s}' has no '=': write AXIS=LOW:HIGH[:log], e.g. kp=5:200:log")
+            name, rest = s.split("=", 1)
+            items.append((name.strip(), rest.strip()))
+    if not items:
+        raise TuneError("no --space given: name what to search, e.g. --space kp=5:200:log --space kd=0.05:10:log")
+    out: list[Dimension] = []
+    for name, v in items:
+        if any(d.axis == name for d in out):
+            raise TuneError(f"--space {name} is given twice: give each axis once")
+        if isinstance(v, str) and "|" in v:
+            out.append(Dimension(name, choices=tuple(_choice(c) for c in v.split("|"))))
+            continue
+        if isinstance(v, (list,)) and v and not isinstance(v[0], (int, float)) or (
+                isinstance(v, list) and len(v) > 3):
+            out.append(Dimension(name, choices=tuple(v)))
+            continue
+        parts = v.split(":") if isinstance(v, str) else list(v)
+        kind = str(parts[2]) if len(parts) == 3 else ""
+        try:
+            low, high = float(parts[0]), float(parts[1])
+        except (ValueError, IndexError):
+            raise TuneError(f"--space {name}={v}: write LOW:HIGH[:log|:int], e.g. {name}=5:200:log") from None
+        if not (math.isfinite(low) and math.isfinite(high) and low < high) or kind not in ("", "log", "int"):
+            raise TuneError(f"--space {name}={v}: give LOW < HIGH, finite, and :log or :int at most")
+        if kind == "log" and low <= 0:
+            raise TuneError(f"--space {name}={v}: a log range needs LOW > 0")
+        out.append(Dimension(name, low, high, log=kind == "log", integer=kind == "int"))
+    return out
+
+
+def _choice(text: str) -> Any:
+    try:
+        return float(text)
+    except ValueError:
+        return text.strip()
+
+
+@dataclass
+class TuneResult:
+    """What a tune leaves: the Optuna study, the finished trials (as
+    trials.csv has them), the best trial(s), and the run directory."""
+
+    study: Any
+    trials: list[dict[str, Any]]
+    best: list[dict[str, Any]]
+    out: Path | None
+    cell_steps: int
+    objectives: list[str] = field(default_factory=list)
+
+    def __repr__(self) -> str:
+        b = self.best[0] if self.best else {}
+        return (f"TuneResult({len(self.trials)} trials, {self.cell_steps} cell-steps, "
+                f"best {b.get('params')} -> {b.get('values')})")
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    with os.fdopen(fd, "w", newline="") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def _value(res: Any, i: int, objective: str, aggregate: str, maximize: bool) -> tuple[float, str]:
+    """Trial i's value of one objective and its status."""
+    worst = -PENALTY if maximize else PENALTY
+    table = res.table
+    if "failure_fraction" in table:  # replicated: an aggregate over the replicates
+        failed = float(table["failure_fraction"][i])
+        if aggregate == "fail-rate":
+            return failed, "ok" if failed == 0 else "some fell"
+        if failed >= 1:
+            return worst, "fell"
+        if aggregate == "worst":
+            reps = res.replicates
+            idx = res.table["index"][i]
+            xs = [float(v) for v, j, s in zip(reps[objective], reps["index"], reps["status"])
+                  if j == idx and s in ("ok", "saturated")]
+            v = (min(xs) if maximize else max(xs)) if xs else math.nan
+        else:
+            v = float(table[f"{aggregate}:{objective}"][i])
+        return (v, "ok") if math.isfinite(v) else (worst, "no value")
+    status = str(table["status"][i])
+    if status not in ("ok", "saturated"):
+        return worst, status
+    v = float(table[objective][i])
+    return (v, status) if math.isfinite(v) else (worst, "no value")
+
+
+def _steps_per_cell(options: Mapping[str, Any], params: Mapping[str, Any], model_dt: float) -> int:
+    seconds = float(options.get("seconds", 10.0))
+    dt = float(params.get("timestep", model_dt))
+    reps = max(1, int(options.get("replicates", 1)))
+    return int(round(seconds / dt)) * reps
+
+
+def _sampler(optuna: Any, name: str, seed: int, generation: int, batch: int, multi: bool) -> Any:
+    # one sampler per generation, seeded from (seed, generation): what it
+    # proposes depends on the seed and the finished trials alone
+    s = (seed * 1_000_003 + generation) % (2**32)
+    if name == "tpe":
+        return optuna.samplers.TPESampler(seed=s, constant_liar=True, multivariate=not multi)
+    if name == "random":
+        return optuna.samplers.RandomSampler(seed=s)
+    if name == "cmaes":
+        if multi:
+            raise TuneError("--sampler cmaes takes one objective: use tpe or random for several")
+        try:
+            import cmaes  # noqa: F401
+        except ImportError:
+            raise TuneError("--sampler cmaes needs the cmaes package: `make setup PUPPER_EXTRAS=tune`") from None
+        return optuna.samplers.CmaEsSampler(seed=s, popsize=batch, warn_independent_sampling=False)
+    if name == "gp":
+        try:
+            import torch  # noqa: F401
+        except ImportError:
+            raise TuneError("--sampler gp needs torch (Optuna's GP sampler runs on it), which the tune extra "
+                            "leaves out: pip install torch, or use tpe, cmaes or random") from None
+        return optuna.samplers.GPSampler(seed=s)
+    raise TuneError(f"--sampler {name} is unknown: use one of {', '.join(SAMPLERS)}")
+
+
+def _inputs(space: list[Dimension], objectives: list[str], maximize: bool, batch: int, sampler: str,
+            seed: int, aggregate: str, options: Mapping[str, Any]) -> dict[str, Any]:
+    return {"space": [d.text() for d in space], "objectives": objectives, "maximize": maximize, "batch": batch,
+            "sampler": sampler, "seed": seed, "aggregate": aggregate, "options": dict(options)}
+
+
+def tune(
+    space: Sequence[str] | Mapping[str, Any],
+    *,
+    objective: str | Sequence[str] = "last_1s_std_mm",
+    maximize: bool = False,
+    trials: int | None = None,
+    budget: int | None = None,
+    batch: int = 8,
+    sampler: str = "tpe",
+    seed: int = 0,
+    aggregate: str = "mean",
+    out: str | os.PathLike[str] | None = None,
+    resume: bool = False,
+    force: bool = False,
+    progress: bool | Callable[[str], None] = True,
+    **options: Any,
+) -> TuneResult:
+    """Search gains (or any grid axis) for the best ``objective``: each
+    generation asks ``batch`` trials of Optuna's ``sampler`` (tpe with a
+    constant liar, cmaes with population ``batch``, gp, random), runs them
+    as one batch of cells and tells the results, until ``trials`` trials or
+    ``budget`` cell-steps. ``space``: ``["kp=5:200:log", "kd=0.05:10:log"]``
+    (``:int`` for integers, ``A|B`` for choices). ``objective``: a
+    summary.csv column, or several (a Pareto front). A trial whose robot
+    fell or diverged is told a penalty (1e6, the worst) and keeps its
+    status. With replicates the value is ``aggregate`` over them: mean,
+    p95 (the worse side), worst, or fail-rate. Other keywords are
+    `pupper_core.sweep`'s (model, mode, seconds, push, replicates, ...).
+    """
+    import pupper_core as pc
+
+    optuna = _optuna()
+    dims = parse_space(space)
+    objectives = [objective] if isinstance(objective, str) else list(objective)
+    objectives = [o.strip() for obj in objectives for o in obj.split(",") if o.strip()]
+    if sampler not in SAMPLERS:
+        raise TuneError(f"--sampler {sampler} is unknown: use one of {', '.join(SAMPLERS)}")
+    if aggregate not in AGGREGATES:
+        raise TuneError(f"--aggregate {aggregate} is unknown: use one of {', '.join(AGGREGATES)}")
+    if batch < 1:
+        raise TuneError(f"--batch {batch}: give at least 1 trial per generation")
+    if (trials is None) == (budget is None):
+        raise TuneError("give --trials N or --budget CELL_STEPS (one of them): how long to search")
+    if trials is not None and trials < 1 or budget is not None and budget < 1:
+        raise TuneError("--trials and --budget must be at least 1")
+    from pupper_core import _native
+
+    try:
+        _native.check_axes([d.axis for d in dims])
+    except pc.GridError as e:
+        raise TuneError(f"--space: {e}") from None
+    known = set(pc.METRICS) - {"status"}
+    for o in objectives:
+        if o not in known:
+            raise TuneError(f"--objective {o} is not a metric: use one of {', '.join(sorted(known))}")
+    options = dict(options)
+    if int(options.get("replicates", 1)) > 1:
+        options.setdefault("seed", seed)
+    inputs = _inputs(dims, objectives, maximize, batch, sampler, seed, aggregate, options)
+    say: Callable[[str], None]
+    if callable(progress):
+        say = progress
+    elif progress:
+        say = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
+    else:
+        say = lambda line: None  # noqa: E731
+    # the model's timestep, for the cell-steps spent (and an early check of the model)
+    try:
+        model_dt = float(pc.info(options.get("model", "pupper_v3"))["timestep"])
+    except pc.PupperError as e:
+        raise TuneError(str(e)) from None
+    if budget is not None and budget < batch * _steps_per_cell(options, {}, model_dt):
+        raise TuneError(f"--budget {budget} is below one generation ({batch} trials x "
+                        f"{_steps_per_cell(options, {}, model_dt)} cell-steps): raise it or lower --batch")
+    out_dir = Path(out) if out is not None else None
+    storage: Any = None
+    if out_dir is not None:
+        manifest_path = out_dir / "manifest.json"
+        if resume:
+            if not manifest_path.exists():
+                raise TuneError(f"--resume {out_dir}: no tune there (no manifest.json); start it without --resume")
+            old = json.loads(manifest_path.read_text())
+            if old.get("inputs") != json.loads(json.dumps(inputs)):
+                diff = [k for k in inputs if old.get("inputs", {}).get(k) != json.loads(json.dumps(inputs))[k]]
+                raise TuneError(f"cannot resume {out_dir}: this command differs in {', '.join(diff)}; "
+                                "rerun the original command with --resume, or use a new -o")
+        elif out_dir.exists() and any(out_dir.iterdir()):
+            if not force:
+                raise TuneError(f"output directory '{out_dir}' already exists: choose another -o, "
+                                "add --force to overwrite it, or --resume it")
+            for name in ("study.db", "trials.csv", "best.json", "pareto.csv", "manifest.json"):
+                (out_dir / name).unlink(missing_ok=True)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        storage = optuna.storages.RDBStorage(f"sqlite:///{(out_dir / 'study.db').resolve()}")
+    directions = ["maximize" if maximize else "minimize"] * len(objectives)
+    study = optuna.create_study(study_name=STUDY, storage=storage, directions=directions, load_if_exists=True)
+    dists = {d.axis: d.distribution(optuna) for d in dims}
+    TS = optuna.trial.TrialState
+
+    # A kill left trials running. They are told failed (no sampler learns
+    # from a failed trial). If their generation had begun to be told, its
+    # other trials were all asked: they are enqueued with their parameters.
+    # Otherwise the generation is asked afresh: its seeded sampler, seeing
+    # the same finished trials, proposes the same parameters again.
+    unfinished = [t for t in study.get_trials(deepcopy=False) if t.state == TS.RUNNING]
+    told = {t.user_attrs.get("generation") for t in study.get_trials(deepcopy=False, states=(TS.COMPLETE,))}
+    for t in sorted(unfinished, key=lambda t: t.user_attrs.get("slot", 0)):
+        study.tell(t.number, state=TS.FAIL)
+        g = t.user_attrs.get("generation")
+        if g is not None and g in told:
+            study.enqueue_trial(t.params, user_attrs={"generation": g, "slot": t.user_attrs["slot"]})
+
+    def finished() -> list[Any]:
+        return sorted((t for t in study.get_trials(deepcopy=False) if t.state == TS.COMPLETE),
+                      key=lambda t: (t.user_attrs["generation"], t.user_attrs["slot"]))
+
+    said: set[str] = set()
+    if out_dir is not None:
+        # the manifest first: a kill at any moment leaves a study to resume
+        _write(out_dir, study, finished(), dims, objectives, inputs,
+               sum(int(t.user_attrs.get("cell_steps", 0)) for t in finished()), complete=False,
+               stop={"trials": trials, "budget": budget})
+    done = finished()
+    spent = sum(int(t.user_attrs.get("cell_steps", 0)) for t in done)
+    generation = max((t.user_attrs["generation"] + 1 for t in done), default=0)
+    pending = study.get_trials(deepcopy=False, states=(TS.WAITING,))
+    if pending:
+        generation = pending[0].user_attrs.get("generation", generation)
+    while True:
+        n_done = len(finished())
+        if trials is not None and n_done >= trials:
+            break
+        if budget is not None and spent >= budget:
+            break
+        want = batch if trials is None else min(batch, trials - n_done)
+        waiting = study.get_trials(deepcopy=False, states=(TS.WAITING,))
+        if waiting:
+            want = len(waiting)
+        study.sampler = _sampler(optuna, sampler, seed, generation, batch, len(objectives) > 1)
+        asked = []
+        for slot in range(want):
+            t = study.ask(dists)
+            if "generation" not in t.user_attrs:
+                t.set_user_attr("generation", generation)
+                t.set_user_attr("slot", slot)
+            asked.append(t)
+        asked.sort(key=lambda t: t.user_attrs["slot"])
+        cells = []
+        for t in asked:
+            cell: dict[str, float | str] = {"name": f"g{t.user_attrs['generation']}s{t.user_attrs['slot']}"}
+            for d in dims:
+                v = t.params[d.axis]
+                cell[d.axis] = float(VARIANTS.index(v)) if d.axis == "variant" else float(v)
+            cells.append(cell)
+        import warnings
+
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            res = pc.sweep(cells, progress=False, **options)
+        for w in caught:  # each note once per study, not once per generation
+            text = str(w.message)
+            if text not in said:
+                said.add(text)
+                say(f"note: {text}")
+        for i, t in enumerate(asked):
+            vals, statuses = [], []
+            for o in objectives:
+                v, st = _value(res, i, o, aggregate, maximize)
+                vals.append(v)
+                statuses.append(st)
+            steps = _steps_per_cell(options, t.params, model_dt)
+            spent += steps
+            t.set_user_attr("cell_steps", steps)
+            t.set_user_attr("status", statuses[0] if len(set(statuses)) == 1 else ",".join(statuses))
+            study.tell(t, vals if len(vals) > 1 else vals[0])
+        generation += 1
+        done = finished()
+        if out_dir is not None:
+            _write(out_dir, study, done, dims, objectives, inputs, spent, complete=False,
+                   stop={"trials": trials, "budget": budget})
+        best = _best(study, objectives)
+        say(f"generation {generation}: {len(done)} trials, {spent} cell-steps; best "
+            + ", ".join(f"{o} {v:.6g}" for o, v in zip(objectives, best[0]["values"])) if best else "")
+    done = finished()
+    if out_dir is not None:
+        _write(out_dir, study, done, dims, objectives, inputs, spent, complete=True,
+               stop={"trials": trials, "budget": budget})
+    return TuneResult(study=study, trials=_rows(done, dims, objectives), best=_best(study, objectives),
+                      out=out_dir, cell_steps=spent, objectives=objectives)
+
+
+def _rows(done: Sequence[Any], dims: Sequence[Dimension], objectives: Sequence[str]) -> list[dict[str, Any]]:
+    rows = []
+    for k, t in enumerate(done):
+        r: dict[str, Any] = {"trial": k, "generation": t.user_attrs["generation"], "slot": t.user_attrs["slot"]}
+        r.update({d.axis: t.params[d.axis] for d in dims})
+        vals = t.values
+        r.update({o: v for o, v in zip(objectives, vals)})
+        r["status"] = t.user_attrs.get("status", "")
+        r["cell_steps"] = t.user_attrs.get("cell_steps", 0)
+        rows.append(r)
+    return rows
+
+
+def _best(study: Any, objectives: Sequence[str]) -> list[dict[str, Any]]:
+    try:
+        best = study.best_trials
+    except ValueError:
+        return []
+    out = []
+    for t in sorted(best, key=lambda t: (t.user_attrs["generation"], t.user_attrs["slot"])):
+        out.append({"generation": t.user_attrs["generation"], "slot": t.user_attrs["slot"],
+                    "params": dict(t.params), "values": list(t.values), "objectives": list(objectives),
+                    "status": t.user_attrs.get("status", "")})
+    return out
+
+
+def _write(out: Path, study: Any, done: Sequence[Any], dims: Sequence[Dimension], objectives: Sequence[str],
+           inputs: Mapping[str, Any], spent: int, complete: bool, stop: Mapping[str, Any]) -> None:
+    import io
+
+    import pupper_core as pc
+    import optuna
+
+    rows = _rows(done, dims, objectives)
+    buf = io.StringIO()
+    header = ["trial", "generation", "slot", *[d.axis for d in dims], *objectives, "status", "cell_steps"]
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    for r in rows:
+        w.writerow([repr(r[h]) if isinstance(r[h], float) else r[h] for h in header])
+    _atomic_write(out / "trials.csv", buf.getvalue())
+    best = _best(study, objectives)
+    _atomic_write(out / "best.json", json.dumps(best, indent=2) + "\n")
+    if len(objectives) > 1:
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(["generation", "slot", *[d.axis for d in dims], *objectives])
+        for b in best:
+            w.writerow([b["generation"], b["slot"], *[b["params"][d.axis] for d in dims],
+                        *[repr(float(v)) for v in b["values"]]])
+        _atomic_write(out / "pareto.csv", buf.getvalue())
+    manifest = {"kind": "tune", "inputs": inputs, "pupper_version": pc.__version__,
+                "optuna_version": optuna.__version__, "stop": dict(stop), "trials": len(rows), "cell_steps": spent,
+                "complete": complete, "study": "study.db (optuna-dashboard sqlite:///study.db)"}
+    _atomic_write(out / "manifest.json", json.dumps(manifest, indent=2) + "\n")
+
+
+def _cli(args_json: str) -> list[str]:
+    """`pupper tune`: the CLI's parsed flags as JSON; prints the best trial(s)."""
+    a = json.loads(args_json)
+    if a.get("resume") and not a.get("space"):
+        # `--resume DIR` alone: the study's own inputs
+        path = Path(a["out"]) / "manifest.json"
+        if not path.exists():
+            raise TuneError(f"--resume {a['out']}: no tune there (no manifest.json); start it without --resume")
+        manifest = json.loads(path.read_text())
+        inputs = manifest["inputs"]
+        kept = {k: a[k] for k in ("out", "resume", "progress", "trials", "budget") if a.get(k) is not None}
+        if "trials" not in kept and "budget" not in kept:
+            kept.update({k: v for k, v in manifest.get("stop", {}).items() if v is not None})
+        a = {**inputs.pop("options"), **{k: v for k, v in inputs.items() if k != "objectives"},
+             "objective": inputs["objectives"], **kept}
+        a["space"] = inputs["space"]
+    res = tune(a.pop("space"), **a)
+    for b in res.best:
+        params = "  ".join(f"{k} {v:.6g}" if isinstance(v, float) else f"{k} {v}" for k, v in b["params"].items())
+        values = "  ".join(f"{o} {v:.6g}" for o, v in zip(b["objectives"], b["values"]))
+        print(f"best (generation {b['generation']}, slot {b['slot']}): {params}  ->  {values}")
+    print(f"{len(res.trials)} trials, {res.cell_steps} cell-steps")
+    return [str(res.out / "trials.csv")] if res.out else []

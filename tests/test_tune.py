@@ -1,0 +1,150 @@
+"""`pupper tune`: Optuna's ask/tell over pupper's runner, a generation per
+batch. Samplers find a known optimum; the study is the same at any thread
+count and across a kill and resume; bad input is one line."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from conftest import clean_env, read_csv
+
+pc = pytest.importorskip("pupper_core")
+pytest.importorskip("optuna")
+
+from pupper_core import _tune as T  # noqa: E402
+
+#: A cheap question with a known answer: the stiffer the servos, the smaller
+#: the joints' tracking error, so the optimum is kp's upper bound.
+CHEAP = dict(seconds=1.5, push=False, kd=0.3)
+
+
+@pytest.mark.parametrize("sampler", ["tpe", "cmaes", "random"])
+def test_each_sampler_finds_a_known_optimum(sampler):
+    res = T.tune(["kp=2:60:log"], objective="tracking_rms", trials=24, batch=8, sampler=sampler,
+                 seed=1, progress=False, **CHEAP)
+    best = res.best[0]["params"]["kp"]
+    # the top fifth of the log range
+    assert best > 60 * (2 / 60) ** 0.2, (sampler, best)
+    assert len(res.trials) == 24 and res.cell_steps == 24 * 750
+
+
+def test_gp_without_torch_says_so_in_one_line():
+    try:
+        import torch  # noqa: F401
+        pytest.skip("torch is installed here")
+    except ImportError:
+        pass
+    with pytest.raises(T.TuneError, match="needs torch"):
+        T.tune(["kp=2:60:log"], trials=2, batch=2, sampler="gp", progress=False, **CHEAP)
+
+
+def _args(out: Path) -> list[str]:
+    return ["tune", "--space", "kp=2:60:log", "--space", "kd=0.05:2:log", "--objective", "tracking_rms",
+            "--trials", "24", "--batch", "4", "--seconds", "1.5", "--no-push", "-q", "-o", str(out)]
+
+
+def test_the_study_is_the_same_at_any_thread_count(run, tmp_path):
+    run(*_args(tmp_path / "a"), "-j", "1", check=0)
+    run(*_args(tmp_path / "b"), "-j", "2", check=0)
+    a, b = ((tmp_path / d / "trials.csv").read_bytes() for d in ("a", "b"))
+    assert a == b
+    _, rows = read_csv(tmp_path / "a" / "trials.csv")
+    assert len(rows) == 24 and [r["generation"] for r in rows[:5]] == ["0", "0", "0", "0", "1"]
+    best = json.loads((tmp_path / "a" / "best.json").read_text())[0]
+    assert float(best["values"][0]) == min(float(r["tracking_rms"]) for r in rows)
+    manifest = json.loads((tmp_path / "a" / "manifest.json").read_text())
+    assert manifest["complete"] and manifest["cell_steps"] == 24 * 750 and manifest["trials"] == 24
+
+
+def test_a_kill_and_resume_neither_repeat_nor_lose_a_trial(pupper_bin, run, tmp_path):
+    run(*_args(tmp_path / "whole"), check=0)
+    cut = tmp_path / "cut"
+    proc = subprocess.Popen([str(pupper_bin), *_args(cut)], env=clean_env(), cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 120
+    trials = cut / "trials.csv"
+    while time.monotonic() < deadline:
+        if trials.exists() and len(trials.read_text().splitlines()) > 8:
+            break
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=60)
+    kept = len(trials.read_text().splitlines()) - 1
+    assert 0 < kept < 24, kept
+    p = run("tune", "--resume", cut, "-q", check=0)
+    assert "24 trials" in p.stdout
+    assert trials.read_bytes() == (tmp_path / "whole" / "trials.csv").read_bytes()
+
+
+def test_several_objectives_give_a_pareto_front(tmp_path):
+    res = T.tune(["kp=2:60:log", "kd=0.05:2:log"], objective="tracking_rms,peak_torque", trials=16, batch=8,
+                 seed=3, progress=False, out=tmp_path / "p", **CHEAP)
+    _, front = read_csv(tmp_path / "p" / "pareto.csv")
+    assert front and len(front) == len(res.best)
+    pts = [(float(r["tracking_rms"]), float(r["peak_torque"])) for r in front]
+    # no point of the front is dominated by another trial
+    for a in pts:
+        assert not any(b[0] <= a[0] and b[1] <= a[1] and b != a for b in
+                       [(t["tracking_rms"], t["peak_torque"]) for t in res.trials])
+
+
+BAD = [
+    (["--space", "kp=50:5"], "LOW < HIGH"),
+    (["--space", "kp=0:50:log"], "LOW > 0"),
+    (["--space", "kq=1:5", "--trials", "4"], "unknown grid axis 'kq'"),
+    (["--space", "kp=1:5", "--budget", "100"], "below one generation"),
+    (["--space", "kp=1:5"], "give --trials N or --budget"),
+    (["--space", "kp=1:5", "--trials", "4", "--objective", "nope"], "is not a metric"),
+]
+
+
+@pytest.mark.parametrize("args,words", BAD, ids=[w for _, w in BAD])
+def test_bad_input_is_one_line_exit_2_and_nothing_written(run, tmp_path, args, words):
+    out = tmp_path / "never"
+    p = run("tune", *args, "-o", out)
+    assert p.returncode == 2, p.stderr
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0], p.stderr
+    assert not out.exists()
+
+
+def test_without_the_extra_one_line_names_it(tmp_path):
+    code = ("import sys; sys.modules['optuna'] = None\n"
+            "from pupper_core import _tune as tune\n"
+            "try:\n    tune.tune(['kp=1:5'], trials=1)\n"
+            "except tune.TuneError as e:\n    print(e)\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.stdout.strip() == ("pupper tune needs Optuna: install the extra with `make setup PUPPER_EXTRAS=tune` "
+                                "(or pip install 'pupper_core[tune]')"), p.stdout + p.stderr
+
+
+@pytest.mark.parametrize("where,after", [("ask", 6), ("tell", 6), ("ask", 1)])
+def test_a_stop_mid_ask_or_mid_tell_resumes_to_the_same_study(tmp_path, monkeypatch, where, after):
+    """The moments a kill can fall between: while a generation is being
+    asked (some trials running), and while it is being told (some told)."""
+    import optuna
+
+    args = dict(objective="tracking_rms", trials=16, batch=4, seed=5, progress=False, **CHEAP)
+    T.tune(["kp=2:60:log", "kd=0.05:2:log"], out=tmp_path / "whole", **args)
+    real = getattr(optuna.study.Study, where)
+    calls = {"n": 0}
+
+    def dying(self, *a, **kw):
+        calls["n"] += 1
+        if calls["n"] > after:
+            raise KeyboardInterrupt("killed")
+        return real(self, *a, **kw)
+
+    monkeypatch.setattr(optuna.study.Study, where, dying)
+    with pytest.raises(KeyboardInterrupt):
+        T.tune(["kp=2:60:log", "kd=0.05:2:log"], out=tmp_path / "cut", **args)
+    monkeypatch.setattr(optuna.study.Study, where, real)
+    T.tune(["kp=2:60:log", "kd=0.05:2:log"], out=tmp_path / "cut", resume=True, **args)
+    assert (tmp_path / "cut" / "trials.csv").read_bytes() == (tmp_path / "whole" / "trials.csv").read_bytes()
