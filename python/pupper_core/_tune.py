@@ -238,7 +238,8 @@ def tune(
     generation asks ``batch`` trials of Optuna's ``sampler`` (tpe with a
     constant liar, cmaes with population ``batch``, gp, random), runs them
     as one batch of cells and tells the results, until ``trials`` trials or
-    ``budget`` cell-steps. ``space``: ``["kp=5:200:log", "kd=0.05:10:log"]``
+    ``budget`` cell-steps (never more: the last generation may be
+    smaller). ``space``: ``["kp=5:200:log", "kd=0.05:10:log"]``
     (``:int`` for integers, ``A|B`` for choices). ``objective``: a
     summary.csv column, or several (a Pareto front). A trial whose robot
     fell or diverged is told a penalty (1e6, the worst) and keeps its
@@ -352,9 +353,14 @@ def tune(
         if budget is not None and spent >= budget:
             break
         want = batch if trials is None else min(batch, trials - n_done)
+        if budget is not None:
+            # never past the budget: the last generation may be smaller
+            want = min(want, (budget - spent) // _steps_per_cell(options, {}, model_dt))
         waiting = study.get_trials(deepcopy=False, states=(TS.WAITING,))
         if waiting:
             want = len(waiting)
+        if want <= 0:
+            break
         study.sampler = _sampler(optuna, sampler, seed, generation, batch, len(objectives) > 1)
         asked = []
         for slot in range(want):

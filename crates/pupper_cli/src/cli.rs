@@ -334,7 +334,7 @@ struct TuneArgs {
     /// Stop after this many finished trials.
     #[arg(long, value_name = "N", conflicts_with = "budget")]
     trials: Option<u64>,
-    /// Stop once this many cell-steps are spent (whole generations).
+    /// Spend at most this many cell-steps (the last generation may be smaller).
     #[arg(long, value_name = "CELL_STEPS")]
     budget: Option<u64>,
     /// Trials per generation, run as one batch.
