@@ -96,6 +96,9 @@ class SweepResult:
     """Seconds the sweep took (NaN for a run read back from disk)."""
     config: dict[str, Any]
     """The inputs that decide the numbers, as stored in manifest.json."""
+    cell_steps: list[int | None]
+    """Cell-steps each row's cell took when it ran in this call (fewer for
+    a robot stopped by stop_fallen); None for a row read back or resumed."""
     tables: dict[str, SweepResult]
     """Every table beside summary.csv by name: "replicates"; a response
     run's "response" (a row per cell and joint) and "bode"."""

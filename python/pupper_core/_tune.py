@@ -274,6 +274,8 @@ def tune(
         if o not in known:
             raise TuneError(f"--objective {o} is not a metric: use one of {', '.join(sorted(known))}")
     options = dict(options)
+    # a fallen robot stops stepping: its cell-steps are saved for trials
+    options.setdefault("stop_fallen", True)
     if int(options.get("replicates", 1)) > 1:
         options.setdefault("seed", seed)
     inputs = _inputs(dims, objectives, maximize, batch, sampler, seed, aggregate, options)
@@ -393,7 +395,8 @@ def tune(
                 v, st = _value(res, i, o, aggregate, maximize)
                 vals.append(v)
                 statuses.append(st)
-            steps = _steps_per_cell(options, t.params, model_dt)
+            ran = res.cell_steps[i]
+            steps = int(ran) if ran is not None else _steps_per_cell(options, t.params, model_dt)
             spent += steps
             t.set_user_attr("cell_steps", steps)
             t.set_user_attr("status", statuses[0] if len(set(statuses)) == 1 else ",".join(statuses))

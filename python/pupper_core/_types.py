@@ -170,6 +170,9 @@ class SweepOptions(SimOptions, total=False):
     sine: Sequence[float] | None
     trace: bool
     trace_every: int
+    stop_fallen: bool
+    """Stop stepping a robot once it has fallen or diverged; its row keeps
+    its status and the metrics up to the stop (`pupper sweep --stop-fallen`)."""
     replicates: int
     """Runs of every cell, each on a robot drawn by `randomize`."""
     seed: int

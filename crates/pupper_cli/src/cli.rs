@@ -844,6 +844,13 @@ struct SweepArgs {
     /// Write plots (base-z curves, heatmaps or bars) into DIR/plots.
     #[arg(long)]
     plot: bool,
+    /// Stop stepping a robot once it has fallen (base below 30 % of its stance height or
+    /// tilted past 60 deg) or diverged, within one batch call (0.5 s at most in servo mode, at
+    /// once in torque mode): its row keeps its status (fell) and the metrics up to the stop;
+    /// every other row is unchanged. Saves the cell-steps of robots on the floor. (A slow
+    /// collapse is judged on the last second, so it runs to the end.)
+    #[arg(long)]
+    stop_fallen: bool,
     /// Render the effects GIF and final-frame PNG of the cells (up to 6) into DIR/plots.
     #[arg(long)]
     render: bool,
@@ -892,6 +899,7 @@ impl SweepArgs {
             // plots draw the base-z curves from the traces
             trace: self.trace || self.plot,
             trace_every: self.trace_every,
+            stop_fallen: self.stop_fallen,
             threads: self.threads,
             chunk_cells: self.chunk_cells,
             max_cells: self.max_cells,

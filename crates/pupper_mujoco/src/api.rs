@@ -459,6 +459,9 @@ pub struct SweepOutcome {
     /// Every table beside summary.csv (replicates.csv; response.csv and
     /// bode.csv): file name, header, rows in cell order.
     pub details: Vec<(String, Vec<String>, Vec<Vec<String>>)>,
+    /// Cell-steps each row's cell took, in row order (None for a row a
+    /// resume kept from before).
+    pub cell_steps: Vec<Option<u64>>,
     pub out: Option<PathBuf>,
     pub cells_total: usize,
     /// Cells this call ran (a resume skips finished ones).
@@ -474,6 +477,8 @@ pub struct SweepOutcome {
 struct WriterHooks<'a> {
     ui: &'a mut dyn Hooks,
     writer: &'a mut RunWriter,
+    /// Cell-steps each cell run now took, by cell index.
+    steps: std::collections::BTreeMap<usize, u64>,
 }
 
 impl Hooks for WriterHooks<'_> {
@@ -485,6 +490,9 @@ impl Hooks for WriterHooks<'_> {
     }
     fn chunk_done(&mut self, results: &[CellResult]) -> Result<()> {
         self.writer.add(results)?;
+        for r in results {
+            self.steps.insert(r.cell.index, r.steps);
+        }
         self.ui.chunk_done(results)
     }
 }
@@ -619,12 +627,13 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
         ui.start(todo.len(), total);
         writer.create()?;
         let log = MujocoLog::watch();
-        let result = {
+        let (result, steps) = {
             let mut hooks = WriterHooks {
                 ui: ui.hooks(),
                 writer: &mut writer,
+                steps: Default::default(),
             };
-            match (&physics, &mut cluster) {
+            let r = match (&physics, &mut cluster) {
                 (Some(physics), _) => {
                     runner::run_cells(physics.as_ref(), cfg, &todo, *options, &mut hooks).map(drop)
                 }
@@ -639,7 +648,8 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                 (None, None) => Err(Error::Internal(
                     "a sweep with neither physics nor cluster".into(),
                 )),
-            }
+            };
+            (r, hooks.steps)
         };
         // disconnects from Ray (the tasks of a stop are cancelled already)
         drop(cluster);
@@ -663,6 +673,10 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             replicate_header: writer.replicate_header().to_vec(),
             replicate_rows: writer.replicate_rows(),
             details: writer.detail_tables(),
+            cell_steps: writer
+                .rows()
+                .map(|r| r[0].parse::<usize>().ok().and_then(|i| steps.get(&i).copied()))
+                .collect(),
             out: writer.dir().map(|p| p.to_path_buf()),
             cells_total: writer.manifest.cells_total,
             cells_run: todo.len(),

@@ -656,6 +656,7 @@ fn run_spec(
             wall_seconds: outcome.wall_seconds,
             config: &req.sweep.config,
             tables: outcome.details,
+            cell_steps: outcome.cell_steps,
         },
     )
 }
@@ -760,6 +761,7 @@ fn merge(
 #[pyfunction]
 fn load_run(py: Python<'_>, run_dir: PathBuf) -> PyResult<result::SweepResult> {
     let run = pupper_core::results::tables::read_run(&run_dir).map_err(to_py)?;
+    let cell_steps = vec![None; run.rows.len()];
     result::SweepResult::new(
         py,
         result::Parts {
@@ -770,6 +772,7 @@ fn load_run(py: Python<'_>, run_dir: PathBuf) -> PyResult<result::SweepResult> {
             complete: run.manifest.complete,
             wall_seconds: f64::NAN,
             config: &run.manifest.config,
+            cell_steps,
             tables: run.details,
         },
     )

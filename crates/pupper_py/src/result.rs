@@ -70,6 +70,10 @@ pub struct SweepResult {
     tables: Py<PyDict>,
     /// The tables as text, for pickling: file name, header, rows.
     detail_text: Vec<(String, Vec<String>, Vec<Vec<String>>)>,
+    /// Cell-steps each row's cell took when it ran in this call (None for
+    /// a row read back or kept by a resume).
+    #[pyo3(get)]
+    cell_steps: Vec<Option<u64>>,
 }
 
 /// What a result is made from.
@@ -83,6 +87,8 @@ pub struct Parts<'a> {
     pub config: &'a pupper_core::plan::config::SweepConfig,
     /// Every table beside summary.csv: file name, header, rows.
     pub tables: Vec<(String, Vec<String>, Vec<Vec<String>>)>,
+    /// Cell-steps per row, when the cells ran in this call.
+    pub cell_steps: Vec<Option<u64>>,
 }
 
 fn number(text: &str) -> f64 {
@@ -143,6 +149,7 @@ impl SweepResult {
                         wall_seconds: p.wall_seconds,
                         config: p.config,
                         tables: Vec::new(),
+                        cell_steps: Vec::new(),
                     },
                 )?,
             )?;
@@ -156,6 +163,7 @@ impl SweepResult {
             replicates,
             tables: tables.unbind(),
             detail_text: p.tables,
+            cell_steps: p.cell_steps,
             header: p.header,
             rows: p.rows,
             columns: columns.unbind(),
@@ -198,6 +206,7 @@ impl SweepResult {
             .extract()?;
         d.set_item("config", text)?;
         d.set_item("tables", self.detail_text.clone())?;
+        d.set_item("cell_steps", self.cell_steps.clone())?;
         Ok(d)
     }
 
@@ -530,6 +539,7 @@ pub fn _result_from_state(py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult
             ))
         })?;
     let tables: Vec<(String, Vec<String>, Vec<Vec<String>>)> = get("tables")?.extract()?;
+    let cell_steps: Vec<Option<u64>> = get("cell_steps")?.extract()?;
     SweepResult::new(
         py,
         Parts {
@@ -541,6 +551,7 @@ pub fn _result_from_state(py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult
             wall_seconds: get("wall_seconds")?.extract()?,
             config: &config,
             tables,
+            cell_steps,
         },
     )
 }

@@ -129,6 +129,12 @@ pub struct Schedule {
     /// convention's 2 %).
     #[serde(default = "settle_fraction")]
     pub settle_fraction: f64,
+    /// Stop stepping a robot once it has fallen (base below the fall line
+    /// or tilted past the fall tilt) or diverged: its row keeps its status
+    /// and the metrics up to the stop. Off in a sweep unless asked (left
+    /// out of its manifest then), on in a search.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub stop_fallen: bool,
 }
 
 fn fall_fraction() -> f64 {
@@ -170,6 +176,7 @@ impl Default for Schedule {
             fall_tilt_deg: 60.0,
             landing: LANDING,
             settle_fraction: SETTLE_FRACTION,
+            stop_fallen: false,
         }
     }
 }

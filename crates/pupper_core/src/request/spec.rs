@@ -118,6 +118,9 @@ pub struct SweepSpec {
     /// Run the cells as tasks on this Ray cluster (`auto`, `ray://HOST:PORT`
     /// or `HOST:PORT`); None runs them here.
     pub ray: Option<String>,
+    /// Stop stepping a robot once it has fallen (see
+    /// [`crate::plan::schedule::Schedule::stop_fallen`]).
+    pub stop_fallen: bool,
     /// The response experiment (`pupper response`); None: a sweep.
     #[serde(skip)]
     pub response: Option<Excitation>,
@@ -157,6 +160,7 @@ impl Default for SweepSpec {
             resume: false,
             shard: None,
             ray: None,
+            stop_fallen: false,
             response: None,
         }
     }
@@ -258,6 +262,7 @@ impl SweepSpec {
                 axis: [0.0, 0.0, 1.0],
             }),
             trace_every: if self.trace { self.trace_every } else { 0 },
+            stop_fallen: self.stop_fallen,
             ..Schedule::default()
         };
         let config = SweepConfig {

@@ -896,6 +896,7 @@ mod tests {
             trace: vec![(0.002, 0.25)],
             frames: None,
             joints: Vec::new(),
+            steps: 0,
             replicates: Vec::new(),
         }
     }

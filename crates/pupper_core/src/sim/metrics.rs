@@ -264,6 +264,12 @@ impl Recorder {
         }
     }
 
+    /// True once the robot has fallen (below the fall line or past the
+    /// fall tilt at some moment).
+    pub fn fell(&self) -> bool {
+        self.status == Status::Fell
+    }
+
     /// Marks the cell diverged at post-step time `t`.
     pub fn diverge(&mut self, t: f64) {
         self.status = Status::Diverged;

@@ -82,6 +82,9 @@ pub struct CellResult {
     /// in a sweep.
     #[serde(default)]
     pub joints: Vec<JointResult>,
+    /// Steps its simulations took in all: the cell-steps it cost.
+    #[serde(default)]
+    pub steps: u64,
 }
 
 /// Callbacks from a running sweep.
@@ -229,6 +232,9 @@ struct ChunkState<'a> {
     targets: &'a [Vec<f64>],
     probes: Vec<Probe>,
     frames: Vec<Option<FrameRecorder>>,
+    /// Steps each simulation took (fewer than the schedule's when it
+    /// diverged or, with `stop_fallen`, fell).
+    steps: Vec<u64>,
 }
 
 impl ChunkState<'_> {
@@ -246,6 +252,7 @@ impl ChunkState<'_> {
         nsat: usize,
     ) {
         let layout = self.layout;
+        self.steps[sim] += 1;
         match &mut self.probes[sim] {
             Probe::Stand(r) => {
                 let (Some(zi), Some(qi)) = (layout.base.z(), layout.base.quat()) else {
@@ -268,6 +275,11 @@ impl ChunkState<'_> {
         if let Some(f) = &mut self.frames[sim] {
             f.offer(t, qpos, pushing);
         }
+    }
+
+    /// True when simulation `sim` has fallen and may stop stepping.
+    fn fallen(&self, sim: usize) -> bool {
+        matches!(&self.probes[sim], Probe::Stand(r) if r.fell())
     }
 
     fn diverge(&mut self, sim: usize, t: f64) {
@@ -554,6 +566,7 @@ fn run_chunk(
         layout: &layout,
         targets: &targets,
         probes,
+        steps: vec![0; n],
         frames: match opts.frame_rate {
             Some(fps) => {
                 let count = frame_count(schedule.duration, fps)?;
@@ -719,7 +732,12 @@ fn step_lane(
             dead.push(sim);
         }
         alive.retain(|s| !dead.contains(s));
-        hooks.progress((nstep * (alive.len() + dead.len())) as u64);
+        let stepped = alive.len() + dead.len();
+        if st.cfg.schedule.stop_fallen {
+            // a robot on the floor has nothing more to say: it stops here
+            alive.retain(|&s| !state.fallen(s));
+        }
+        hooks.progress((nstep * stepped) as u64);
         t_before = t;
         k = end;
         *since_check += nstep * n;
@@ -828,12 +846,13 @@ fn finish_chunk(
 ) -> Result<Vec<CellResult>> {
     let replicated = !cfg.replicates.is_plain();
     let mut out: Vec<CellResult> = Vec::with_capacity(cells.len());
-    for (((sim, probe), f), setup) in plan
+    for ((((sim, probe), f), setup), steps) in plan
         .sims
         .into_iter()
         .zip(state.probes)
         .zip(state.frames)
         .zip(&plan.setups)
+        .zip(state.steps)
     {
         if out.len() == sim.cell {
             out.push(CellResult {
@@ -843,9 +862,11 @@ fn finish_chunk(
                 trace: Vec::new(),
                 frames: None,
                 joints: Vec::new(),
+                steps: 0,
             });
         }
         let cell = &mut out[sim.cell];
+        cell.steps += steps;
         match probe {
             Probe::Stand(r) => {
                 let (metrics, trace) = (*r).finish();
