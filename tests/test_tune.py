@@ -176,3 +176,15 @@ def test_early_stop_spends_less_and_changes_no_standing_cell(run, tmp_path):
     run(*args, "-o", tmp_path / "cli", check=0)
     _, rows = read_csv(tmp_path / "cli" / "summary.csv")
     assert [list(r.values()) for r in rows] == cut.rows
+
+
+def test_the_plots_show_the_search(run, tmp_path):
+    run(*_args(tmp_path / "p"), "--plot", check=0)
+    names = sorted(p.name for p in (tmp_path / "p" / "plots").iterdir())
+    assert names == ["tune_progress.png", "tune_trials.png"]
+    progress = T.progress_figure(tmp_path / "p").axes[0]
+    best = [line for line in progress.lines if line.get_label() == "best so far"][0]
+    ys = best.get_ydata()
+    assert all(b <= a for a, b in zip(ys, ys[1:]))  # never worse as the search goes on
+    _, rows = read_csv(tmp_path / "p" / "trials.csv")
+    assert ys[-1] == pytest.approx(min(float(r["tracking_rms"]) for r in rows))

@@ -477,6 +477,7 @@ def _write(out: Path, study: Any, done: Sequence[Any], dims: Sequence[Dimension]
 def _cli(args_json: str) -> list[str]:
     """`pupper tune`: the CLI's parsed flags as JSON; prints the best trial(s)."""
     a = json.loads(args_json)
+    plot = bool(a.pop("plot", False))
     if a.get("resume") and not a.get("space"):
         # `--resume DIR` alone: the study's own inputs
         path = Path(a["out"]) / "manifest.json"
@@ -496,4 +497,97 @@ def _cli(args_json: str) -> list[str]:
         values = "  ".join(f"{o} {v:.6g}" for o, v in zip(b["objectives"], b["values"]))
         print(f"best (generation {b['generation']}, slot {b['slot']}): {params}  ->  {values}")
     print(f"{len(res.trials)} trials, {res.cell_steps} cell-steps")
-    return [str(res.out / "trials.csv")] if res.out else []
+    wrote = [str(res.out / "trials.csv")] if res.out else []
+    if plot and res.out:
+        wrote += [str(p) for p in write_plots(res.out)]
+    return wrote
+
+
+def _study_table(out: Path) -> tuple[dict[str, Any], list[dict[str, str]]]:
+    manifest = json.loads((out / "manifest.json").read_text())
+    with (out / "trials.csv").open(newline="") as f:
+        return manifest["inputs"], list(csv.DictReader(f))
+
+
+def progress_figure(out: str | os.PathLike[str]) -> Any:
+    """The best objective so far against the cell-steps spent, each trial a
+    dot (fallen ones as red crosses at the top); a matplotlib Figure."""
+    import numpy as np
+
+    from pupper_core import plots
+
+    inputs, rows = _study_table(Path(out))
+    objective, maximize = inputs["objectives"][0], bool(inputs["maximize"])
+    values = np.array([float(r[objective]) for r in rows])
+    bad = values <= -PENALTY if maximize else values >= PENALTY
+    spent = np.cumsum([int(r["cell_steps"]) for r in rows])
+    good = np.where(bad, np.nan, values)
+    worst = -np.inf if maximize else np.inf
+    best = (np.fmax if maximize else np.fmin).accumulate(np.where(np.isnan(good), worst, good))
+    with plots._style():
+        fig = plots._new_figure((7.5, 4.4))
+        ax = fig.subplots()
+        ax.plot(spent[~bad], values[~bad], "o", ms=4, alpha=0.5, color="#4e79a7", label="a trial")
+        if bad.any():
+            top = float(np.nanmax(good)) if np.isfinite(good).any() else 1.0
+            ax.plot(spent[bad], np.full(int(bad.sum()), top), "x", color="red", ms=6, label="fell / no value")
+        ax.step(spent, best, where="post", color="black", lw=1.6, label="best so far")
+        if np.all(values[~bad] > 0):
+            ax.set_yscale("log")
+        ax.set_xlabel("cell-steps spent")
+        ax.set_ylabel(plots.label_of(objective))
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize=9)
+        fig.suptitle(f"{inputs['sampler']} search, batch {inputs['batch']}: {len(rows)} trials", fontsize=12)
+        return fig
+
+
+def trials_figure(out: str | os.PathLike[str]) -> Any:
+    """The trials over the two searched axes, coloured by the objective, the
+    best starred; None unless exactly two numeric axes were searched."""
+    import numpy as np
+
+    from pupper_core import plots
+
+    inputs, rows = _study_table(Path(out))
+    dims = parse_space(inputs["space"])
+    if len(dims) != 2 or any(d.choices for d in dims):
+        return None
+    objective, maximize = inputs["objectives"][0], bool(inputs["maximize"])
+    values = np.array([float(r[objective]) for r in rows])
+    bad = values <= -PENALTY if maximize else values >= PENALTY
+    x, y = dims
+    xs = np.array([float(r[x.axis]) for r in rows])
+    ys = np.array([float(r[y.axis]) for r in rows])
+    with plots._style():
+        fig = plots._new_figure((6.5, 5.0))
+        ax = fig.subplots()
+        sc = ax.scatter(xs[~bad], ys[~bad], c=values[~bad], cmap="viridis" if maximize else "viridis_r", s=28,
+                        norm="log" if np.all(values[~bad] > 0) else None)
+        if bad.any():
+            ax.plot(xs[bad], ys[bad], "x", color="red", ms=6, label="fell / no value")
+        good = np.where(bad, np.nan, values)
+        k = int(np.nanargmax(good) if maximize else np.nanargmin(good))
+        ax.plot([xs[k]], [ys[k]], "*", color="black", ms=16, mfc="none", mew=1.5, label="best")
+        ax.set_xscale("log" if x.log else "linear")
+        ax.set_yscale("log" if y.log else "linear")
+        ax.set_xlabel(plots.label_of(x.axis))
+        ax.set_ylabel(plots.label_of(y.axis))
+        fig.colorbar(sc, ax=ax).set_label(plots.label_of(objective))
+        ax.legend(loc="best", fontsize=9)
+        fig.suptitle("The trials over the searched plane", fontsize=12)
+        return fig
+
+
+def write_plots(out: str | os.PathLike[str]) -> list[Path]:
+    """A study's figures into ``<out>/plots/``: ``tune_progress.png`` and,
+    for two searched axes, ``tune_trials.png``."""
+    from pupper_core import plots
+
+    d = Path(out)
+    (d / "plots").mkdir(exist_ok=True)
+    written = [plots._save(progress_figure(d), d / "plots" / "tune_progress.png")]
+    fig = trials_figure(d)
+    if fig is not None:
+        written.append(plots._save(fig, d / "plots" / "tune_trials.png"))
+    return written

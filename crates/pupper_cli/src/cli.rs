@@ -363,6 +363,10 @@ struct TuneArgs {
     /// Batch threads; 0 uses all cores. Never changes the numbers.
     #[arg(long, short = 'j', default_value_t = 0, value_name = "N")]
     threads: usize,
+    /// Write DIR/plots/tune_progress.png (best objective against cell-steps spent) and, for
+    /// two searched axes, tune_trials.png (the trials over that plane).
+    #[arg(long)]
+    plot: bool,
     /// No line per generation.
     #[arg(long, short = 'q')]
     quiet: bool,
@@ -431,6 +435,7 @@ impl TuneArgs {
             "resume": self.resume.is_some(),
             "force": self.force,
             "progress": !self.quiet,
+            "plot": self.plot,
         });
         if let (Some(a), Some(o)) = (args.as_object_mut(), options.as_object()) {
             for (k, v) in o {
