@@ -188,3 +188,19 @@ def test_the_plots_show_the_search(run, tmp_path):
     assert all(b <= a for a, b in zip(ys, ys[1:]))  # never worse as the search goes on
     _, rows = read_csv(tmp_path / "p" / "trials.csv")
     assert ys[-1] == pytest.approx(min(float(r["tracking_rms"]) for r in rows))
+
+
+def test_lab_tune_answers_the_labs_question_per_body(run, tmp_path):
+    d = tmp_path / "lab"
+    p = run("lab", "--tune", "--variants", "original,heavy", "--trials", "8", "--batch", "8", "--seconds", "3",
+            "-o", d, "-q", check=0)
+    assert [line.split()[0] for line in p.stdout.splitlines()] == ["original", "heavy"]
+    _, best = read_csv(d / "best.csv")
+    assert [r["variant"] for r in best] == ["original", "heavy"]
+    for r in best:
+        manifest = json.loads((d / r["variant"] / "manifest.json").read_text())
+        assert manifest["inputs"]["options"]["variant"] == r["variant"]
+        assert manifest["inputs"]["options"]["mode"] == "torque"
+        _, trials = read_csv(d / r["variant"] / "trials.csv")
+        ok = [float(t["last_1s_std_mm"]) for t in trials if t["status"] == "ok"]
+        assert float(r["last_1s_std_mm"]) == min(ok)

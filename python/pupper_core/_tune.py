@@ -172,7 +172,9 @@ def _value(res: Any, i: int, objective: str, aggregate: str, maximize: bool) -> 
             v = float(table[f"{aggregate}:{objective}"][i])
         return (v, "ok") if math.isfinite(v) else (worst, "no value")
     status = str(table["status"][i])
-    if status not in ("ok", "saturated"):
+    # the sweep's ranking rule: a robot that fell, diverged or chattered at
+    # its torque limit (saturated) is never the answer
+    if status != "ok":
         return worst, status
     v = float(table[objective][i])
     return (v, status) if math.isfinite(v) else (worst, "no value")
@@ -242,8 +244,9 @@ def tune(
     smaller). ``space``: ``["kp=5:200:log", "kd=0.05:10:log"]``
     (``:int`` for integers, ``A|B`` for choices). ``objective``: a
     summary.csv column, or several (a Pareto front). A trial whose robot
-    fell or diverged is told a penalty (1e6, the worst) and keeps its
-    status. With replicates the value is ``aggregate`` over them: mean,
+    fell, diverged or chattered at its torque limit (saturated: what the
+    sweep's ranking never picks) is told a penalty (1e6, the worst) and
+    keeps its status. With replicates the value is ``aggregate`` over them: mean,
     p95 (the worse side), worst, or fail-rate. Other keywords are
     `pupper_core.sweep`'s (model, mode, seconds, push, replicates, ...).
     """
@@ -500,6 +503,9 @@ def _cli(args_json: str) -> list[str]:
     wrote = [str(res.out / "trials.csv")] if res.out else []
     if plot and res.out:
         wrote += [str(p) for p in write_plots(res.out)]
+    # the embedding pupper binary exits without finalizing Python: a pipe's
+    # buffered lines must leave now
+    sys.stdout.flush()
     return wrote
 
 
@@ -591,3 +597,60 @@ def write_plots(out: str | os.PathLike[str]) -> list[Path]:
     if fig is not None:
         written.append(plots._save(fig, d / "plots" / "tune_trials.png"))
     return written
+
+
+def lab_tune(
+    variants: Sequence[str] = VARIANTS,
+    *,
+    space: Sequence[str] = ("kp=10:120:log", "kd=0.5:5:log"),
+    objective: str = "last_1s_std_mm",
+    trials: int = 64,
+    batch: int = 16,
+    sampler: str = "tpe",
+    seed: int = 0,
+    out: str | os.PathLike[str] | None = None,
+    progress: bool | Callable[[str], None] = True,
+    seconds: float = 6.0,
+    sine: Sequence[float] = (2.0, 1.2),
+    **options: Any,
+) -> dict[str, TuneResult]:
+    """`pupper lab --tune`: the lab's question (torque mode, each body from
+    its own stand pose under the vertical sine, no push) answered per body
+    by a search instead of the 4x4 grid: a study per body in
+    ``<out>/<body>/``, and ``<out>/best.csv`` with each body's best gains."""
+    results: dict[str, TuneResult] = {}
+    root = Path(out) if out is not None else None
+    for body in variants:
+        results[body] = tune(list(space), objective=objective, trials=trials, batch=batch, sampler=sampler,
+                             seed=seed, out=None if root is None else root / body, progress=progress,
+                             variant=body, mode="torque", pose="auto", push=False, seconds=seconds,
+                             sine=list(sine), **options)
+    if root is not None:
+        import io
+
+        axes = [d.axis for d in parse_space(list(space))]
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(["variant", *axes, objective, "trials", "cell_steps"])
+        for body, r in results.items():
+            b = r.best[0] if r.best else {"params": {}, "values": [math.nan]}
+            w.writerow([body, *[repr(float(b["params"].get(a, math.nan))) for a in axes],
+                        repr(float(b["values"][0])), len(r.trials), r.cell_steps])
+        _atomic_write(root / "best.csv", buf.getvalue())
+    return results
+
+
+def _lab_cli(args_json: str) -> list[str]:
+    """`pupper lab --tune`: the CLI's parsed flags as JSON; a line per body."""
+    a = json.loads(args_json)
+    res = lab_tune(a.pop("variants"), **a)
+    for body, r in res.items():
+        b = r.best[0] if r.best else None
+        if b is None:
+            print(f"{body:<10} no trial stood")
+            continue
+        params = "  ".join(f"{k} {v:.4g}" for k, v in b["params"].items())
+        print(f"{body:<10} {params}  ->  {r.objectives[0]} {b['values'][0]:.6g}  "
+              f"({len(r.trials)} trials, {r.cell_steps} cell-steps)")
+    sys.stdout.flush()  # see _cli
+    return [str(Path(a["out"]) / "best.csv")] if a.get("out") else []

@@ -753,6 +753,17 @@ struct LabArgs {
     /// No progress bar.
     #[arg(long, short = 'q')]
     quiet: bool,
+    /// Answer the lab's question per body by a search (pupper tune; the tune extra) over
+    /// kp 10-120 x kd 0.5-5 (log) instead of the 4x4 grid: a study per body in DIR/<body>/,
+    /// each body's best gains in DIR/best.csv.
+    #[arg(long, conflicts_with_all = ["resume", "grid"])]
+    tune: bool,
+    /// With --tune: finished trials per body.
+    #[arg(long, default_value_t = 64, value_name = "N", requires = "tune")]
+    trials: u64,
+    /// With --tune: trials per generation (one batch).
+    #[arg(long, default_value_t = 16, value_name = "B", requires = "tune")]
+    batch: u64,
     // last: their help headings would hold every option after them
     #[command(flatten)]
     backend: BackendArgs,
@@ -1276,6 +1287,42 @@ fn response(a: ResponseArgs, stop: &'static AtomicBool) -> Result<u8> {
 
 fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
     let sine = spec::parse_sine(&a.sine)?;
+    if a.tune {
+        let out = a.out.clone().unwrap_or_else(|| {
+            PathBuf::from("runs").join(format!(
+                "{}-lab-tune",
+                chrono::Local::now().format("%Y%m%d-%H%M%S")
+            ))
+        });
+        let mut args = serde_json::json!({
+            "variants": a.variants,
+            "objective": a.rank.clone().unwrap_or_else(|| "last_1s_std_mm".into()),
+            "trials": a.trials,
+            "batch": a.batch,
+            "seed": a.population.seed,
+            "out": out,
+            "force": a.force,
+            "progress": !a.quiet,
+            "seconds": a.seconds,
+            "sine": sine,
+            "model": a.model.model,
+            "threads": a.threads,
+            "replicates": a.population.replicates,
+            "randomize": a.population.randomize,
+        });
+        if let (Some(d), Some(m)) = (a.depth, args.as_object_mut()) {
+            m.insert("depth".into(), serde_json::json!(d));
+        }
+        for p in bridge::call_helper(
+            "pupper_core._tune",
+            "_lab_cli",
+            &[args.to_string()],
+            &serde_json::json!({}),
+        )? {
+            eprintln!("wrote {p}");
+        }
+        return Ok(0);
+    }
     let spec = SweepSpec {
         model: a.model.model.clone(),
         threads: a.threads,
