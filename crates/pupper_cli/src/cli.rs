@@ -28,6 +28,9 @@ const AFTER: &str = "Examples:
   pupper sweep --grid kp=10,30,60,120 --grid kd=0.5,1,2,5
   pupper sweep --preset chapter-4.6 --plot      the chapter's four servo cases, with plots
   pupper sweep --resume runs/20261122-120000-kp-kd   finish an interrupted sweep
+  pupper response --grid kp=5,20,60 --grid kd=0.1,0.5   how each joint follows a step
+  pupper gains --bandwidth 8 --damping 0.7      gains per joint group from the reflected inertia
+  pupper tune --space kp=5:200:log --space kd=0.05:10:log --trials 64   search instead of a grid
 
 Exit status: 0 success, 2 bad input (one line on stderr says what and how to fix it),
 130 interrupted (finished cells are kept), 1 internal error.";
