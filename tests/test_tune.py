@@ -204,3 +204,47 @@ def test_lab_tune_answers_the_labs_question_per_body(run, tmp_path):
         _, trials = read_csv(d / r["variant"] / "trials.csv")
         ok = [float(t["last_1s_std_mm"]) for t in trials if t["status"] == "ok"]
         assert float(r["last_1s_std_mm"]) == min(ok)
+
+
+HALVING = dict(objective="tracking_rms", trials=16, batch=8, seed=2, progress=False, replicates=4,
+               randomize=["motor_gain=±10%"], aggregate="p95", **CHEAP)
+
+
+def test_halving_spends_less_and_prunes_the_rest(tmp_path):
+    """Successive halving over replicates (eta 4): each generation runs all
+    8 trials on 1 robot and the best 2 on all 4; the others are pruned."""
+    full = T.tune(["kp=2:60:log"], **HALVING)
+    half = T.tune(["kp=2:60:log"], halving=4, out=tmp_path / "h", **HALVING)
+    assert half.cell_steps < full.cell_steps
+    _, rows = read_csv(tmp_path / "h" / "trials.csv")
+    assert len(rows) == 16
+    for g in ("0", "1"):
+        gen = [r for r in rows if r["generation"] == g]
+        assert sorted(r["rung"] for r in gen) == ["0"] * 6 + ["1"] * 2
+        assert all(r["status"] == "pruned" and int(r["cell_steps"]) == 750 for r in gen if r["rung"] == "0")
+        # a promoted trial ran its first robot again with the rest
+        assert all(int(r["cell_steps"]) == 750 + 4 * 750 for r in gen if r["rung"] == "1")
+    best = json.loads((tmp_path / "h" / "best.json").read_text())[0]
+    kept = {(r["generation"], r["slot"]) for r in rows if r["rung"] == "1"}
+    assert (str(best["generation"]), str(best["slot"])) in kept
+
+
+def test_halving_resumes_to_the_same_study(tmp_path, monkeypatch):
+    import optuna
+
+    T.tune(["kp=2:60:log"], halving=4, out=tmp_path / "whole", **HALVING)
+    real = optuna.study.Study.tell
+    calls = {"n": 0}
+
+    def dying(self, *a, **kw):
+        calls["n"] += 1
+        if calls["n"] > 11:  # in the second generation's tells
+            raise KeyboardInterrupt("killed")
+        return real(self, *a, **kw)
+
+    monkeypatch.setattr(optuna.study.Study, "tell", dying)
+    with pytest.raises(KeyboardInterrupt):
+        T.tune(["kp=2:60:log"], halving=4, out=tmp_path / "cut", **HALVING)
+    monkeypatch.setattr(optuna.study.Study, "tell", real)
+    T.tune(["kp=2:60:log"], halving=4, out=tmp_path / "cut", resume=True, **HALVING)
+    assert (tmp_path / "cut" / "trials.csv").read_bytes() == (tmp_path / "whole" / "trials.csv").read_bytes()

@@ -230,6 +230,7 @@ def tune(
     sampler: str = "tpe",
     seed: int = 0,
     aggregate: str = "mean",
+    halving: int = 0,
     out: str | os.PathLike[str] | None = None,
     resume: bool = False,
     force: bool = False,
@@ -247,7 +248,13 @@ def tune(
     fell, diverged or chattered at its torque limit (saturated: what the
     sweep's ranking never picks) is told a penalty (1e6, the worst) and
     keeps its status. With replicates the value is ``aggregate`` over them: mean,
-    p95 (the worse side), worst, or fail-rate. Other keywords are
+    p95 (the worse side), worst, or fail-rate. ``halving`` (an integer
+    eta >= 2, with replicates): successive halving over the replicates —
+    each generation runs every trial on replicates // eta robots first, and
+    only the best 1/eta of them (by that value) on all (a replicate is drawn
+    from its index, so the first rung's robots run again with the rest:
+    a generation costs 2/eta of its full cost); the others are told pruned
+    with their first value. Other keywords are
     `pupper_core.sweep`'s (model, mode, seconds, push, replicates, ...).
     """
     import pupper_core as pc
@@ -277,11 +284,21 @@ def tune(
         if o not in known:
             raise TuneError(f"--objective {o} is not a metric: use one of {', '.join(sorted(known))}")
     options = dict(options)
+    reps = int(options.get("replicates", 1))
+    if halving:
+        if halving < 2:
+            raise TuneError(f"--halving {halving}: give an eta of 2 or more (the share promoted is 1/eta)")
+        if reps < halving:
+            raise TuneError(f"--halving {halving} halves over the replicates: give --replicates {halving} or more")
+        if len(objectives) > 1:
+            raise TuneError("--halving takes one objective: drop the others, or --halving")
     # a fallen robot stops stepping: its cell-steps are saved for trials
     options.setdefault("stop_fallen", True)
     if int(options.get("replicates", 1)) > 1:
         options.setdefault("seed", seed)
     inputs = _inputs(dims, objectives, maximize, batch, sampler, seed, aggregate, options)
+    if halving:
+        inputs["halving"] = halving
     say: Callable[[str], None]
     if callable(progress):
         say = progress
@@ -328,15 +345,18 @@ def tune(
     # Otherwise the generation is asked afresh: its seeded sampler, seeing
     # the same finished trials, proposes the same parameters again.
     unfinished = [t for t in study.get_trials(deepcopy=False) if t.state == TS.RUNNING]
-    told = {t.user_attrs.get("generation") for t in study.get_trials(deepcopy=False, states=(TS.COMPLETE,))}
+    told = {t.user_attrs.get("generation")
+            for t in study.get_trials(deepcopy=False, states=(TS.COMPLETE, TS.PRUNED))}
     for t in sorted(unfinished, key=lambda t: t.user_attrs.get("slot", 0)):
         study.tell(t.number, state=TS.FAIL)
         g = t.user_attrs.get("generation")
         if g is not None and g in told:
-            study.enqueue_trial(t.params, user_attrs={"generation": g, "slot": t.user_attrs["slot"]})
+            # with its rung: the generation's promotion was decided before any tell
+            keep = {k: t.user_attrs[k] for k in ("generation", "slot", "rung") if k in t.user_attrs}
+            study.enqueue_trial(t.params, user_attrs=keep)
 
     def finished() -> list[Any]:
-        return sorted((t for t in study.get_trials(deepcopy=False) if t.state == TS.COMPLETE),
+        return sorted((t for t in study.get_trials(deepcopy=False) if t.state in (TS.COMPLETE, TS.PRUNED)),
                       key=lambda t: (t.user_attrs["generation"], t.user_attrs["slot"]))
 
     said: set[str] = set()
@@ -375,35 +395,70 @@ def tune(
                 t.set_user_attr("slot", slot)
             asked.append(t)
         asked.sort(key=lambda t: t.user_attrs["slot"])
-        cells = []
-        for t in asked:
-            cell: dict[str, float | str] = {"name": f"g{t.user_attrs['generation']}s{t.user_attrs['slot']}"}
-            for d in dims:
-                v = t.params[d.axis]
-                cell[d.axis] = float(VARIANTS.index(v)) if d.axis == "variant" else float(v)
-            cells.append(cell)
         import warnings
 
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            res = pc.sweep(cells, progress=False, **options)
-        for w in caught:  # each note once per study, not once per generation
-            text = str(w.message)
-            if text not in said:
-                said.add(text)
-                say(f"note: {text}")
-        for i, t in enumerate(asked):
-            vals, statuses = [], []
-            for o in objectives:
-                v, st = _value(res, i, o, aggregate, maximize)
-                vals.append(v)
-                statuses.append(st)
-            ran = res.cell_steps[i]
-            steps = int(ran) if ran is not None else _steps_per_cell(options, t.params, model_dt)
-            spent += steps
-            t.set_user_attr("cell_steps", steps)
-            t.set_user_attr("status", statuses[0] if len(set(statuses)) == 1 else ",".join(statuses))
-            study.tell(t, vals if len(vals) > 1 else vals[0])
+        def evaluate(group: list[Any], opts: Mapping[str, Any]) -> list[tuple[list[float], list[str], int]]:
+            """Runs trials as one batch of cells: their values, statuses, cell-steps."""
+            if not group:
+                return []
+            cells = []
+            for t in group:
+                cell: dict[str, float | str] = {"name": f"g{t.user_attrs['generation']}s{t.user_attrs['slot']}"}
+                for d in dims:
+                    v = t.params[d.axis]
+                    cell[d.axis] = float(VARIANTS.index(v)) if d.axis == "variant" else float(v)
+                cells.append(cell)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                res = pc.sweep(cells, progress=False, **opts)
+            for w in caught:  # each note once per study, not once per generation
+                text = str(w.message)
+                if text not in said:
+                    said.add(text)
+                    say(f"note: {text}")
+            out = []
+            for i, t in enumerate(group):
+                got = [_value(res, i, o, aggregate, maximize) for o in objectives]
+                ran = res.cell_steps[i]
+                steps = int(ran) if ran is not None else _steps_per_cell(opts, t.params, model_dt)
+                out.append(([v for v, _ in got], [st for _, st in got], steps))
+            return out
+
+        def status_of(statuses: list[str]) -> str:
+            return statuses[0] if len(set(statuses)) == 1 else ",".join(statuses)
+
+        if not halving:
+            for t, (vals, statuses, steps) in zip(asked, evaluate(asked, options)):
+                spent += steps
+                t.set_user_attr("cell_steps", steps)
+                t.set_user_attr("status", status_of(statuses))
+                study.tell(t, vals if len(vals) > 1 else vals[0])
+        else:
+            # rung 0: every trial on replicates // eta robots
+            r0 = max(1, reps // halving)
+            first = evaluate(asked, {**options, "replicates": r0})
+            if any("rung" not in t.user_attrs for t in asked):
+                sign = -1.0 if maximize else 1.0
+                order = sorted(range(len(asked)),
+                               key=lambda i: (sign * first[i][0][0], asked[i].user_attrs["slot"]))
+                up = set(order[:math.ceil(len(asked) / halving)])
+                for i, t in enumerate(asked):
+                    t.set_user_attr("rung", 1 if i in up else 0)
+            promoted = [t for t in asked if t.user_attrs["rung"] == 1]
+            second = dict(zip((t.number for t in promoted), evaluate(promoted, options)))
+            for t, (vals, statuses, steps) in zip(asked, first):
+                t.report(vals[0], step=r0)
+                if t.number in second:
+                    vals, statuses, more = second[t.number]
+                    steps += more
+                spent += steps
+                t.set_user_attr("cell_steps", steps)
+                if t.number in second:
+                    t.set_user_attr("status", status_of(statuses))
+                    study.tell(t, vals[0])
+                else:
+                    t.set_user_attr("status", "pruned")
+                    study.tell(t, state=TS.PRUNED)
         generation += 1
         done = finished()
         if out_dir is not None:
@@ -425,8 +480,10 @@ def _rows(done: Sequence[Any], dims: Sequence[Dimension], objectives: Sequence[s
     for k, t in enumerate(done):
         r: dict[str, Any] = {"trial": k, "generation": t.user_attrs["generation"], "slot": t.user_attrs["slot"]}
         r.update({d.axis: t.params[d.axis] for d in dims})
-        vals = t.values
+        # a pruned trial's value is its first rung's
+        vals = t.values if t.values is not None else [t.intermediate_values[max(t.intermediate_values)]]
         r.update({o: v for o, v in zip(objectives, vals)})
+        r["rung"] = t.user_attrs.get("rung", 0)
         r["status"] = t.user_attrs.get("status", "")
         r["cell_steps"] = t.user_attrs.get("cell_steps", 0)
         rows.append(r)
@@ -455,7 +512,7 @@ def _write(out: Path, study: Any, done: Sequence[Any], dims: Sequence[Dimension]
 
     rows = _rows(done, dims, objectives)
     buf = io.StringIO()
-    header = ["trial", "generation", "slot", *[d.axis for d in dims], *objectives, "status", "cell_steps"]
+    header = ["trial", "generation", "slot", *[d.axis for d in dims], *objectives, "status", "rung", "cell_steps"]
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header)
     for r in rows:
@@ -633,7 +690,7 @@ def lab_tune(
         w = csv.writer(buf, lineterminator="\n")
         w.writerow(["variant", *axes, objective, "trials", "cell_steps"])
         for body, r in results.items():
-            b = r.best[0] if r.best else {"params": {}, "values": [math.nan]}
+            b: dict[str, Any] = r.best[0] if r.best else {"params": {}, "values": [math.nan]}
             w.writerow([body, *[repr(float(b["params"].get(a, math.nan))) for a in axes],
                         repr(float(b["values"][0])), len(r.trials), r.cell_steps])
         _atomic_write(root / "best.csv", buf.getvalue())

@@ -349,6 +349,11 @@ struct TuneArgs {
     /// With replicates, the objective over them: mean, p95 (the worse side), worst, fail-rate.
     #[arg(long, default_value = "mean", value_name = "NAME")]
     aggregate: String,
+    /// Successive halving over the replicates (an eta of 2 or more, with --replicates): each
+    /// generation runs every trial on replicates/eta robots first and only its best 1/eta on
+    /// all of them; the others are told pruned with their first value.
+    #[arg(long, default_value_t = 0, value_name = "ETA")]
+    halving: u64,
     #[command(flatten)]
     sim: SimArgs,
     /// No push.
@@ -434,6 +439,7 @@ impl TuneArgs {
             "sampler": self.sampler,
             "seed": self.population.seed,
             "aggregate": self.aggregate,
+            "halving": self.halving,
             "out": out,
             "resume": self.resume.is_some(),
             "force": self.force,
