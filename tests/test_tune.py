@@ -248,3 +248,15 @@ def test_halving_resumes_to_the_same_study(tmp_path, monkeypatch):
     monkeypatch.setattr(optuna.study.Study, "tell", real)
     T.tune(["kp=2:60:log"], halving=4, out=tmp_path / "cut", resume=True, **HALVING)
     assert (tmp_path / "cut" / "trials.csv").read_bytes() == (tmp_path / "whole" / "trials.csv").read_bytes()
+
+
+def test_the_plots_put_a_grid_behind_the_search(run, tmp_path):
+    run("sweep", "--grid", "kp=2:60:4:log", "--grid", "kd=0.05:2:4:log", "--seconds", "1.5", "--no-push",
+        "-o", tmp_path / "grid", "-q", check=0)
+    run(*_args(tmp_path / "s"), "--plot", "--compare", tmp_path / "grid", check=0)
+    fig = T.progress_figure(tmp_path / "s", tmp_path / "grid")
+    labels = [line.get_label() for line in fig.axes[0].lines]
+    assert "grid's best so far (16 cells)" in labels
+    trials = T.trials_figure(tmp_path / "s", tmp_path / "grid")
+    mesh = [c for c in trials.axes[0].collections if c.__class__.__name__ == "QuadMesh"]
+    assert len(mesh) == 1 and mesh[0].get_array().size == 16

@@ -538,6 +538,7 @@ def _cli(args_json: str) -> list[str]:
     """`pupper tune`: the CLI's parsed flags as JSON; prints the best trial(s)."""
     a = json.loads(args_json)
     plot = bool(a.pop("plot", False))
+    compare = a.pop("compare", None)
     if a.get("resume") and not a.get("space"):
         # `--resume DIR` alone: the study's own inputs
         path = Path(a["out"]) / "manifest.json"
@@ -559,7 +560,7 @@ def _cli(args_json: str) -> list[str]:
     print(f"{len(res.trials)} trials, {res.cell_steps} cell-steps")
     wrote = [str(res.out / "trials.csv")] if res.out else []
     if plot and res.out:
-        wrote += [str(p) for p in write_plots(res.out)]
+        wrote += [str(p) for p in write_plots(res.out, compare)]
     # the embedding pupper binary exits without finalizing Python: a pipe's
     # buffered lines must leave now
     sys.stdout.flush()
@@ -572,9 +573,25 @@ def _study_table(out: Path) -> tuple[dict[str, Any], list[dict[str, str]]]:
         return manifest["inputs"], list(csv.DictReader(f))
 
 
-def progress_figure(out: str | os.PathLike[str]) -> Any:
+def _grid_table(grid: str | os.PathLike[str], objective: str, maximize: bool) -> tuple[list[dict[str, str]], Any]:
+    """A grid run's rows and their objective, ineligible cells (not ok)
+    as NaN: what a search is compared with."""
+    import numpy as np
+
+    with (Path(grid) / "summary.csv").open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    if not rows or objective not in rows[0]:
+        raise TuneError(f"--compare {grid}: its summary.csv has no column {objective}: give a sweep of the same question")
+    v = np.array([float(r[objective]) if r[objective] and r.get("status", "ok") == "ok" else np.nan for r in rows])
+    return rows, v
+
+
+def progress_figure(out: str | os.PathLike[str], grid: str | os.PathLike[str] | None = None) -> Any:
     """The best objective so far against the cell-steps spent, each trial a
-    dot (fallen ones as red crosses at the top); a matplotlib Figure."""
+    dot (those told the penalty — fallen, chattering — as red crosses at
+    the top); with ``grid`` (a sweep's
+    run directory of the same question) the grid's own best-so-far curve,
+    its cells taken in grid order. A matplotlib Figure."""
     import numpy as np
 
     from pupper_core import plots
@@ -593,8 +610,16 @@ def progress_figure(out: str | os.PathLike[str]) -> Any:
         ax.plot(spent[~bad], values[~bad], "o", ms=4, alpha=0.5, color="#4e79a7", label="a trial")
         if bad.any():
             top = float(np.nanmax(good)) if np.isfinite(good).any() else 1.0
-            ax.plot(spent[bad], np.full(int(bad.sum()), top), "x", color="red", ms=6, label="fell / no value")
+            ax.plot(spent[bad], np.full(int(bad.sum()), top), "x", color="red", ms=6, label="fell, chattered or no value")
         ax.step(spent, best, where="post", color="black", lw=1.6, label="best so far")
+        if grid is not None:
+            grows, gv = _grid_table(grid, objective, maximize)
+            per = json.loads((Path(grid) / "manifest.json").read_text())["config"]["schedule"]["duration"]
+            steps = round(float(per) / 0.002)
+            gbest = (np.fmax if maximize else np.fmin).accumulate(np.where(np.isnan(gv), worst, gv))
+            ax.step(steps * np.arange(1, len(gv) + 1), gbest, where="post", color="tab:orange", lw=1.4,
+                    label=f"grid's best so far ({len(gv)} cells)")
+            ax.set_xscale("log")
         if np.all(values[~bad] > 0):
             ax.set_yscale("log")
         ax.set_xlabel("cell-steps spent")
@@ -605,9 +630,10 @@ def progress_figure(out: str | os.PathLike[str]) -> Any:
         return fig
 
 
-def trials_figure(out: str | os.PathLike[str]) -> Any:
+def trials_figure(out: str | os.PathLike[str], grid: str | os.PathLike[str] | None = None) -> Any:
     """The trials over the two searched axes, coloured by the objective, the
-    best starred; None unless exactly two numeric axes were searched."""
+    best starred; with ``grid`` (a sweep over the same two axes) over that
+    grid's heatmap. None unless exactly two numeric axes were searched."""
     import numpy as np
 
     from pupper_core import plots
@@ -625,10 +651,26 @@ def trials_figure(out: str | os.PathLike[str]) -> Any:
     with plots._style():
         fig = plots._new_figure((6.5, 5.0))
         ax = fig.subplots()
-        sc = ax.scatter(xs[~bad], ys[~bad], c=values[~bad], cmap="viridis" if maximize else "viridis_r", s=28,
-                        norm="log" if np.all(values[~bad] > 0) else None)
+        from matplotlib.colors import LogNorm, Normalize
+
+        shown = values[~bad]
+        lo, hi = float(np.min(shown)), float(np.max(shown))
+        if grid is not None:
+            grows, gv = _grid_table(grid, objective, maximize)
+            gx = sorted({float(r[x.axis]) for r in grows})
+            gy = sorted({float(r[y.axis]) for r in grows})
+            z = np.full((len(gy), len(gx)), np.nan)
+            for r, v in zip(grows, gv):
+                z[gy.index(float(r[y.axis])), gx.index(float(r[x.axis]))] = v
+            lo, hi = min(lo, float(np.nanmin(gv))), max(hi, float(np.nanmax(gv)))
+        norm = LogNorm(lo, hi) if lo > 0 else Normalize(lo, hi)
+        cmap = "viridis" if maximize else "viridis_r"
+        if grid is not None:
+            ax.pcolormesh(gx, gy, z, cmap=cmap, norm=norm, shading="nearest", alpha=0.55)
+        sc = ax.scatter(xs[~bad], ys[~bad], c=shown, cmap=cmap, norm=norm, s=28, edgecolors="white",
+                        linewidths=0.5)
         if bad.any():
-            ax.plot(xs[bad], ys[bad], "x", color="red", ms=6, label="fell / no value")
+            ax.plot(xs[bad], ys[bad], "x", color="red", ms=6, label="fell, chattered or no value")
         good = np.where(bad, np.nan, values)
         k = int(np.nanargmax(good) if maximize else np.nanargmin(good))
         ax.plot([xs[k]], [ys[k]], "*", color="black", ms=16, mfc="none", mew=1.5, label="best")
@@ -642,15 +684,16 @@ def trials_figure(out: str | os.PathLike[str]) -> Any:
         return fig
 
 
-def write_plots(out: str | os.PathLike[str]) -> list[Path]:
+def write_plots(out: str | os.PathLike[str], grid: str | os.PathLike[str] | None = None) -> list[Path]:
     """A study's figures into ``<out>/plots/``: ``tune_progress.png`` and,
-    for two searched axes, ``tune_trials.png``."""
+    for two searched axes, ``tune_trials.png``; with ``grid`` (a sweep of
+    the same question) beside that grid's curve and over its heatmap."""
     from pupper_core import plots
 
     d = Path(out)
     (d / "plots").mkdir(exist_ok=True)
-    written = [plots._save(progress_figure(d), d / "plots" / "tune_progress.png")]
-    fig = trials_figure(d)
+    written = [plots._save(progress_figure(d, grid), d / "plots" / "tune_progress.png")]
+    fig = trials_figure(d, grid)
     if fig is not None:
         written.append(plots._save(fig, d / "plots" / "tune_trials.png"))
     return written

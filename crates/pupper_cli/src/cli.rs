@@ -375,6 +375,10 @@ struct TuneArgs {
     /// two searched axes, tune_trials.png (the trials over that plane).
     #[arg(long)]
     plot: bool,
+    /// With --plot: a sweep's run directory of the same question (e.g. a grid over the same
+    /// axes), drawn behind the search: its best-so-far curve and its heatmap.
+    #[arg(long, value_name = "DIR", requires = "plot")]
+    compare: Option<PathBuf>,
     /// No line per generation.
     #[arg(long, short = 'q')]
     quiet: bool,
@@ -445,6 +449,7 @@ impl TuneArgs {
             "force": self.force,
             "progress": !self.quiet,
             "plot": self.plot,
+            "compare": self.compare,
         });
         if let (Some(a), Some(o)) = (args.as_object_mut(), options.as_object()) {
             for (k, v) in o {
