@@ -492,8 +492,6 @@ struct Stepping<'a> {
     /// Targets that move on a schedule (the response): each call gets
     /// every step's ctrl.
     moving: bool,
-    /// Torque mode's PD in Rust (else the actuators' servos follow ctrl).
-    host_pd: bool,
     chunk_steps: usize,
 }
 
@@ -612,7 +610,6 @@ fn run_chunk(
         bounds,
         per_step: host_pd,
         moving,
-        host_pd,
         chunk_steps: opts.chunk_steps,
     };
     let mut since_check = 0usize;
@@ -751,9 +748,9 @@ fn step_lane(
     Ok(())
 }
 
-/// One controlled step of the simulations `alive` at time `t`: the PD in
-/// Rust (torque mode) or the servos' moving targets (servo mode) write
-/// ctrl from each state, then all step once and are sampled.
+/// One controlled step of the simulations `alive` at time `t`: torque
+/// mode's PD in Rust writes ctrl from each state (towards targets that may
+/// move), then all step once and are sampled.
 #[allow(clippy::too_many_arguments)]
 fn step_controlled(
     st: &Stepping<'_>,
@@ -787,23 +784,6 @@ fn step_controlled(
             let sc = &mut scratch[pos];
             sc.peak = 0.0;
             sc.nsat = 0;
-            if !st.host_pd {
-                // servo mode: ctrl is the position target; the force the
-                // servo makes from this state is MuJoCo's affine law,
-                // clamped at the force range
-                sc.forces.clear();
-                for (a, c) in ctrl.iter_mut().enumerate().take(nu) {
-                    *c = st.target(sim, a, t);
-                    let g = s.gain(a);
-                    let (q, v) = (qpos[layout.act_qpos[a]], qvel[layout.act_dof[a]]);
-                    let (f, _) = pd::torque(g * s.kp(a), g * s.kd(a), *c, q, v, lim[a]);
-                    sc.forces.push(f);
-                }
-                let (peak, nsat) = peak_and_saturated(&sc.forces, lim);
-                sc.peak = peak;
-                sc.nsat = nsat;
-                return;
-            }
             let sense = &mut sensing[sim];
             sense.remember(layout, qpos, qvel);
             sc.forces.clear();
