@@ -81,6 +81,8 @@ __all__ = [
     "lab",
     "response",
     "tune",
+    "excite",
+    "fit",
     "load_run",
     "merge",
     "stand",
@@ -292,6 +294,30 @@ def tune(space: Sequence[str] | Mapping[str, Any], **options: Any) -> Any:
     from pupper_core import _tune
 
     return _tune.tune(space, **options)
+
+
+def excite(model: str | os.PathLike[str] = "pupper_v3", **options: Any) -> Any:
+    """Write an excitation to play on the robot hung in the air (per joint
+    group a multisine or chirp inside the ranges, with holds) and the nominal
+    model's response, in the joint-log format, as `pupper excite` does;
+    returns the file's path. Keywords: out, kp, kd, signal, band, seconds,
+    hold, amplitude, max_velocity, seed, force (``help(pupper_core._fit.excite)``)."""
+    from pupper_core import _fit
+
+    return _fit.excite(model, **options)
+
+
+def fit(logs: Sequence[str | os.PathLike[str]] | str | os.PathLike[str], **options: Any) -> Any:
+    """Calibrate the model to joint logs with mujoco.sysid, as `pupper fit`
+    does: keywords model, params (armature, damping, frictionloss, kp_scale,
+    kd_scale, delay), per ("all", "group", "joint"), out, force, max_iters,
+    plot. Needs the fit extra; returns a FitResult (``table`` as fit.csv,
+    ``value(name)``, ``interval(name)``, RMS angle error before and after)."""
+    from pupper_core import _fit
+
+    if isinstance(logs, (str, os.PathLike)):
+        logs = [logs]
+    return _fit.fit(list(logs), **options)
 
 
 def lab(

@@ -121,6 +121,10 @@ class SimOptions(TypedDict, total=False):
     depth: float | None
     """With pose="auto": the feet's depth below the hips (m); None: the
     chapter's 0.14 m scaled to the model's legs."""
+    motor: str | None
+    """Torque mode's servo firmware and motor, as `--motor` takes it:
+    "rate=1000,filter=100,counts=16384,delay=0.004,noload=30" (any subset);
+    None: the ideal motor (the PD every physics step on the exact state)."""
 
 
 class RecordedSetup(TypedDict):

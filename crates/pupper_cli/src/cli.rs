@@ -31,6 +31,7 @@ const AFTER: &str = "Examples:
   pupper response --grid kp=5,20,60 --grid kd=0.1,0.5   how each joint follows a step
   pupper gains --bandwidth 8 --damping 0.7      gains per joint group from the reflected inertia
   pupper tune --space kp=5:200:log --space kd=0.05:10:log --trials 64   search instead of a grid
+  pupper excite -o ex.csv; pupper fit robot.csv -o runs/fit   calibrate the model to joint logs
 
 Exit status: 0 success, 2 bad input (one line on stderr says what and how to fix it),
 130 interrupted (finished cells are kept), 1 internal error.";
@@ -104,6 +105,17 @@ enum Command {
     /// of cells and tells the results, until --trials or --budget. The study lives in the run
     /// directory (study.db, trials.csv, best.json, pareto.csv for several objectives).
     Tune(Box<TuneArgs>),
+    /// Write an excitation to play on the robot, hung in the air: per joint group a multisine
+    /// or chirp around the rest pose (inside the joint ranges, under --max-velocity and the
+    /// torque limit at the gains), with holds between; and the nominal model's response to it,
+    /// in the joint-log format that `pupper fit` reads.
+    Excite(Box<ExciteArgs>),
+    /// Calibrate the model to joint logs with mujoco.sysid: each log's targets replayed at its
+    /// gains through the robot hung in the air; joint armature, damping and friction loss, the
+    /// servo's kp and kd scales and its command delay fitted (bounded least squares, every
+    /// rollout of a Jacobian in one batch), with 95 % intervals. Writes fit.csv, residuals.csv,
+    /// calibrated.xml (load it with --model in any command) and manifest.json.
+    Fit(Box<FitArgs>),
     /// Put the shards of one sweep (each run with --shard I/N) together into one run directory,
     /// whose summary.csv is the one the unsharded sweep writes. Checks that the shards share
     /// inputs and model and that together they hold every cell once; says which shard to
@@ -427,6 +439,9 @@ impl TuneArgs {
                 o.insert(k.into(), serde_json::json!(v));
             }
         }
+        if let Some(m) = &spec.motor {
+            o.insert("motor".into(), serde_json::json!(m));
+        }
         if let Some(k) = &self.sim.keyframe {
             o.insert("keyframe".into(), serde_json::json!(k));
         }
@@ -463,6 +478,199 @@ impl TuneArgs {
             &serde_json::json!({}),
         )?;
         for p in wrote {
+            eprintln!("wrote {p}");
+        }
+        Ok(0)
+    }
+}
+
+#[derive(Args, Debug)]
+#[command(
+    after_help = "The log (CSV): `# key: value` lines, then a header `time,ACTUATOR.target,\
+ACTUATOR.q[,ACTUATOR.qd][,ACTUATOR.tau],...`. Units: s, rad, rad/s, N·m. Keys: kp and kd (the gains
+in use: one value, or one per actuator in column order; required), mode (servo or torque), base
+(suspended). Play the file's targets on the robot, hung in the air, at its gains; log the measured
+angles (and velocities, torques where the servos report them) into the same columns.
+
+Examples:
+  pupper excite -o excite.csv                      8 s per joint group at the model's own gains
+  pupper excite --kd 0.3 --signal chirp -o excite_kd03.csv   a second log at another kd"
+)]
+struct ExciteArgs {
+    #[command(flatten)]
+    model: ModelArg,
+    /// The log to write.
+    #[arg(long, short = 'o', value_name = "FILE", default_value = "excite.csv")]
+    out: PathBuf,
+    /// Overwrite --out.
+    #[arg(long)]
+    force: bool,
+    /// Kp of every actuator [default: each actuator's own]
+    #[arg(long, allow_negative_numbers = true)]
+    kp: Option<f64>,
+    /// Kd of every actuator [default: each actuator's own]
+    #[arg(long, allow_negative_numbers = true)]
+    kd: Option<f64>,
+    /// multisine (8 log-spaced sines with low crest factor) or chirp (logarithmic sweep).
+    #[arg(long, default_value = "multisine", value_name = "NAME")]
+    signal: String,
+    /// The excited band (Hz), F0,F1.
+    #[arg(long, default_value = "0.3,6", value_name = "F0,F1")]
+    band: String,
+    /// Seconds of excitation per joint group.
+    #[arg(
+        long,
+        default_value_t = 8.0,
+        value_name = "S",
+        allow_negative_numbers = true
+    )]
+    seconds: f64,
+    /// Seconds held at the rest pose before and between groups.
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        value_name = "S",
+        allow_negative_numbers = true
+    )]
+    hold: f64,
+    /// Largest swing of a joint from its rest angle (rad); smaller where the range, the speed
+    /// limit or the torque limit at the gains asks.
+    #[arg(
+        long,
+        default_value_t = 0.3,
+        value_name = "RAD",
+        allow_negative_numbers = true
+    )]
+    amplitude: f64,
+    /// Fastest commanded joint speed (rad/s).
+    #[arg(
+        long,
+        default_value_t = 8.0,
+        value_name = "RAD_S",
+        allow_negative_numbers = true
+    )]
+    max_velocity: f64,
+    /// Seed of the multisine's phases.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+impl ExciteArgs {
+    fn run(&self) -> Result<u8> {
+        let band: Vec<f64> = self
+            .band
+            .split(',')
+            .map(|v| v.trim().parse::<f64>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|_| {
+                Error::Config(format!(
+                    "--band {} is not two numbers F0,F1 (Hz): give e.g. 0.3,6",
+                    self.band
+                ))
+            })?;
+        if band.len() != 2 {
+            return Err(Error::Config(format!(
+                "--band {} is not two numbers F0,F1 (Hz): give e.g. 0.3,6",
+                self.band
+            )));
+        }
+        let args = serde_json::json!({
+            "model": self.model.model,
+            "out": self.out,
+            "force": self.force,
+            "kp": self.kp,
+            "kd": self.kd,
+            "signal": self.signal,
+            "band": band,
+            "seconds": self.seconds,
+            "hold": self.hold,
+            "amplitude": self.amplitude,
+            "max_velocity": self.max_velocity,
+            "seed": self.seed,
+        });
+        for p in bridge::call_helper(
+            "pupper_core._fit",
+            "_cli_excite",
+            &[args.to_string()],
+            &serde_json::json!({}),
+        )? {
+            eprintln!("wrote {p}");
+        }
+        Ok(0)
+    }
+}
+
+#[derive(Args, Debug)]
+#[command(
+    after_help = "The fit replays each log through the model hung in the air (free joint
+removed, contacts off) at the log's gains and fits the angles (and velocities and torques where
+logged) by mujoco.sysid's bounded Levenberg-Marquardt. With angles only, joint damping and the
+servo's kd act as one damping: fit a second log at another kd (pupper excite --kd) or log torque,
+or leave one of them out of --params; fit warns when they are confounded. calibrated.xml keeps
+armature, damping and friction loss in the joints, the delay in the actuators (MuJoCo's own
+actuator delay) and the gain scales as custom numerics that pupper applies to every gain it
+commands. Needs the fit extra (make setup PUPPER_EXTRAS=fit).
+
+Examples:
+  pupper excite -o ex1.csv && pupper excite --kd 0.3 -o ex2.csv    then play both on the robot
+  pupper fit robot1.csv robot2.csv -o runs/fit --plot
+  pupper fit robot1.csv --params armature,frictionloss,kp_scale,delay --per group
+  pupper response --model runs/fit/calibrated.xml --grid kp=5,20 --grid kd=0.1,0.5"
+)]
+struct FitArgs {
+    /// Joint logs (CSV; see below), fitted together.
+    #[arg(required = true, value_name = "LOG")]
+    logs: Vec<PathBuf>,
+    #[command(flatten)]
+    model: ModelArg,
+    /// What to fit, comma-separated: armature, damping, frictionloss, kp_scale, kd_scale, delay.
+    #[arg(
+        long,
+        default_value = "armature,damping,frictionloss,kp_scale,kd_scale,delay",
+        value_name = "NAMES"
+    )]
+    params: String,
+    /// One value of each parameter for all actuators, per joint group (haa, hfe, kfe) or per joint.
+    #[arg(long, default_value = "all", value_name = "all|group|joint")]
+    per: String,
+    /// Run directory (default runs/<time>-fit).
+    #[arg(long, short = 'o', value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Overwrite pupper's files in an existing --out directory.
+    #[arg(long)]
+    force: bool,
+    /// Most Levenberg-Marquardt iterations.
+    #[arg(long, default_value_t = 50, value_name = "N")]
+    max_iters: u64,
+    /// Write DIR/plots/fit_<log>.png: measured against simulated angle per joint, before and after.
+    #[arg(long)]
+    plot: bool,
+}
+
+impl FitArgs {
+    fn run(&self) -> Result<u8> {
+        let out = self.out.clone().unwrap_or_else(|| {
+            PathBuf::from("runs").join(format!(
+                "{}-fit",
+                chrono::Local::now().format("%Y%m%d-%H%M%S")
+            ))
+        });
+        let args = serde_json::json!({
+            "logs": self.logs,
+            "model": self.model.model,
+            "params": self.params,
+            "per": self.per,
+            "out": out,
+            "force": self.force,
+            "max_iters": self.max_iters,
+            "plot": self.plot,
+        });
+        for p in bridge::call_helper(
+            "pupper_core._fit",
+            "_cli_fit",
+            &[args.to_string()],
+            &serde_json::json!({}),
+        )? {
             eprintln!("wrote {p}");
         }
         Ok(0)
@@ -605,6 +813,14 @@ struct SimArgs {
     /// 0.14 m on Pupper v3's legs, scaled to the model's leg length]
     #[arg(long, value_name = "M", allow_negative_numbers = true)]
     depth: Option<f64>,
+    /// Torque mode's servo firmware and motor, KEY=VALUE,...: rate=HZ (the PD's update rate,
+    /// torque held between updates), filter=HZ (first-order low-pass on the derivative),
+    /// counts=N (encoder counts per revolution; the derivative is then the encoder's
+    /// difference), delay=S (command delay: the PD tracks the target of S ago), noload=RAD_S
+    /// (torque limit falling linearly to 0 at this speed). E.g. rate=1000,filter=100,counts=16384
+    /// [default: ideal, the PD every physics step on the exact state]
+    #[arg(long, value_name = "SPEC")]
+    motor: Option<String>,
 }
 
 impl SimArgs {
@@ -624,6 +840,7 @@ impl SimArgs {
                 .unwrap_or_else(|| SweepSpec::default().keyframe),
             pose: self.pose.as_deref().map(spec::parse_pose).transpose()?,
             depth: self.depth,
+            motor: self.motor.clone(),
             ..SweepSpec::default()
         })
     }
@@ -1134,6 +1351,8 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
         Command::Lab(a) => return lab(*a, stop),
         Command::Response(a) => return response(*a, stop),
         Command::Tune(a) => return a.run(),
+        Command::Excite(a) => return a.run(),
+        Command::Fit(a) => return a.run(),
         Command::Gains(a) => {
             use pupper_core::robot::gains::Ask;
             let ask = match (a.bandwidth, a.kp, a.kd) {

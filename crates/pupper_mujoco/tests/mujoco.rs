@@ -88,6 +88,7 @@ fn small_sweep(mode: Mode, threads: usize, chunk_cells: usize) -> Vec<CellResult
         replicates: Default::default(),
         backend: Default::default(),
         response: None,
+        motor: Default::default(),
     };
     let opts = RunOptions {
         threads,
@@ -169,6 +170,7 @@ fn body_variants_change_the_stance() {
         replicates: Default::default(),
         backend: Default::default(),
         response: None,
+        motor: Default::default(),
     };
     let r = run(&cfg, RunOptions::default());
     let z: Vec<f64> = r.iter().map(|c| c.metrics.final_z).collect();

@@ -1,10 +1,16 @@
 //! The joint-space PD law of torque mode: `tau = kp (q* - q) - kd qdot`,
 //! clipped to `[-max, max]`.
 
+/// The law before any limit.
+#[inline]
+pub fn law(kp: f64, kd: f64, target: f64, q: f64, qdot: f64) -> f64 {
+    kp * (target - q) - kd * qdot
+}
+
 /// One joint's torque, and whether the limit cut it.
 #[inline]
 pub fn torque(kp: f64, kd: f64, target: f64, q: f64, qdot: f64, max: f64) -> (f64, bool) {
-    let raw = kp * (target - q) - kd * qdot;
+    let raw = law(kp, kd, target, q, qdot);
     let clipped = raw.clamp(-max, max);
     (clipped, raw.abs() > max)
 }

@@ -8,6 +8,7 @@ use crate::plan::backend::Backend;
 use crate::plan::excitation::Excitation;
 use crate::plan::grid::{Axis, Cell, Grid};
 use crate::plan::mode::Mode;
+use crate::plan::motor::Motor;
 use crate::plan::randomize::{Draws, Replicates};
 use crate::plan::schedule::Schedule;
 use crate::plan::setup::CellSetup;
@@ -65,6 +66,10 @@ pub struct SweepConfig {
     /// for a sweep (and left out of its manifest).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub response: Option<Excitation>,
+    /// The servo firmware and motor of torque mode's PD; the ideal motor
+    /// is left out of the manifest.
+    #[serde(default, skip_serializing_if = "Motor::is_ideal")]
+    pub motor: Motor,
 }
 
 impl Default for SweepConfig {
@@ -78,6 +83,7 @@ impl Default for SweepConfig {
             replicates: Replicates::default(),
             backend: Backend::Cpu,
             response: None,
+            motor: Motor::default(),
         }
     }
 }
@@ -120,6 +126,19 @@ impl SweepConfig {
                 "pupper response moves joint targets every step, which the warp backend's batch does not take yet: use --backend cpu".into(),
             ));
         }
+        if !self.motor.is_ideal() {
+            if self.mode != Mode::Torque {
+                return Err(Error::Config(format!(
+                    "--motor {} models the firmware of torque mode's PD (servo mode's PD is MuJoCo's actuator): add --mode torque",
+                    self.motor.spec()
+                )));
+            }
+            if !self.backend.is_cpu() {
+                return Err(Error::Config(
+                    "--motor needs the Rust PD of --backend cpu (the warp backend runs the PD inside MuJoCo's actuators): use --backend cpu".into(),
+                ));
+            }
+        }
         self.backend.check(self.mode, &self.replicates)
     }
 
@@ -148,6 +167,21 @@ impl SweepConfig {
         }
         s.push_at = d.push_at;
         s
+    }
+
+    /// Refuses a motor firmware faster than the physics of any cell (the
+    /// model's timestep `model_dt`, or a timestep axis's values).
+    pub fn check_motor(&self, model_dt: f64) -> Result<()> {
+        let axis = self
+            .grid
+            .axes
+            .iter()
+            .filter(|a| a.axis == Axis::Timestep)
+            .flat_map(|a| a.values.iter().copied());
+        for dt in std::iter::once(model_dt).chain(axis) {
+            self.motor.check_timestep(dt)?;
+        }
+        Ok(())
     }
 
     /// Checks that every gain a cell may need has a value: the model's own
@@ -206,7 +240,11 @@ impl SweepConfig {
                         .actuator_group(a)
                         .and_then(|g| Axis::group_gain(i == 1, g))
                         .and_then(|g| cell.get(g));
-                    group.or(cell.get(axis)).or(default).unwrap_or(own[a])
+                    // what the servo delivers of the commanded gain (1 but
+                    // on a calibrated model)
+                    let scale = info.actuators.get(a).map_or(1.0, |x| x.gain_scale[i]);
+                    let g = group.or(cell.get(axis)).or(default).unwrap_or(own[a]);
+                    if scale == 1.0 { g } else { g * scale }
                 })
                 .collect()
         };

@@ -6,6 +6,7 @@ pub mod config;
 pub mod excitation;
 pub mod grid;
 pub mod mode;
+pub mod motor;
 pub mod randomize;
 pub mod schedule;
 pub mod setup;

@@ -15,6 +15,7 @@ use crate::plan::config::{Defaults, SweepConfig};
 use crate::plan::excitation::Excitation;
 use crate::plan::grid::{Axis, AxisValues, DEFAULT_MAX_CELLS, Grid, parse_values};
 use crate::plan::mode::Mode;
+use crate::plan::motor::Motor;
 use crate::plan::randomize::{Randomize, Replicates};
 use crate::plan::schedule::{InitialState, Push, Schedule, SineForce};
 use crate::plan::shard::Shard;
@@ -124,6 +125,8 @@ pub struct SweepSpec {
     /// The response experiment (`pupper response`); None: a sweep.
     #[serde(skip)]
     pub response: Option<Excitation>,
+    /// Torque mode's servo firmware and motor (`--motor`); None: ideal.
+    pub motor: Option<String>,
 }
 
 impl Default for SweepSpec {
@@ -162,6 +165,7 @@ impl Default for SweepSpec {
             ray: None,
             stop_fallen: false,
             response: None,
+            motor: None,
         }
     }
 }
@@ -287,6 +291,7 @@ impl SweepSpec {
             },
             backend: Backend::parse(&self.backend, self.device.as_deref())?,
             response: self.response.clone(),
+            motor: Motor::parse(self.motor.as_deref().unwrap_or(""))?,
         };
         config.validate()?;
         let existing = match (self.resume, self.force) {

@@ -157,6 +157,8 @@ pub(crate) mod tests {
                 forcerange: Some([-3.0, 3.0]),
                 ctrlrange: None,
                 gear: 1.0,
+                delay: 0.0,
+                gain_scale: [1.0, 1.0],
             })
             .collect();
         ModelInfo::for_test("test", joints, actuators)

@@ -217,10 +217,37 @@ pub struct ActuatorInfo {
     /// First gear entry (1 for Pupper).
     #[serde(default = "one")]
     pub gear: f64,
+    /// MuJoCo's actuator delay (s): the control reaches the actuator this
+    /// late (a calibrated model's command delay; `pupper fit`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub delay: f64,
+    /// Factors on every Kp and Kd pupper commands to this actuator: what the
+    /// servo really delivers of them (a calibrated model's custom numerics
+    /// `pupper:kp_scale:NAME` and `pupper:kd_scale:NAME`; `pupper fit`).
+    #[serde(default = "unit_scales", skip_serializing_if = "is_unit")]
+    pub gain_scale: [f64; 2],
 }
 
 fn one() -> f64 {
     1.0
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+fn unit_scales() -> [f64; 2] {
+    [1.0, 1.0]
+}
+
+fn is_unit(v: &[f64; 2]) -> bool {
+    *v == [1.0, 1.0]
+}
+
+/// The custom numeric that holds a gain scale of an actuator, as `pupper
+/// fit` writes it into a calibrated model (`kind`: kp_scale or kd_scale).
+pub fn scale_numeric(kind: &str, actuator: &str) -> String {
+    format!("pupper:{kind}:{actuator}")
 }
 
 impl ActuatorInfo {

@@ -351,6 +351,8 @@ mod tests {
                     forcerange: Some([-3.0, 3.0]),
                     ctrlrange: None,
                     gear: 1.0,
+                    delay: 0.0,
+                    gain_scale: [1.0, 1.0],
                 });
             }
             legs.push(LegInfo {

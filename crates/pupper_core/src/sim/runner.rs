@@ -6,12 +6,14 @@ use std::cell::RefCell;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::math::motor;
 use crate::math::pd;
 use crate::math::quat;
 use crate::math::response::explicit_pd_margin;
 use crate::plan::config::SweepConfig;
 use crate::plan::grid::Cell;
 use crate::plan::mode::Mode;
+use crate::plan::motor::Motor;
 use crate::plan::randomize::Noise;
 use crate::plan::schedule::Schedule;
 use crate::plan::setup::CellSetup;
@@ -117,6 +119,7 @@ pub fn run_cells(
 ) -> Result<Vec<CellResult>> {
     cfg.validate()?;
     cfg.check_gains(physics.info())?;
+    cfg.check_motor(physics.info().timestep)?;
     if let Some(fps) = opts.frame_rate {
         frame_count(cfg.schedule.duration, fps)?;
     }
@@ -313,6 +316,111 @@ struct Sensing {
     /// The last `delay + 1` (angles, velocities) of the actuated joints,
     /// oldest first.
     history: std::collections::VecDeque<(Vec<f64>, Vec<f64>)>,
+    /// The servo firmware between the PD and the joint; None: the ideal
+    /// motor (the PD every step on what is read, clipped at the limit).
+    firmware: Option<Firmware>,
+}
+
+/// The firmware of a torque-mode simulation: `--motor`, or a calibrated
+/// model's command delay; None for the ideal motor.
+fn firmware(cfg: &SweepConfig, info: &ModelInfo, dt: f64) -> Option<Firmware> {
+    let delayed = info.actuators.iter().any(|a| a.delay > 0.0);
+    if cfg.motor.is_ideal() && !(delayed && cfg.mode == Mode::Torque) {
+        return None;
+    }
+    let mut f = Firmware::new(&cfg.motor, info.nu, dt);
+    if cfg.motor.delay == 0.0 {
+        f.delays = info.actuators.iter().map(|a| a.delay).collect();
+    }
+    Some(f)
+}
+
+/// One simulation's servo firmware ([`Motor`]): the PD updated at its own
+/// rate on the encoder's angle and a filtered derivative, towards the
+/// target of `delay` ago, its torque held between updates and delivered
+/// within the motor's torque–speed band.
+struct Firmware {
+    motor: Motor,
+    /// The update period (s).
+    period: f64,
+    /// The derivative filter's weight of a new sample.
+    alpha: Option<f64>,
+    updates: u64,
+    /// Per actuator: the torque held since the last update, the filtered
+    /// derivative and the last encoder angle (NaN before the first update).
+    held: Vec<f64>,
+    filtered: Vec<f64>,
+    last_angle: Vec<f64>,
+    /// Each actuator's command delay (s).
+    delays: Vec<f64>,
+}
+
+impl Firmware {
+    fn new(motor: &Motor, nu: usize, dt: f64) -> Firmware {
+        let period = motor.period(dt);
+        Firmware {
+            motor: motor.clone(),
+            period,
+            alpha: motor.filter.map(|f| motor::lowpass_alpha(f, period)),
+            updates: 0,
+            held: vec![0.0; nu],
+            filtered: vec![f64::NAN; nu],
+            last_angle: vec![f64::NAN; nu],
+            delays: vec![motor.delay; nu],
+        }
+    }
+
+    /// True when the PD updates on the step starting at time `t`.
+    fn due(&mut self, t: f64) -> bool {
+        let due = match self.motor.rate {
+            None => true,
+            // the k-th update falls at k / rate (a step's start time may
+            // sit a rounding error below it)
+            Some(r) => t * r + 1e-6 >= self.updates as f64,
+        };
+        self.updates += due as u64;
+        due
+    }
+
+    /// A PD update of actuator `a` from the angle and velocity it reads.
+    fn update(&mut self, a: usize, kp: f64, kd: f64, target: f64, q: f64, v: f64) {
+        let (q, v) = match self.motor.counts {
+            Some(c) => {
+                let q = motor::quantize(q, c);
+                let last = self.last_angle[a];
+                self.last_angle[a] = q;
+                // the encoder's difference; the sensor's velocity at first
+                (
+                    q,
+                    if last.is_nan() {
+                        v
+                    } else {
+                        (q - last) / self.period
+                    },
+                )
+            }
+            None => (q, v),
+        };
+        let v = match self.alpha {
+            Some(alpha) => {
+                let f = &mut self.filtered[a];
+                *f = if f.is_nan() { v } else { *f + alpha * (v - *f) };
+                *f
+            }
+            None => v,
+        };
+        self.held[a] = pd::law(kp, kd, target, q, v);
+    }
+
+    /// The torque actuator `a` delivers at joint speed `speed`, and whether
+    /// the limit (`peak` at stall) cut it.
+    fn deliver(&self, a: usize, peak: f64, speed: f64) -> (f64, bool) {
+        let band = match self.motor.noload {
+            Some(w) => motor::speed_band(peak, w, speed),
+            None => (-peak, peak),
+        };
+        motor::clip(self.held[a], band)
+    }
 }
 
 impl Sensing {
@@ -415,6 +523,7 @@ impl ChunkPlan {
                         delay: d.delay,
                         noise: reps.noise(&c.id, r as u32),
                         history: Default::default(),
+                        firmware: firmware(cfg, info, dt),
                     });
                     out.setups.push(setup);
                     out.sims.push(SimPlan {
@@ -532,6 +641,7 @@ fn run_chunk(
 ) -> Result<Vec<CellResult>> {
     let schedule = &cfg.schedule;
     let info = physics.info();
+    cfg.motor.check_timestep(dt)?;
     let mut plan = ChunkPlan::new(cfg, cells, dt, info)?;
     let limits: Vec<Vec<f64>> = plan
         .setups
@@ -787,9 +897,27 @@ fn step_controlled(
             let sense = &mut sensing[sim];
             sense.remember(layout, qpos, qvel);
             sc.forces.clear();
+            let due = sense.firmware.as_mut().map(|f| f.due(t));
             for a in 0..nu {
-                let (q, v) = sense.read(layout, a, qpos, qvel);
-                let (tau, sat) = pd::torque(s.kp(a), s.kd(a), st.target(sim, a, t), q, v, lim[a]);
+                let (tau, sat) = match due {
+                    None => {
+                        let (q, v) = sense.read(layout, a, qpos, qvel);
+                        pd::torque(s.kp(a), s.kd(a), st.target(sim, a, t), q, v, lim[a])
+                    }
+                    Some(due) => {
+                        if due {
+                            let (q, v) = sense.read(layout, a, qpos, qvel);
+                            if let Some(f) = sense.firmware.as_mut() {
+                                let target = st.target(sim, a, t - f.delays[a]);
+                                f.update(a, s.kp(a), s.kd(a), target, q, v);
+                            }
+                        }
+                        match &sense.firmware {
+                            Some(f) => f.deliver(a, lim[a], qvel[layout.act_dof[a]]),
+                            None => (0.0, false),
+                        }
+                    }
+                };
                 ctrl[a] = tau;
                 // what the motor delivers: its gain times the command,
                 // clamped at its force range

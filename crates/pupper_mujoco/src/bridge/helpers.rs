@@ -88,6 +88,7 @@ pub fn call_helper(
                     Error::Display(msg)
                 } else if [
                     "TuneError",
+                    "FitError",
                     "ConfigError",
                     "GridError",
                     "ModelError",

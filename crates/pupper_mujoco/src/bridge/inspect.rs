@@ -7,6 +7,7 @@ use super::python::{Mujoco, PyResultExt};
 use pupper_core::error::Result;
 use pupper_core::robot::model::{
     ActuatorInfo, JointInfo, KeyframeInfo, LegInfo, ModelInfo, ModelSource, SensorInfo,
+    scale_numeric,
 };
 
 impl<'py> Mujoco<'py> {
@@ -87,6 +88,9 @@ impl<'py> Mujoco<'py> {
             floats2("actuator_biasprm")?,
             floats2("actuator_forcerange")?,
         );
+        let delays: Vec<f64> = list("actuator_delay")
+            .and_then(|l| l.extract().internal())
+            .unwrap_or_default();
         let mut actuators = Vec::with_capacity(nu);
         for i in 0..nu {
             // trntype 0 is mjTRN_JOINT
@@ -99,7 +103,27 @@ impl<'py> Mujoco<'py> {
                 forcerange: (flim[i] != 0).then(|| [frange[i][0], frange[i][1]]),
                 ctrlrange: (clim[i] != 0).then(|| [crange[i][0], crange[i][1]]),
                 gear: gear[i][0],
+                delay: delays.get(i).copied().unwrap_or(0.0),
+                gain_scale: [1.0, 1.0],
             });
+        }
+        // a calibrated model's gain scales (`pupper fit`)
+        let nnumeric = int("nnumeric")?;
+        if nnumeric > 0 {
+            let (adr, size): (Vec<i64>, Vec<i64>) = (ints("numeric_adr")?, ints("numeric_size")?);
+            let data: Vec<f64> = list("numeric_data")?.extract().internal()?;
+            for n in 0..nnumeric {
+                let name = self.name_of(model, "mjOBJ_NUMERIC", n)?;
+                for (k, kind) in ["kp_scale", "kd_scale"].iter().enumerate() {
+                    if let Some(a) = actuators
+                        .iter_mut()
+                        .find(|a| scale_numeric(kind, &a.name) == name)
+                        && size[n] >= 1
+                    {
+                        a.gain_scale[k] = data[adr[n] as usize];
+                    }
+                }
+            }
         }
         let nkey = int("nkey")?;
         let (kq, kc) = (floats2("key_qpos")?, floats2("key_ctrl")?);

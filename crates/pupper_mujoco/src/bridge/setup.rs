@@ -35,6 +35,11 @@ pub(crate) fn prepare_model<'py>(
         // torques (or, on warp, the PD's targets) must not be clamped to
         // a position range
         fill("actuator_ctrllimited", 0)?;
+        // ctrl is now a torque: a calibrated model's command delay is the
+        // Rust firmware's (on its targets), not MuJoCo's (on the torque)
+        if m.hasattr("actuator_delay")? {
+            m.getattr("actuator_delay")?.call_method1("fill", (0.0,))?;
+        }
     }
     Ok(m)
 }

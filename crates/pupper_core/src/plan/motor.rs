@@ -1,0 +1,235 @@
+//! `--motor SPEC`: the servo firmware and motor that torque mode's PD runs
+//! through, like the hardware's (see [`crate::math::motor`]). The default,
+//! ideal motor computes the PD every physics step on the exact state and
+//! delivers it up to the torque limit: today's torque mode, byte for byte.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+/// The keys of `--motor`, with what each means, for help and errors.
+pub const KEYS: [(&str, &str); 5] = [
+    (
+        "rate",
+        "the firmware's PD rate (Hz), torque held between updates",
+    ),
+    ("filter", "a first-order low-pass on the derivative (Hz)"),
+    (
+        "counts",
+        "encoder counts per revolution (the angle is quantised)",
+    ),
+    ("delay", "command delay (s): the target arrives this late"),
+    (
+        "noload",
+        "no-load speed (rad/s): the torque limit falls linearly to 0 there",
+    ),
+];
+
+/// The servo's firmware and motor. Every field None (delay 0) is the
+/// ideal motor, which a manifest leaves out.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Motor {
+    /// The PD's update rate (Hz); None: every physics step.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rate: Option<f64>,
+    /// Cutoff (Hz) of the low-pass filter on the derivative; None: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub filter: Option<f64>,
+    /// Encoder counts per revolution; None: the exact angle. With it, the
+    /// derivative is the encoder's difference over an update period.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub counts: Option<u32>,
+    /// Command delay (s): the PD tracks the target of this long ago.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub delay: f64,
+    /// No-load speed (rad/s); None: the torque limit at every speed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noload: Option<f64>,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+impl Motor {
+    pub fn is_ideal(&self) -> bool {
+        *self == Motor::default()
+    }
+
+    /// `rate=1000,filter=200,counts=16384,delay=0.004,noload=30`, any
+    /// subset in any order; `ideal` or empty: the ideal motor.
+    pub fn parse(text: &str) -> Result<Motor> {
+        let mut m = Motor::default();
+        let text = text.trim();
+        if text.is_empty() || text == "ideal" {
+            return Ok(m);
+        }
+        let mut seen: Vec<&str> = Vec::new();
+        for part in text.split(',') {
+            let part = part.trim();
+            let Some((key, value)) = part.split_once('=') else {
+                return Err(bad(format!(
+                    "--motor item '{part}' is not KEY=VALUE: write e.g. rate=1000,filter=200 (keys: {})",
+                    key_list()
+                )));
+            };
+            let (key, value) = (key.trim(), value.trim());
+            if !KEYS.iter().any(|(k, _)| *k == key) {
+                let hint = KEYS
+                    .iter()
+                    .map(|(k, _)| *k)
+                    .find(|k| strsim::jaro_winkler(k, key) > 0.8)
+                    .map(|k| format!("did you mean '{k}'? "))
+                    .unwrap_or_default();
+                return Err(bad(format!(
+                    "--motor key '{key}' is unknown: {hint}keys are {}",
+                    key_list()
+                )));
+            }
+            if seen.contains(&key) {
+                return Err(bad(format!("--motor gives '{key}' twice: keep one value")));
+            }
+            seen.push(key);
+            let number = |positive: bool| -> Result<f64> {
+                let v: f64 = value.parse().map_err(|_| {
+                    bad(format!(
+                        "--motor {key}={value} is not a number: give e.g. {key}={}",
+                        example(key)
+                    ))
+                })?;
+                let ok = v.is_finite() && if positive { v > 0.0 } else { v >= 0.0 };
+                if !ok {
+                    return Err(bad(format!(
+                        "--motor {key}={value} must be {} and finite: give e.g. {key}={}",
+                        if positive { "> 0" } else { ">= 0" },
+                        example(key)
+                    )));
+                }
+                Ok(v)
+            };
+            match key {
+                "rate" => m.rate = Some(number(true)?),
+                "filter" => m.filter = Some(number(true)?),
+                "delay" => m.delay = number(false)?,
+                "noload" => m.noload = Some(number(true)?),
+                _ => {
+                    m.counts = Some(match value.parse::<u32>() {
+                        Ok(c) if c >= 2 => c,
+                        _ => {
+                            return Err(bad(format!(
+                                "--motor counts={value} is not a whole number of counts >= 2: give e.g. counts=16384"
+                            )));
+                        }
+                    })
+                }
+            }
+        }
+        Ok(m)
+    }
+
+    /// Refuses a firmware faster than the physics it runs in.
+    pub fn check_timestep(&self, dt: f64) -> Result<()> {
+        match self.rate {
+            Some(r) if r * dt > 1.0 + 1e-9 => Err(bad(format!(
+                "--motor rate={r} Hz is faster than the physics ({:.6} Hz at timestep {dt} s): give a rate at or below it, or a smaller timestep",
+                1.0 / dt
+            ))),
+            _ => Ok(()),
+        }
+    }
+
+    /// The PD's update period on a physics step `dt`.
+    pub fn period(&self, dt: f64) -> f64 {
+        self.rate.map_or(dt, |r| 1.0 / r)
+    }
+
+    /// As `--motor` takes it (empty for the ideal motor).
+    pub fn spec(&self) -> String {
+        let mut parts = Vec::new();
+        if let Some(r) = self.rate {
+            parts.push(format!("rate={r}"));
+        }
+        if let Some(f) = self.filter {
+            parts.push(format!("filter={f}"));
+        }
+        if let Some(c) = self.counts {
+            parts.push(format!("counts={c}"));
+        }
+        if self.delay != 0.0 {
+            parts.push(format!("delay={}", self.delay));
+        }
+        if let Some(w) = self.noload {
+            parts.push(format!("noload={w}"));
+        }
+        parts.join(",")
+    }
+}
+
+fn bad(text: String) -> Error {
+    Error::Config(text)
+}
+
+fn key_list() -> String {
+    KEYS.iter().map(|(k, _)| *k).collect::<Vec<_>>().join(", ")
+}
+
+fn example(key: &str) -> &'static str {
+    match key {
+        "rate" => "1000",
+        "filter" => "200",
+        "delay" => "0.004",
+        _ => "30",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_every_key_and_round_trips() {
+        let m = Motor::parse("rate=1000, filter=200,counts=16384,delay=0.004,noload=30").unwrap();
+        assert_eq!(m.rate, Some(1000.0));
+        assert_eq!(m.filter, Some(200.0));
+        assert_eq!(m.counts, Some(16384));
+        assert_eq!(m.delay, 0.004);
+        assert_eq!(m.noload, Some(30.0));
+        assert!(!m.is_ideal());
+        assert_eq!(Motor::parse(&m.spec()).unwrap(), m);
+        assert!(Motor::parse("ideal").unwrap().is_ideal());
+        assert!(Motor::parse("").unwrap().is_ideal());
+        // the ideal motor is absent from a manifest
+        assert_eq!(serde_json::to_string(&Motor::default()).unwrap(), "{}");
+        let j = serde_json::to_string(&m).unwrap();
+        assert_eq!(serde_json::from_str::<Motor>(&j).unwrap(), m);
+        assert_eq!(m.period(0.002), 0.001);
+        assert_eq!(Motor::default().period(0.002), 0.002);
+    }
+
+    #[test]
+    fn bad_specs_get_one_line_with_the_fix() {
+        let e = |s: &str| Motor::parse(s).unwrap_err().to_string();
+        assert!(
+            e("rat=100").contains("did you mean 'rate'"),
+            "{}",
+            e("rat=100")
+        );
+        assert!(e("rate").contains("KEY=VALUE"));
+        assert!(e("rate=0").contains("> 0"));
+        assert!(e("delay=-1").contains(">= 0"));
+        assert!(e("filter=abc").contains("not a number"));
+        assert!(e("counts=1").contains(">= 2"));
+        assert!(e("counts=2.5").contains("whole number"));
+        assert!(e("rate=1,rate=2").contains("twice"));
+        assert!(!e("wind=3").contains('\n'));
+        let m = Motor::parse("rate=1000").unwrap();
+        assert!(m.check_timestep(0.001).is_ok());
+        assert!(
+            m.check_timestep(0.002)
+                .unwrap_err()
+                .to_string()
+                .contains("faster than the physics")
+        );
+    }
+}

@@ -1,0 +1,122 @@
+"""The motor model of torque mode (`--motor`): the servo firmware's PD rate
+with a held torque, a filter on the derivative, encoder quantisation, a
+command delay and a torque-speed limit, all on real MuJoCo."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import pupper_core as pc
+import pytest
+
+from conftest import read_csv, same_files
+
+GRID = {"kp": [30, 120], "kd": [0.5, 5]}
+
+
+def sweep(**kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the Kd 5 cells' stability-bound warning
+        return pc.sweep(GRID, mode="torque", seconds=4, progress=False, **kw)
+
+
+def by_id(res) -> dict[str, dict]:
+    return {r["id"]: r for r in (res.row(i) for i in range(len(res.rows)))}
+
+
+def test_the_ideal_motor_at_the_physics_rate_is_todays_torque_mode(run, tmp_path):
+    # 500 Hz on the 2 ms step, no filter, delay, quantisation or speed limit
+    assert sweep(motor="rate=500").rows == sweep().rows
+    # with noise and a sensing delay drawn too (the same draws, the same reads)
+    kw = dict(replicates=2, seed=3, randomize=["q_noise=N(0,0.002)", "delay=0:2"])
+    assert sweep(motor="rate=500", **kw).rows == sweep(**kw).rows
+    # and through the CLI, whose manifest leaves the ideal motor out
+    args = ["sweep", "-g", "kp=30,120", "-g", "kd=0.5,5", "--mode", "torque", "--seconds", "3", "-q"]
+    run(*args, "-o", tmp_path / "a", check=0)
+    run(*args, "--motor", "rate=500", "-o", tmp_path / "b", check=0)
+    run(*args, "--motor", "ideal", "-o", tmp_path / "c", check=0)
+    same_files(tmp_path / "b", tmp_path / "a")
+    same_files(tmp_path / "c", tmp_path / "a")
+    m = json.loads((tmp_path / "b" / "manifest.json").read_text())
+    assert m["config"]["motor"] == {"rate": 500.0}
+    assert "motor" not in json.loads((tmp_path / "c" / "manifest.json").read_text())["config"]
+
+
+def test_the_chattering_kd5_cells_follow_the_filter_and_the_rate():
+    """At Kd 5 the knee is past the explicit PD's stability bound (h kd / I =
+    5.5 > 2): the ideal motor chatters at the torque limit. A derivative
+    filter well below the step's Nyquist rate takes the gain out of the
+    frequencies that chatter; a slower firmware (a longer hold) makes it
+    worse; a command delay does nothing to a robot whose targets stand still."""
+    ideal = by_id(sweep())
+    for cell in ("kp30_kd5", "kp120_kd5"):
+        assert ideal[cell]["status"] == "saturated", ideal[cell]
+    calm = by_id(sweep(motor="filter=50"))
+    slow = by_id(sweep(motor="rate=250"))
+    for cell in ("kp30_kd5", "kp120_kd5"):
+        assert calm[cell]["status"] == "ok"
+        assert calm[cell]["last_1s_std_mm"] < 0.05 * ideal[cell]["last_1s_std_mm"]
+        assert slow[cell]["status"] == "saturated"
+        assert slow[cell]["last_1s_std_mm"] > 2 * ideal[cell]["last_1s_std_mm"]
+    # the Kd 0.5 cells stand well in all three
+    for res in (ideal, calm, slow):
+        for cell in ("kp30_kd0.5", "kp120_kd0.5"):
+            assert res[cell]["status"] == "ok"
+    assert sweep(motor="delay=0.01").rows == sweep().rows
+
+
+def test_quantisation_and_speed_limit_change_what_they_touch():
+    coarse = by_id(sweep(motor="counts=4096"))
+    ideal = by_id(sweep())
+    # a 1.5 mrad encoder step shows as limit-cycle jitter on a stiff stance
+    assert coarse["kp120_kd0.5"]["last_1s_std_mm"] > 5 * ideal["kp120_kd0.5"]["last_1s_std_mm"]
+    # a slow motor cannot push as hard into the motion: the landing's peak
+    # torque (taken after it) and the chatter are bounded by the band
+    slow = by_id(sweep(motor="noload=5"))
+    assert slow["kp30_kd0.5"]["final_z"] == pytest.approx(ideal["kp30_kd0.5"]["final_z"], abs=2e-3)
+    assert slow["kp30_kd5"]["peak_torque"] <= ideal["kp30_kd5"]["peak_torque"] + 1e-9
+
+
+def test_response_sees_the_command_delay():
+    """A step target reaches the servo `delay` later: the rise starts that
+    much later, while the shape of the response is the same."""
+    kw = dict(grid={"kp": [8], "kd": [0.2]}, signal="step", amplitude=0.2, seconds=1.5,
+              mode="torque", joints=["leg_front_r_2"], progress=False)
+    a = pc.response(**kw).tables["response"]
+    b = pc.response(motor="delay=0.02", **kw).tables["response"]
+    assert b["peak_time_s"][0] == pytest.approx(a["peak_time_s"][0] + 0.02, abs=1e-9)
+    assert b["rise_time_s"][0] == pytest.approx(a["rise_time_s"][0], rel=1e-4)
+    assert b["overshoot_pct"][0] == pytest.approx(a["overshoot_pct"][0], abs=0.05)
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--motor", "rate=500"], "--mode torque"),
+        (["--mode", "torque", "--motor", "rate=1000"], "faster than the physics"),
+        (["--mode", "torque", "--motor", "filtr=10"], "did you mean 'filter'"),
+        (["--mode", "torque", "--motor", "delay=-0.1"], ">= 0"),
+        (["--mode", "torque", "--motor", "counts=1.5"], "whole number"),
+    ],
+)
+def test_a_bad_motor_is_one_line_and_writes_nothing(run, tmp_path, args, words):
+    out = tmp_path / "run"
+    p = run("sweep", "-g", "kp=30", "--seconds", "1", "-q", "-o", out, *args, check=2)
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0], p.stderr
+    assert not out.exists()
+
+
+def test_the_manifest_keeps_the_motor_and_a_resume_matches_it(run, tmp_path):
+    out = tmp_path / "run"
+    args = ["sweep", "-g", "kp=30,120", "--mode", "torque", "--seconds", "2", "-q",
+            "--motor", "rate=250,filter=100,counts=16384,delay=0.004,noload=30"]
+    run(*args, "-o", out, check=0)
+    _, rows = read_csv(out / "summary.csv")
+    assert len(rows) == 2
+    m = json.loads((out / "manifest.json").read_text())["config"]["motor"]
+    assert m == {"rate": 250.0, "filter": 100.0, "counts": 16384, "delay": 0.004, "noload": 30.0}
+    # a resume with another motor is refused: it would give other numbers
+    p = run(*args[:-1], "filter=100", "--resume", out, check=2)
+    assert "motor" in p.stderr
