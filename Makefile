@@ -3,7 +3,8 @@
 #   make test    set everything up, then run every test (cargo test and pytest)
 # PUPPER_PROFILE=debug builds the module and binary without optimisation.
 # PUPPER_EXTRAS=gpu,ray makes `make setup` install optional extras too (gpu:
-# MuJoCo Warp for --backend warp; ray: Ray for --ray); `make test` installs
+# MuJoCo Warp for --backend warp; ray: Ray for --ray; tune: Optuna for
+# pupper tune; fit: mujoco.sysid's dependencies for pupper fit); `make test` installs
 # every extra, as its tests run them for real, and dev (mypy, which checks
 # the stubs against examples/typed_tour.py).
 SHELL := /bin/bash
@@ -23,10 +24,11 @@ setup:
 sweep: setup
 	$(PUPPER) sweep --grid kp=10,30,60,120 --grid kd=0.5,1,2,5
 
-# every optional extra: the tests run the warp backend (on Warp's CPU device)
-# and --ray (on a two-node Ray cluster over loopback, in its own namespaces);
-# dev adds mypy for tests/test_types.py
-test: export PUPPER_EXTRAS := gpu,ray,dev,tune
+# every optional extra: the tests run the warp backend (on Warp's CPU device),
+# --ray (on a two-node Ray cluster over loopback, in its own namespaces),
+# tune (Optuna) and fit (mujoco.sysid) for real; dev adds mypy for
+# tests/test_types.py
+test: export PUPPER_EXTRAS := gpu,ray,dev,tune,fit
 test: setup test-rust test-python
 
 test-rust:
