@@ -50,11 +50,22 @@ if [[ ",${PUPPER_EXTRAS:-}," == *,ray,* ]]; then
   fi
 fi
 
+# The report tests open report.html in headless Chromium (Debian's package):
+# installed with the tests' own extra, dev, which `make test` asks for.
+if [[ ",${PUPPER_EXTRAS:-}," == *,dev,* ]] && ! command -v chromium >/dev/null; then
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+    say "installing chromium (apt-get) for the report tests"
+    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
+  else
+    say "warning: the report tests need chromium (apt-get install chromium)"
+  fi
+fi
+
 # 2. The venv. Its base interpreter must have a shared libpython (pyo3 embeds it).
 base=${PUPPER_BASE_PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then
-  if ! "$base" -c 'import sys, sysconfig; sys.exit(sys.version_info < (3, 10) or not sysconfig.get_config_var("Py_ENABLE_SHARED"))' 2>/dev/null; then
-    say "error: $base is not Python >= 3.10 with a shared libpython; set PUPPER_BASE_PYTHON to one that is"
+  if ! "$base" -c 'import sys, sysconfig; sys.exit(sys.version_info < (3, 11) or not sysconfig.get_config_var("Py_ENABLE_SHARED"))' 2>/dev/null; then
+    say "error: $base is not Python >= 3.11 with a shared libpython; set PUPPER_BASE_PYTHON to one that is"
     exit 2
   fi
   say "creating .venv with $($base --version 2>&1) ($(command -v "$base"))"
@@ -88,6 +99,9 @@ done
 export PYO3_PYTHON="$root/.venv/bin/python"
 say "building the pupper_core Python module ($profile)"
 log=.venv/maturin.log
+# the module is one abi3 library now: a version-tagged one left by an older
+# build would shadow it on import
+rm -f python/pupper_core/_native.cpython-*.so
 if ! (cd python && VIRTUAL_ENV="$root/.venv" "$root/.venv/bin/maturin" develop ${release[@]+"${release[@]}"}) >"$log" 2>&1; then
   cat "$log" >&2
   say "error: building the Python module failed (full log above, also in $log)"

@@ -118,3 +118,49 @@ def test_wheel_cli_and_module_equal_the_checkout_build(wheel_env, run, tmp_path)
         plots = sorted(p.name for p in (work / run_dir / "plots").iterdir())
         assert "gain_sweep_effects.gif" in plots and "gain_sweep_effects.png" in plots, plots
         assert_drawn_as_traced(work / run_dir)
+
+
+def _pyenv_python(minor: str) -> str | None:
+    """An interpreter of that minor version: on PATH, or one of pyenv's."""
+    import glob
+    import shutil
+
+    found = shutil.which(f"python{minor}")
+    if found:
+        return found
+    root = os.environ.get("PYENV_ROOT", os.path.expanduser("~/.pyenv"))
+    hits = sorted(glob.glob(os.path.join(root, "versions", f"{minor}.*", "bin", f"python{minor}")))
+    return hits[-1] if hits else None
+
+
+@pytest.mark.parametrize("minor", ["3.12", "3.13"])
+def test_the_one_wheel_installs_into_other_pythons(wheel_env, tmp_path, minor) -> None:
+    """The stable-ABI wheel built for the checkout's 3.11 installs into a
+    fresh venv of another CPython and runs there: import, a 2-cell sweep, the
+    pupper command; the public API shows no module it imported for itself."""
+    venv, _ = wheel_env
+    (wheel,) = (venv.parent / "dist").glob("pupper_core-*.whl")
+    assert "-cp311-abi3-" in wheel.name, wheel.name
+    py = _pyenv_python(minor)
+    if py is None:
+        pytest.skip(f"no Python {minor} on this machine (pyenv install {minor})")
+    other = tmp_path / f"venv{minor}"
+    _run([py, "-m", "venv", str(other)], cwd=tmp_path, env=clean_env())
+    _run([str(other / "bin" / "python"), "-m", "pip", "install", "-q", "--disable-pip-version-check",
+          str(wheel)], cwd=tmp_path, env=clean_env())
+    env = {k: v for k, v in clean_env().items() if k not in LEAKY}
+    env["PATH"] = f"{other / 'bin'}{os.pathsep}{env.get('PATH', '')}"
+    out = _run([str(other / "bin" / "python"), "-c",
+                "import sys, pupper_core as pc\n"
+                "print(sys.version_info[:2])\n"
+                "r = pc.sweep({'kp': [5, 30]}, seconds=1, push=False, progress=False)\n"
+                "print(len(r.rows), sorted(set(r['status'])))\n"
+                "print(sorted(n for n in dir(pc) if n in ('os', 'sys', 'typing', 'functools', 'inspect')))\n"],
+               cwd=tmp_path, env=env).stdout.splitlines()
+    assert out[0] == str(tuple(int(x) for x in minor.split("."))), out
+    assert out[1] == "2 ['ok']", out
+    assert out[2] == "[]", out
+    _run(["pupper", "sweep", "-g", "kp=5,30", "--seconds", "1", "--no-push", "-q", "-o", "cli"],
+         cwd=tmp_path, env=env)
+    _, rows = read_csv(tmp_path / "cli" / "summary.csv")
+    assert len(rows) == 2

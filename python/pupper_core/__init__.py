@@ -85,6 +85,7 @@ __all__ = [
     "fit",
     "load_run",
     "merge",
+    "report",
     "stand",
     "sweep",
     "METRICS",
@@ -237,7 +238,26 @@ def sweep(
     finished, and raises KeyboardInterrupt.
     """
     callback = _progress_printer() if progress is True else (progress or None)
-    return _native.sweep(grid, preset=preset, out=out, progress=callback, **_options(options))
+    return _with_report(_native.sweep(grid, preset=preset, out=out, progress=callback, **_options(options)))
+
+
+def _with_report(res: SweepResult) -> SweepResult:
+    """Writes report.html into a finished run's directory."""
+    if res.out is not None and res.complete:
+        from pupper_core import _report
+
+        _report.report(res.out)
+    return res
+
+
+def report(run_dir: str | os.PathLike[str]) -> str:
+    """Write ``run_dir/report.html`` (inputs, the table, plots, the best
+    cells and the rule, warnings, links to the files beside it: one page,
+    no network) from any run directory, as `pupper report DIR` does;
+    returns its path. Every run with ``out`` writes one when it ends."""
+    from pupper_core import _report
+
+    return str(_report.report(run_dir))
 
 
 def response(
@@ -279,9 +299,9 @@ def response(
         chirp = _sine(chirp)
     if isinstance(joints, str):
         joints = [j for j in joints.split(",") if j]
-    return _native.response(grid, out=out, progress=callback, signal=signal, amplitude=amplitude,
+    return _with_report(_native.response(grid, out=out, progress=callback, signal=signal, amplitude=amplitude,
                             frequency=frequency, chirp=None if chirp is None else list(chirp),
-                            hold=hold, joints=list(joints), standing=standing, **_options(options))
+                            hold=hold, joints=list(joints), standing=standing, **_options(options)))
 
 
 def tune(space: Sequence[str] | Mapping[str, Any], **options: Any) -> Any:
@@ -357,7 +377,7 @@ def lab(
         except draw.RenderUnavailable:
             if render:
                 raise
-    return res
+    return _with_report(res)
 
 
 def _names(variants: str | Sequence[str] | None) -> list[str] | None:

@@ -486,6 +486,9 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         _write(out_dir, result, robot, read, labels, x, model, names, per, force)
         if plot:
             _plot(out_dir, robot, read, sequences, residual_fn, pdict, x_nominal, opt)
+        from pupper_core import _report
+
+        _report.report(out_dir)
     return result
 
 
@@ -702,7 +705,7 @@ def _cli_fit(args_json: str) -> list[str]:
     wrote = [str(res.out / n) for n in ("fit.csv", "residuals.csv", "calibrated.xml")]
     if (res.out / "plots").is_dir():
         wrote += [str(p) for p in sorted((res.out / "plots").glob("fit_*.png"))]
-    return wrote
+    return wrote + [str(res.out / "report.html")]
 
 
 def _cli_excite(args_json: str) -> list[str]:

@@ -471,6 +471,9 @@ def tune(
     if out_dir is not None:
         _write(out_dir, study, done, dims, objectives, inputs, spent, complete=True,
                stop={"trials": trials, "budget": budget})
+        from pupper_core import _report
+
+        _report.report(out_dir)
     return TuneResult(study=study, trials=_rows(done, dims, objectives), best=_best(study, objectives),
                       out=out_dir, cell_steps=spent, objectives=objectives)
 
@@ -561,6 +564,11 @@ def _cli(args_json: str) -> list[str]:
     wrote = [str(res.out / "trials.csv")] if res.out else []
     if plot and res.out:
         wrote += [str(p) for p in write_plots(res.out, compare)]
+        from pupper_core import _report
+
+        _report.report(res.out)  # again, now with the plots beside it
+    if res.out:
+        wrote.append(str(res.out / "report.html"))
     # the embedding pupper binary exits without finalizing Python: a pipe's
     # buffered lines must leave now
     sys.stdout.flush()

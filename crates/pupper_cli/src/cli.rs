@@ -116,6 +116,14 @@ enum Command {
     /// rollout of a Jacobian in one batch), with 95 % intervals. Writes fit.csv, residuals.csv,
     /// calibrated.xml (load it with --model in any command) and manifest.json.
     Fit(Box<FitArgs>),
+    /// Write DIR/report.html: one self-contained page (no network) with the run's inputs, its
+    /// table (sortable, status coloured), the plots of its kind, the best cells and the rule that
+    /// picked them, warnings, and links to the files beside it. Every run writes one when it ends.
+    Report {
+        /// A run directory (sweep, lab, response, tune or fit).
+        #[arg(value_name = "DIR")]
+        dir: PathBuf,
+    },
     /// Put the shards of one sweep (each run with --shard I/N) together into one run directory,
     /// whose summary.csv is the one the unsharded sweep writes. Checks that the shards share
     /// inputs and model and that together they hold every cell once; says which shard to
@@ -867,7 +875,8 @@ struct PopulationArgs {
     /// motor_gain=±5% (drawn per actuator). Uniform ranges: friction=0.5:1.2 (feet and floor);
     /// with a push (sweep, not lab): push_force=-35:-15 (N), push_at=1.5:3 (s). Torque mode only: q_noise=N(0,0.002) (rad,
     /// on the angles the PD reads, every step), delay=0:3 (whole control steps the PD reads
-    /// late). `+-10%` may stand for `±10%`.
+    /// late), and the --motor model's motor_delay=0:0.01 (s), motor_filter=50:200 (Hz),
+    /// motor_noload=20:40 (rad/s). `+-10%` may stand for `±10%`.
     #[arg(long, value_name = "QUANTITY=DIST", allow_hyphen_values = true)]
     randomize: Vec<String>,
 }
@@ -1352,6 +1361,11 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
         Command::Response(a) => return response(*a, stop),
         Command::Tune(a) => return a.run(),
         Command::Excite(a) => return a.run(),
+        Command::Report { dir } => {
+            write_report(&dir)?;
+            eprintln!("wrote {}", dir.join("report.html").display());
+            return Ok(0);
+        }
         Command::Fit(a) => return a.run(),
         Command::Gains(a) => {
             use pupper_core::robot::gains::Ask;
@@ -1766,7 +1780,7 @@ fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
         match bridge::call_helper(
             "pupper_core.render",
             "write_lab_effects",
-            &[dir_s],
+            std::slice::from_ref(&dir_s),
             &serde_json::json!({ "gif": a.render }),
         ) {
             Ok(paths) if paths.is_empty() => {
@@ -1780,13 +1794,37 @@ fn run_job(a: Job, stop: &'static AtomicBool) -> Result<u8> {
         for p in bridge::call_helper(
             "pupper_core.render",
             "write_run_effects",
-            &[dir_s],
+            std::slice::from_ref(&dir_s),
             &serde_json::json!({}),
         )? {
             eprintln!("wrote {p}");
         }
     }
+    // the page a person opens: its path last (-q: written, not said)
+    write_report(&dir)?;
+    if !a.quiet {
+        eprintln!("wrote {}", dir.join("report.html").display());
+    }
     Ok(0)
+}
+
+/// Writes DIR/report.html. The path crosses as its bytes (hex), so a
+/// directory whose name is not UTF-8 is the same directory in Python.
+fn write_report(dir: &std::path::Path) -> Result<()> {
+    use std::os::unix::ffi::OsStrExt;
+    let hex: String = dir
+        .as_os_str()
+        .as_bytes()
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    bridge::call_helper(
+        "pupper_core._report",
+        "_cli_hex",
+        &[hex],
+        &serde_json::json!({}),
+    )?;
+    Ok(())
 }
 
 /// The name a run without --out starts from (`-1`, `-2`, ... when taken).

@@ -77,10 +77,7 @@ impl Backend {
             return Ok(());
         }
         for r in &replicates.randomize {
-            if matches!(
-                r.quantity,
-                Quantity::Delay | Quantity::QNoise | Quantity::MotorGain
-            ) {
+            if r.quantity.rust_pd() || r.quantity == Quantity::MotorGain {
                 return Err(Error::Config(format!(
                     "--randomize {} in torque mode needs the Rust PD of --backend cpu: the warp backend runs the PD inside MuJoCo's actuators; use --backend cpu",
                     r.quantity.name()

@@ -36,10 +36,16 @@ pub enum Quantity {
     QNoise,
     /// Observation latency of the torque-mode PD (whole control steps).
     Delay,
+    /// The servo firmware's command delay (s; `--motor delay`).
+    MotorDelay,
+    /// The firmware's derivative filter cutoff (Hz; `--motor filter`).
+    MotorFilter,
+    /// The motor's no-load speed (rad/s; `--motor noload`).
+    MotorNoload,
 }
 
 impl Quantity {
-    pub const ALL: [Quantity; 8] = [
+    pub const ALL: [Quantity; 11] = [
         Quantity::TorsoMass,
         Quantity::LegMass,
         Quantity::MotorGain,
@@ -48,6 +54,9 @@ impl Quantity {
         Quantity::PushAt,
         Quantity::QNoise,
         Quantity::Delay,
+        Quantity::MotorDelay,
+        Quantity::MotorFilter,
+        Quantity::MotorNoload,
     ];
 
     pub fn name(self) -> &'static str {
@@ -60,6 +69,9 @@ impl Quantity {
             Quantity::PushAt => "push_at",
             Quantity::QNoise => "q_noise",
             Quantity::Delay => "delay",
+            Quantity::MotorDelay => "motor_delay",
+            Quantity::MotorFilter => "motor_filter",
+            Quantity::MotorNoload => "motor_noload",
         }
     }
 
@@ -72,13 +84,28 @@ impl Quantity {
             Quantity::PushAt => "LOW:HIGH seconds, LOW >= 0 (e.g. 1.5:3)",
             Quantity::QNoise => "N(0,SIGMA) radians (e.g. N(0,0.002))",
             Quantity::Delay => "LOW:HIGH whole control steps, LOW >= 0 (e.g. 0:3)",
+            Quantity::MotorDelay => "LOW:HIGH seconds, LOW >= 0 (e.g. 0:0.01)",
+            Quantity::MotorFilter => "LOW:HIGH hertz, LOW > 0 (e.g. 50:200)",
+            Quantity::MotorNoload => "LOW:HIGH rad/s, LOW > 0 (e.g. 20:40)",
         }
     }
 
-    /// The modes that can apply it: noise and latency act on what the Rust
-    /// PD reads, which servo mode (MuJoCo's own PD) does not have.
+    /// The modes that can apply it: noise, latency and the motor model act
+    /// on the Rust PD, which servo mode (MuJoCo's own PD) does not have.
     pub fn supports(self, mode: Mode) -> bool {
-        !matches!(self, Quantity::QNoise | Quantity::Delay) || mode == Mode::Torque
+        !self.rust_pd() || mode == Mode::Torque
+    }
+
+    /// True for what only the Rust PD of torque mode applies.
+    pub fn rust_pd(self) -> bool {
+        matches!(
+            self,
+            Quantity::QNoise
+                | Quantity::Delay
+                | Quantity::MotorDelay
+                | Quantity::MotorFilter
+                | Quantity::MotorNoload
+        )
     }
 }
 
@@ -193,7 +220,12 @@ impl Randomize {
                 }
                 Dist::Steps(lo, hi)
             }
-            Quantity::Friction | Quantity::PushForce | Quantity::PushAt => {
+            Quantity::Friction
+            | Quantity::PushForce
+            | Quantity::PushAt
+            | Quantity::MotorDelay
+            | Quantity::MotorFilter
+            | Quantity::MotorNoload => {
                 let (lo, hi) = t
                     .split_once(':')
                     .ok_or_else(|| bad(spec, Some(q), "not a range"))?;
@@ -201,7 +233,12 @@ impl Randomize {
                 if lo > hi {
                     return Err(bad(spec, Some(q), "LOW is above HIGH"));
                 }
-                if (q == Quantity::Friction && lo <= 0.0) || (q == Quantity::PushAt && lo < 0.0) {
+                let positive = matches!(
+                    q,
+                    Quantity::Friction | Quantity::MotorFilter | Quantity::MotorNoload
+                );
+                let nonnegative = matches!(q, Quantity::PushAt | Quantity::MotorDelay);
+                if (positive && lo <= 0.0) || (nonnegative && lo < 0.0) {
                     return Err(bad(
                         spec,
                         Some(q),
@@ -220,8 +257,12 @@ impl Randomize {
             return Ok(());
         }
         Err(Error::Config(format!(
-            "--randomize {} needs --mode torque: it acts on the angles the Rust PD reads, and in {} mode MuJoCo computes the PD",
+            "--randomize {} needs --mode torque: it acts on {} of the Rust PD, and in {} mode MuJoCo computes the PD",
             self.quantity.name(),
+            match self.quantity {
+                Quantity::QNoise | Quantity::Delay => "the angles",
+                _ => "the motor model",
+            },
             mode.as_str()
         )))
     }
@@ -296,6 +337,11 @@ pub struct Draws {
     pub push_at: Option<f64>,
     /// Control steps of observation latency (torque mode).
     pub delay: usize,
+    /// The motor model's command delay (s), derivative filter (Hz) and
+    /// no-load speed (rad/s), where drawn (torque mode).
+    pub motor_delay: Option<f64>,
+    pub motor_filter: Option<f64>,
+    pub motor_noload: Option<f64>,
     /// Values in the order of [`Replicates::columns`].
     pub values: Vec<f64>,
 }
@@ -383,6 +429,9 @@ impl Replicates {
             push_force: None,
             push_at: None,
             delay: 0,
+            motor_delay: None,
+            motor_filter: None,
+            motor_noload: None,
             values: Vec::new(),
         };
         let one = |r: &Randomize| draw(r, self.seed, cell_id, replicate, 0);
@@ -406,6 +455,9 @@ impl Replicates {
                 Quantity::PushForce => d.push_force = Some(v),
                 Quantity::PushAt => d.push_at = Some(v),
                 Quantity::Delay => d.delay = v as usize,
+                Quantity::MotorDelay => d.motor_delay = Some(v),
+                Quantity::MotorFilter => d.motor_filter = Some(v),
+                Quantity::MotorNoload => d.motor_noload = Some(v),
                 Quantity::MotorGain | Quantity::QNoise => {}
             }
             d.values.push(v);

@@ -14,7 +14,7 @@ use crate::plan::config::SweepConfig;
 use crate::plan::grid::Cell;
 use crate::plan::mode::Mode;
 use crate::plan::motor::Motor;
-use crate::plan::randomize::Noise;
+use crate::plan::randomize::{Draws, Noise};
 use crate::plan::schedule::Schedule;
 use crate::plan::setup::CellSetup;
 use crate::robot::layout::Layout;
@@ -323,13 +323,18 @@ struct Sensing {
 
 /// The firmware of a torque-mode simulation: `--motor`, or a calibrated
 /// model's command delay; None for the ideal motor.
-fn firmware(cfg: &SweepConfig, info: &ModelInfo, dt: f64) -> Option<Firmware> {
+fn firmware(cfg: &SweepConfig, info: &ModelInfo, dt: f64, d: &Draws) -> Option<Firmware> {
+    // a replicate's draws over --motor
+    let mut motor = cfg.motor.clone();
+    motor.delay = d.motor_delay.unwrap_or(motor.delay);
+    motor.filter = d.motor_filter.or(motor.filter);
+    motor.noload = d.motor_noload.or(motor.noload);
     let delayed = info.actuators.iter().any(|a| a.delay > 0.0);
-    if cfg.motor.is_ideal() && !(delayed && cfg.mode == Mode::Torque) {
+    if motor.is_ideal() && !(delayed && cfg.mode == Mode::Torque) {
         return None;
     }
-    let mut f = Firmware::new(&cfg.motor, info.nu, dt);
-    if cfg.motor.delay == 0.0 {
+    let mut f = Firmware::new(&motor, info.nu, dt);
+    if motor.delay == 0.0 && d.motor_delay.is_none() {
         f.delays = info.actuators.iter().map(|a| a.delay).collect();
     }
     Some(f)
@@ -523,7 +528,7 @@ impl ChunkPlan {
                         delay: d.delay,
                         noise: reps.noise(&c.id, r as u32),
                         history: Default::default(),
-                        firmware: firmware(cfg, info, dt),
+                        firmware: firmware(cfg, info, dt, &d),
                     });
                     out.setups.push(setup);
                     out.sims.push(SimPlan {

@@ -90,6 +90,7 @@ pub fn call_helper(
                     "TuneError",
                     "FitError",
                     "ConfigError",
+                    "OutputError",
                     "GridError",
                     "ModelError",
                     "ModelNotFoundError",
