@@ -125,12 +125,13 @@ def _pyenv_python(minor: str) -> str | None:
     import glob
     import shutil
 
-    found = shutil.which(f"python{minor}")
-    if found:
-        return found
     root = os.environ.get("PYENV_ROOT", os.path.expanduser("~/.pyenv"))
     hits = sorted(glob.glob(os.path.join(root, "versions", f"{minor}.*", "bin", f"python{minor}")))
-    return hits[-1] if hits else None
+    if hits:
+        return hits[-1]
+    found = shutil.which(f"python{minor}")
+    # a pyenv shim answers only for the version pyenv has selected
+    return found if found and "/shims/" not in found else None
 
 
 @pytest.mark.parametrize("minor", ["3.12", "3.13"])
