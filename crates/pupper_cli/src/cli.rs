@@ -596,15 +596,7 @@ impl ExciteArgs {
             "max_velocity": self.max_velocity,
             "seed": self.seed,
         });
-        for p in bridge::call_helper(
-            "pupper_core._fit",
-            "_cli_excite",
-            &[args.to_string()],
-            &serde_json::json!({}),
-        )? {
-            eprintln!("wrote {p}");
-        }
-        Ok(0)
+        python_command("pupper_core._fit", "_cli_excite", &args)
     }
 }
 
@@ -673,16 +665,17 @@ impl FitArgs {
             "max_iters": self.max_iters,
             "plot": self.plot,
         });
-        for p in bridge::call_helper(
-            "pupper_core._fit",
-            "_cli_fit",
-            &[args.to_string()],
-            &serde_json::json!({}),
-        )? {
-            eprintln!("wrote {p}");
-        }
-        Ok(0)
+        python_command("pupper_core._fit", "_cli_fit", &args)
     }
+}
+
+/// A command whose work is in pupper's Python package: its flags as JSON
+/// to `module.func`, which returns the files it wrote (said on stderr).
+fn python_command(module: &str, func: &str, args: &serde_json::Value) -> Result<u8> {
+    for p in bridge::call_helper(module, func, &[args.to_string()], &serde_json::json!({}))? {
+        eprintln!("wrote {p}");
+    }
+    Ok(0)
 }
 
 /// `--grid`, repeatable.
