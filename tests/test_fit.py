@@ -293,3 +293,16 @@ def test_without_the_extra_fit_names_it(logs, tmp_path, run):
     p = run("fit", logs["hw0.1"], "-o", tmp_path / "o", env=hidden(tmp_path, "scipy"), check=2)
     assert p.stderr.count("\n") == 1 and "PUPPER_EXTRAS=fit" in p.stderr, p.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_the_sample_log_is_a_log_fit_reads(run, tmp_path):
+    """docs/sample_joint_log.csv, the format's example: fit takes it (the
+    nominal model's own response, rounded as a servo reports it, so the
+    fitted gains stay the nominal ones)."""
+    from conftest import REPO
+
+    run("fit", REPO / "docs" / "sample_joint_log.csv", "--params", "kp_scale,delay", "--max-iters", "5",
+        "-o", tmp_path / "fit", check=0)
+    _, rows = read_csv(tmp_path / "fit" / "fit.csv")
+    v = {r["parameter"]: float(r["fitted"]) for r in rows}
+    assert v["kp_scale"] == pytest.approx(1.0, abs=0.02) and v["delay"] < 0.004

@@ -224,9 +224,10 @@ def initial_state(model: Any, robot: Robot, q0: np.ndarray, qd0: np.ndarray, tar
 
 
 def simulate(spec: Any, robot: Robot, times: np.ndarray, targets: np.ndarray,
-             q0: np.ndarray | None = None) -> np.ndarray:
+             q0: np.ndarray | None = None, settle: float = 1.0) -> np.ndarray:
     """Angles, velocities and torques (samples, 3 nu) of the targets played
-    through `spec` from rest at the first target (or at ``q0``)."""
+    through `spec`, after ``settle`` seconds held at the first target
+    (started there, or at ``q0``)."""
     import mujoco
     from mujoco import rollout
 
@@ -235,6 +236,11 @@ def simulate(spec: Any, robot: Robot, times: np.ndarray, targets: np.ndarray,
     if abs(dt - m.opt.timestep) > 1e-9:
         m.opt.timestep = dt
     x0 = initial_state(m, robot, targets[0] if q0 is None else q0, np.zeros(m.nu), targets[0])
+    if settle > 0:
+        # the robot has rested at the first target before the log starts
+        hold = np.tile(targets[0], (round(settle / dt), 1))
+        state, _ = rollout.rollout(m, mujoco.MjData(m), x0, hold)
+        x0 = np.asarray(state[0, -1])
     _, sens = rollout.rollout(m, mujoco.MjData(m), x0, targets)
     return np.asarray(sens[0])
 
@@ -408,8 +414,8 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
             specs[key] = spec
             gains[id(spec)] = (kp, kd)
         spec = specs[key]
-        # the model steps at the log's rate
-        spec.option.timestep = float(np.mean(np.diff(lg.times)))
+        # the model steps at its own timestep; sysid resamples the logged
+        # targets to it and the predictions to the log's times
         m = spec.compile()
         t = lg.times - lg.times[0]
         target = lg.target[:, order]
@@ -419,11 +425,11 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         # the start: where the robot rests when the log begins on a hold
         # (the mean of its first samples, less noise than one)
         held = int(np.argmax(np.any(target != target[0], axis=1))) or len(target)
-        n0 = max(1, min(held, 10))
+        n0 = max(1, min(held, round(0.01 / float(np.mean(np.diff(t))))))
         q0 = q[:n0].mean(axis=0) if held >= n0 and not has_qd else q[0]
         qd0 = cols[1][0] if has_qd else np.zeros(nu)
         x0 = initial_state(m, robot, q0, qd0, target[0])
-        control = sysid.TimeSeries.from_control_names(t, target, m)
+        control = sysid.TimeSeries.from_control_names(*_held(t, target, m.opt.timestep), m)
         measured = sysid.TimeSeries.from_names(t, y, m)
         sequences.append(sysid.ModelSequences(f"log{li}", spec, lg.path.stem, x0, control, measured))
 
@@ -490,6 +496,17 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
 
         _report.report(out_dir)
     return result
+
+
+def _held(t: np.ndarray, target: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Targets logged slower than the physics, as a servo holds them: each
+    one until the next (sysid would interpolate between them)."""
+    period = float(np.mean(np.diff(t)))
+    if period <= dt * (1 + 1e-9):
+        return t, target
+    tc = np.arange(0.0, t[-1] + dt / 2, dt)
+    idx = np.searchsorted(t, tc + 1e-9 * dt, side="right") - 1
+    return tc, target[np.clip(idx, 0, len(t) - 1)]
 
 
 def _modifier(kind: str, members: list[int], robot: Robot, gains: dict[int, tuple[np.ndarray, np.ndarray]]) -> Any:
