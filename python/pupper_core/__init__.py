@@ -358,7 +358,8 @@ def lab(
     last_1s_std_mm, or p95:last_1s_std_mm over replicates). With `out`, the run directory also gets best.csv, the lab's
     figures and (where OpenGL works) the bodies drawn at their best gains;
     `render=True` adds the GIF. Other keywords: seconds, sine, model,
-    force, resume, threads, max_saturation, rank, backend, device, ray, depth
+    force, resume, threads, max_saturation, rank, backend, device, ray, motor
+    (the servo firmware of the lab's torque-mode PD, as `sweep`'s), depth
     (the feet's depth below the hips in m; default the chapter's 0.14 m scaled
     to the model's legs), and the
     population (replicates, seed, randomize) as `sweep` takes them (defaults as

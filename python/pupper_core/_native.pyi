@@ -205,6 +205,7 @@ def lab(
     device: str | None = ...,
     ray: str | None = ...,
     depth: float | None = ...,
+    motor: str | None = ...,
     progress: Callable[[int, int], object] | None = ...,
 ) -> SweepResult:
     """The chapter's lab; best.csv in `out`. Plots and rendering are the wrapper's."""

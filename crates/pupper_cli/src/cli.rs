@@ -958,6 +958,10 @@ struct LabArgs {
     /// chapter's 0.14 m on Pupper v3's legs, scaled to each body's leg length]
     #[arg(long, value_name = "M", allow_negative_numbers = true)]
     depth: Option<f64>,
+    /// The servo firmware and motor the lab's torque-mode PD runs through, as for `sweep
+    /// --motor` (rate=HZ, filter=HZ, counts=N, delay=S, noload=RAD_S) [default: ideal]
+    #[arg(long, value_name = "SPEC")]
+    motor: Option<String>,
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
     #[arg(long, default_value_t = pupper_core::results::best::MAX_SATURATION, value_name = "FRACTION")]
     max_saturation: f64,
@@ -1567,6 +1571,7 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
         model: a.model.model.clone(),
         threads: a.threads,
         depth: a.depth,
+        motor: a.motor.clone(),
         force: a.force,
         ..a.backend
             .apply(a.population.apply(pupper_core::request::lab::spec(

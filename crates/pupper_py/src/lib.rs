@@ -666,8 +666,8 @@ fn run_spec(
 /// best.csv (the best gains per body) in `out`. Plots and rendering are the
 /// Python wrapper's.
 #[pyfunction]
-#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::request::lab::SECONDS, sine=pupper_core::request::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, rank=None, replicates=1, seed=0, randomize=Vec::new(), backend="cpu".to_string(), device=None, ray=None, depth=None, progress=None),
-    text_signature = "(variants=None, grid=None, *, seconds=6.0, sine=(2.0, 1.2), model='pupper_v3', out=None, force=False, resume=False, threads=0, max_saturation=0.05, rank=None, replicates=1, seed=0, randomize=(), backend='cpu', device=None, ray=None, depth=None, progress=None)")]
+#[pyo3(signature = (variants=None, grid=None, *, seconds=pupper_core::request::lab::SECONDS, sine=pupper_core::request::lab::SINE, model="pupper_v3".to_string(), out=None, force=false, resume=false, threads=0, max_saturation=best::MAX_SATURATION, rank=None, replicates=1, seed=0, randomize=Vec::new(), backend="cpu".to_string(), device=None, ray=None, depth=None, motor=None, progress=None),
+    text_signature = "(variants=None, grid=None, *, seconds=6.0, sine=(2.0, 1.2), model='pupper_v3', out=None, force=False, resume=False, threads=0, max_saturation=0.05, rank=None, replicates=1, seed=0, randomize=(), backend='cpu', device=None, ray=None, depth=None, motor=None, progress=None)")]
 #[allow(clippy::too_many_arguments)]
 fn lab(
     py: Python<'_>,
@@ -689,6 +689,7 @@ fn lab(
     device: Option<String>,
     ray: Option<String>,
     depth: Option<f64>,
+    motor: Option<String>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<result::SweepResult> {
     // the ranges `sweep` takes, with its messages
@@ -723,6 +724,7 @@ fn lab(
         device,
         ray,
         depth,
+        motor,
         ..pupper_core::request::lab::spec(&variants, &grid.unwrap_or_default(), seconds, sine)
     };
     let metric = rank.unwrap_or_else(|| {
