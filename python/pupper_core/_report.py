@@ -220,8 +220,9 @@ def _kind(manifest: dict[str, Any]) -> str:
 def _inputs(manifest: dict[str, Any], kind: str) -> str:
     items: list[tuple[str, str]] = []
     cmd = manifest.get("command")
-    if isinstance(cmd, list):
-        items.append(("command", " ".join(str(c) for c in cmd)))
+    if isinstance(cmd, list) and cmd:
+        # the program by its name (where it was installed says nothing of the run)
+        items.append(("command", " ".join([Path(str(cmd[0])).name, *map(str, cmd[1:])])))
     cfg = manifest.get("config")
     if cfg:
         model = manifest.get("model", {})
