@@ -493,17 +493,16 @@ impl TuneArgs {
 }
 
 #[derive(Args, Debug)]
-#[command(
-    after_help = "The log (CSV): `# key: value` lines, then a header `time,ACTUATOR.target,\
-ACTUATOR.q[,ACTUATOR.qd][,ACTUATOR.tau],...`. Units: s, rad, rad/s, N·m. Keys: kp and kd (the gains
-in use: one value, or one per actuator in column order; required), mode (servo or torque), base
-(suspended). Play the file's targets on the robot, hung in the air, at its gains; log the measured
-angles (and velocities, torques where the servos report them) into the same columns.
+#[command(after_help = "The log (CSV): `# key: value` lines, then a header
+time,ACTUATOR.target,ACTUATOR.q[,ACTUATOR.qd][,ACTUATOR.tau],... in s, rad, rad/s, N·m.
+Keys: kp and kd (the gains in use: one value, or one per actuator in column order; required),
+mode (servo or torque), base (suspended). Play the file's targets on the robot, hung in the air, at
+its gains; log the measured angles (and velocities, torques where the servos report them) into the
+same columns. The format, the fit and the motor model: docs/fit.md.
 
 Examples:
   pupper excite -o excite.csv                      8 s per joint group at the model's own gains
-  pupper excite --kd 0.3 --signal chirp -o excite_kd03.csv   a second log at another kd"
-)]
+  pupper excite --kd 0.3 --signal chirp -o excite_kd03.csv   a second log at another kd")]
 struct ExciteArgs {
     #[command(flatten)]
     model: ModelArg,
@@ -602,8 +601,8 @@ impl ExciteArgs {
 
 #[derive(Args, Debug)]
 #[command(
-    after_help = "The fit replays each log through the model hung in the air (free joint
-removed, contacts off) at the log's gains and fits the angles (and velocities and torques where
+    after_help = "The fit replays each log through the model hung in the air (free joint removed,
+contacts off) at the log's gains and fits the angles (and velocities and torques where
 logged) by mujoco.sysid's bounded Levenberg-Marquardt. With angles only, joint damping and the
 servo's kd act as one damping: fit a second log at another kd (pupper excite --kd) or log torque,
 or leave one of them out of --params; fit warns when they are confounded. calibrated.xml keeps
