@@ -314,15 +314,6 @@ def test_shards_merge_into_the_unsharded_bytes(run, tmp_path):
         assert (tmp_path / "merged" / name).read_bytes() == (tmp_path / "whole" / name).read_bytes(), name
 
 
-def test_the_readme_sample_is_what_the_command_prints(run, tmp_path):
-    text = (REPO / "README.md").read_text()
-    cmd = "$ pupper response --grid kp=5,20,60 --grid kd=0.1,0.5 --joints kfe -q\n"
-    shown = text.split(cmd, 1)[1].split("```", 1)[0]
-    p = run("response", "--grid", "kp=5,20,60", "--grid", "kd=0.1,0.5", "--joints", "kfe", "-q",
-            "-o", tmp_path / "r", check=0)
-    assert p.stdout == shown
-
-
 def test_replicates_draw_each_joint_its_own_robot(run, tmp_path):
     run("response", "--kp", "20", "--kd", "0.5", "--joints", "kfe", "--seconds", "1.5", "--replicates", "3",
         "--randomize", "motor_gain=±20%", "-o", tmp_path / "r", "-q", check=0)

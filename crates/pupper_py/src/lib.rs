@@ -157,6 +157,7 @@ pub(crate) fn pythonic(msg: &str) -> String {
         ("trace", "trace=True"),
         ("no-push", "push=False"),
     ];
+    const NAMED: [&str; 3] = ["model", "preset", "keyframe"];
     let words: Vec<&str> = msg.split(' ').collect();
     let mut out: Vec<String> = Vec::with_capacity(words.len());
     let mut quoted = false;
@@ -177,6 +178,20 @@ pub(crate) fn pythonic(msg: &str) -> String {
                     .collect();
                 let rest = &f[name.len()..];
                 let key = name.replace('-', "_");
+                // a flag that names a thing takes it as a string: `model="pupper_v3"`
+                let named = words.get(i + 1).filter(|v| {
+                    rest.is_empty()
+                        && NAMED.contains(&name.as_str())
+                        && v.trim_end_matches([',', ':', ';', ')']).chars().all(|c| {
+                            c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.' | '/')
+                        })
+                });
+                if let Some(v) = named {
+                    let bare = v.trim_end_matches([',', ':', ';', ')']);
+                    out.push(format!("{key}=\"{bare}\"{}", &v[bare.len()..]));
+                    i += 2;
+                    continue;
+                }
                 let value = words.get(i + 1).filter(|v| {
                     rest.is_empty()
                         && v.trim_end_matches([',', ':', ';', ')'])
@@ -1016,6 +1031,12 @@ mod tests {
         assert_eq!(
             pythonic("drop --no-push or the axis"),
             "drop push=False or the axis"
+        );
+        assert_eq!(
+            pythonic(
+                "model file 'nope.xml' does not exist: check the path, or use --model pupper_v3"
+            ),
+            "model file 'nope.xml' does not exist: check the path, or use model=\"pupper_v3\""
         );
         // a quoted command line stays one
         assert_eq!(
