@@ -81,7 +81,7 @@ def test_torque_mode_pd_as_actuator_parameters(run, tmp_path):
 
 
 def test_bodies_friction_and_replicates_per_world(run, tmp_path):
-    """Body variants (a Warp model each), friction per world and drawn
+    """Body variants (one Warp model: masses are per world), friction per world and drawn
     masses, gains, push times: the same robots as on cpu."""
     warp, cpu = both(
         run, tmp_path, "--grid", "variant=original,heavy", "--grid", "friction=0.6,1.1",
@@ -99,6 +99,31 @@ def test_bodies_friction_and_replicates_per_world(run, tmp_path):
         assert len(drawn) == 14, drawn
         assert {k: a[k] for k in drawn} == {k: b[k] for k in drawn}
         assert abs(float(a["final_z"]) - float(b["final_z"])) < 1e-4, (a, b)
+
+
+def test_a_population_of_drawn_masses_is_one_warp_model(caplog):
+    """64 robots with drawn torso and leg masses, and the heavy body beside
+    the original, run as worlds of one Warp model (masses, inertias and
+    what MuJoCo derives from them per world), as the log says; the numbers
+    are the cpu backend's."""
+    import logging
+
+    from pupper_core import _warp
+
+    kw = dict(kp=20, kd=0.5, replicates=64, seed=3, seconds=2.0, push_at=0.2, progress=False,
+              randomize=["torso_mass=±15%", "leg_mass=±10%"])
+    grid = {"variant": ["original", "heavy"]}
+    before = _warp.MODELS_BUILT
+    with caplog.at_level(logging.INFO, logger="pupper_core.warp"):
+        w = pc.sweep(grid, backend="warp", device="cpu", **kw)
+    assert _warp.MODELS_BUILT - before == 1
+    assert [r.getMessage() for r in caplog.records] == [
+        "one Warp model for 128 worlds (128 bodies of masses) on cpu"]
+    c = pc.sweep(grid, **kw)
+    assert w.header == c.header and list(w["failure_fraction"]) == list(c["failure_fraction"])
+    zw, zc = w.replicates["final_z"], c.replicates["final_z"]
+    assert len(zw) == 128 and len(set(zc)) == 128  # every robot its own
+    assert max(abs(a - b) for a, b in zip(zw, zc)) < 1e-4
 
 
 def test_sine_force_lab_on_warp(tmp_path):

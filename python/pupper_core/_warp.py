@@ -17,6 +17,7 @@ it the backend says what to install.
 
 from __future__ import annotations
 
+import logging
 import sys
 from typing import Any
 
@@ -35,6 +36,17 @@ RECORD_BYTES = 256 << 20
 # at 65,536 worlds), and what a stop can lose (one batch) stays about a
 # minute. The CPU device steps a few worlds at a time anyway.
 MOST_WORLDS = {"cuda": 65536, "cpu": 256}
+
+# What a world's masses change in a model: the masses and inertias, and what
+# mj_setConst derives from them (MuJoCo Warp reads each batched field per
+# world; its solver scales by each world's own mass matrix, not `stat`).
+PER_WORLD_MASS = ("body_mass", "body_inertia", "body_subtreemass", "body_invweight0",
+                  "dof_invweight0", "actuator_acc0")
+
+#: Warp models built in this process: one per body geometry and batch.
+MODELS_BUILT = 0
+
+log = logging.getLogger("pupper_core.warp")
 
 
 class WarpUnavailable(RuntimeError):
@@ -127,7 +139,12 @@ class Worlds:
     (n, nu) start states; ``gain``/``bias`` (n, nu, 3) the first three
     actuator gain and bias parameters; ``force_range`` (n, nu, 2);
     ``friction`` (n,) the sliding friction of the ``colliding`` geoms, or
-    None to keep the model's.
+    None to keep the model's. ``bodies``: None when every world has the
+    model's masses, else (models, index): the same body with other masses
+    (``mj_setConst`` done on each) and each world's entry in that list; the
+    one Warp model then holds each world's masses, inertias and the
+    quantities MuJoCo derives from them, so a population of drawn robots
+    (and the lab's heavy body beside the original) is one model.
     """
 
     def __init__(
@@ -143,6 +160,7 @@ class Worlds:
         friction: np.ndarray | None,
         colliding: list[int],
         force_body: int,
+        bodies: tuple[list[Any], np.ndarray] | None = None,
     ) -> None:
         import mujoco
 
@@ -155,6 +173,8 @@ class Worlds:
         batched = {"actuator_gainprm": n, "actuator_biasprm": n, "actuator_forcerange": n}
         if friction is not None:
             batched["geom_friction"] = n
+        if bodies is not None:
+            batched.update({f: n for f in PER_WORLD_MASS})
         host = mujoco.MjData(model)
         if keyframe >= 0:
             mujoco.mj_resetDataKeyframe(model, host, keyframe)
@@ -180,6 +200,13 @@ class Worlds:
                 for g in colliding:
                     fr[:, g, 0] = friction
                 m.geom_friction.assign(fr)
+            if bodies is not None:
+                # the host's float64 constants of each body, rounded once:
+                # the numbers a model of that body alone would carry
+                models, index = bodies
+                for f in PER_WORLD_MASS:
+                    rows = np.stack([getattr(b, f) for b in models])[np.asarray(index)]
+                    getattr(m, f).assign(np.ascontiguousarray(rows, dtype=f32))
             d = mjw.put_data(model, host, nworld=n)
             d.qpos.assign(np.ascontiguousarray(qpos, dtype=f32))
             d.ctrl.assign(np.ascontiguousarray(ctrl, dtype=f32))
@@ -193,6 +220,10 @@ class Worlds:
             self._out_q = wp.zeros((self.block, n, self.nq), dtype=wp.float32)
             self._out_f = wp.zeros((self.block, n, self.nu), dtype=wp.float32)
         self._graph: Any = None
+        global MODELS_BUILT
+        MODELS_BUILT += 1
+        log.info("one Warp model for %d worlds (%d bodies of masses) on %s", n,
+                 1 if bodies is None else len(bodies[0]), self.device)
 
     def _one_step(self) -> None:
         from . import _warp_kernels as k

@@ -508,6 +508,20 @@ pub(super) fn scale_masses(
     base: usize,
     c: &CellSetup,
 ) -> PyResult<()> {
+    scale_body_masses(mj, m, data, base, c.torso_mass_factor, c.leg_mass_factor)
+}
+
+/// Multiplies the base's mass and inertia by `torso`, and those of the
+/// bodies two or more levels below it (thighs, calves, feet) by `legs`,
+/// then recomputes what MuJoCo derives from them.
+pub(super) fn scale_body_masses(
+    mj: &super::python::Mujoco<'_>,
+    m: &Bound<'_, PyAny>,
+    data: &Bound<'_, PyAny>,
+    base: usize,
+    torso: f64,
+    legs: f64,
+) -> PyResult<()> {
     let parent: Vec<usize> = m
         .getattr("body_parentid")?
         .call_method0("tolist")?
@@ -525,8 +539,8 @@ pub(super) fn scale_masses(
                 depth += 1;
             }
             let f = match (at == base, depth) {
-                (true, 0) => c.torso_mass_factor,
-                (true, d) if d >= 2 => c.leg_mass_factor,
+                (true, 0) => torso,
+                (true, d) if d >= 2 => legs,
                 _ => continue,
             };
             mass[b] *= f;

@@ -9,8 +9,9 @@
 
 use numpy::{PyArray1, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
+use pyo3::types::PyList;
 
-use super::cpu::{actuator_params, colliding_geoms, scale_masses};
+use super::cpu::{actuator_params, colliding_geoms, scale_body_masses};
 use super::model::LoadedModel;
 use super::python::{PyResultExt, exception_name, python_message};
 use super::setup::{StartStates, prepare_model};
@@ -114,11 +115,15 @@ pub struct WarpBatch<'py> {
     nu: usize,
 }
 
-/// What decides a simulation's Warp model: its body and masses (gains,
-/// torque limits and friction are per world).
-fn body_key(c: &CellSetup) -> [u64; 4] {
+/// What decides a simulation's Warp model: its leg scale (geometry). Masses
+/// and inertias are per world, like gains, torque limits and friction.
+fn body_key(c: &CellSetup) -> u64 {
+    c.leg_scale.to_bits()
+}
+
+/// What decides a world's masses: the body's torso scale and the draws.
+fn mass_key(c: &CellSetup) -> [u64; 3] {
     [
-        c.leg_scale.to_bits(),
         c.torso_mass_scale.to_bits(),
         c.torso_mass_factor.to_bits(),
         c.leg_mass_factor.to_bits(),
@@ -165,7 +170,7 @@ impl<'py> WarpBatch<'py> {
             None => info.qpos0.clone(),
         };
         // bodies in order of first appearance, each with its simulations
-        let mut bodies: Vec<([u64; 4], Vec<usize>)> = Vec::new();
+        let mut bodies: Vec<(u64, Vec<usize>)> = Vec::new();
         for (i, c) in cells.iter().enumerate() {
             let key = body_key(c);
             match bodies.iter_mut().find(|(k, _)| *k == key) {
@@ -178,23 +183,61 @@ impl<'py> WarpBatch<'py> {
         let mut scratch: Option<Bound<'py, PyAny>> = None;
         for (g, (_, sims)) in bodies.into_iter().enumerate() {
             let first = &cells[sims[0]];
-            let model = prepare_model(
-                mj,
-                &owner.variant(first.leg_scale, first.torso_mass_scale)?,
-                mode,
-                dt,
-            )
-            .internal()?;
-            if !first.nominal_masses() {
-                let data = match &scratch {
-                    Some(d) => d.clone(),
+            let model =
+                prepare_model(mj, &owner.variant(first.leg_scale, 1.0)?, mode, dt).internal()?;
+            // the group's masses, in order of first appearance
+            let mut masses: Vec<([u64; 3], usize)> = Vec::new();
+            let mut mass_of = Vec::with_capacity(sims.len());
+            for &sim in &sims {
+                let key = mass_key(&cells[sim]);
+                let k = match masses.iter().position(|(m, _)| *m == key) {
+                    Some(k) => k,
                     None => {
-                        let d = mj.module.getattr("MjData").and_then(|f| f.call1((&model,)));
-                        scratch.insert(d.internal()?).clone()
+                        masses.push((key, sim));
+                        masses.len() - 1
                     }
                 };
-                scale_masses(mj, &model, &data, layout.base.body, first).internal()?;
+                mass_of.push(k);
             }
+            let data = match &scratch {
+                Some(d) => d.clone(),
+                None => {
+                    let d = mj.module.getattr("MjData").and_then(|f| f.call1((&model,)));
+                    scratch.insert(d.internal()?).clone()
+                }
+            };
+            // the torso scale first, then the draws: the products the cpu
+            // backend forms (a scaled body, then its draws)
+            let scaled = |m: &Bound<'py, PyAny>, c: &CellSetup| -> Result<()> {
+                let base = layout.base.body;
+                if c.torso_mass_scale != 1.0 {
+                    scale_body_masses(mj, m, &data, base, c.torso_mass_scale, 1.0).internal()?;
+                }
+                if !c.nominal_masses() {
+                    scale_body_masses(mj, m, &data, base, c.torso_mass_factor, c.leg_mass_factor)
+                        .internal()?;
+                }
+                Ok(())
+            };
+            // one mass: the model carries it; several: one model, its mass
+            // and what MuJoCo derives from it per world
+            let per_world = if masses.len() == 1 {
+                scaled(&model, &cells[masses[0].1])?;
+                py.None().into_bound(py)
+            } else {
+                let copy = PyModule::import(py, "copy")
+                    .and_then(|c| c.getattr("copy"))
+                    .internal()?;
+                let mut bodies = Vec::with_capacity(masses.len());
+                for &(_, sim) in &masses {
+                    let m = copy.call1((&model,)).internal()?;
+                    scaled(&m, &cells[sim])?;
+                    bodies.push(m);
+                }
+                let bodies = PyList::new(py, bodies).internal()?;
+                let index = PyArray1::from_vec(py, mass_of.iter().map(|&k| k as i64).collect());
+                (bodies, index).into_pyobject(py).internal()?.into_any()
+            };
             let colliding = colliding_geoms(&model).internal()?;
             let n = sims.len();
             let (mut qpos, mut ctrl) = (Vec::with_capacity(n * nq), Vec::with_capacity(n * nu));
@@ -249,6 +292,7 @@ impl<'py> WarpBatch<'py> {
                 friction,
                 colliding,
                 layout.base.body,
+                per_world,
             );
             let worlds = physics
                 .module
