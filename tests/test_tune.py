@@ -65,6 +65,22 @@ def test_the_study_is_the_same_at_any_thread_count(run, tmp_path):
     assert manifest["cell_steps"] == sum(int(r["cell_steps"]) for r in rows)
 
 
+def test_the_schedule_flags_of_sweep_reach_the_trials(run, tmp_path):
+    """--push-at, --push-force, --sine and --chunk-cells as sweep takes them:
+    the trial's cell is the sweep of the same flags, to the digit; a resume
+    may change the threads or the chunk size (they never change numbers)."""
+    flags = ["--seconds", "2", "--push-at", "0.2", "--push-force", "-15", "--sine", "1,2"]
+    run("tune", "--space", "kp=5:50:log", "--kd", "0.5", "--objective", "push_dip_mm", "--trials", "2",
+        "--batch", "2", *flags, "--chunk-cells", "1", "-q", "-o", tmp_path / "t", check=0)
+    _, rows = read_csv(tmp_path / "t" / "trials.csv")
+    kp = rows[0]["kp"]
+    run("sweep", "--grid", f"kp={kp}", "--kd", "0.5", *flags, "--stop-fallen", "-q", "-o", tmp_path / "s", check=0)
+    _, cell = read_csv(tmp_path / "s" / "summary.csv")
+    assert float(rows[0]["push_dip_mm"]) == float(cell[0]["push_dip_mm"])
+    p = run("tune", "--resume", tmp_path / "t", "--trials", "4", "-j", "1", "-q", check=0)
+    assert "4 trials" in p.stdout, p.stdout + p.stderr
+
+
 def test_a_kill_and_resume_neither_repeat_nor_lose_a_trial(pupper_bin, run, tmp_path):
     run(*_args(tmp_path / "whole"), check=0)
     cut = tmp_path / "cut"

@@ -126,6 +126,49 @@ def test_a_population_of_drawn_masses_is_one_warp_model(caplog):
     assert max(abs(a - b) for a, b in zip(zw, zc)) < 1e-4
 
 
+@pytest.mark.parametrize("args", [
+    ["--mode", "servo"],
+    ["--mode", "torque"],
+    ["--signal", "sine", "--frequency", "3", "--amplitude", "0.1"],
+    ["--standing"],
+], ids=["servo-step", "torque-step", "sine", "standing"])
+def test_response_on_warp(run, tmp_path, args):
+    """pupper response (targets that move every step, written on the device
+    before each step) agrees with cpu: the same rows and statuses, rise and
+    settling times to the step, the rest to float32's noise."""
+    common = ["response", "--joints", "kfe,hfe", "--grid", "kp=5,20", "--kd", "0.5",
+              "--seconds", "1.5", *args, "-q"]
+    run(*common, *WARP, "-o", tmp_path / "warp", check=0)
+    run(*common, "-o", tmp_path / "cpu", check=0)
+    hw, rw = read_csv(tmp_path / "warp" / "response.csv")
+    hc, rc = read_csv(tmp_path / "cpu" / "response.csv")
+    assert hw == hc and len(rw) == len(rc) == 16
+    for a, b in zip(rw, rc):
+        assert (a["id"], a["joint"], a["status"]) == (b["id"], b["joint"], b["status"])
+        for k in ("rise_time_s", "settling_time_s"):
+            if b[k]:
+                assert abs(float(a[k]) - float(b[k])) <= 0.0021, (k, a, b)
+        for k in ("overshoot_pct", "ss_error_pct", "gain_db", "phase_deg", "peak_torque"):
+            if b[k]:
+                assert abs(float(a[k]) - float(b[k])) <= 0.01 * max(1.0, abs(float(b[k]))), (k, a, b)
+
+
+def test_tune_on_warp(run, tmp_path):
+    """A tune generation is one Warp batch: the same trials as on cpu (the
+    sampler sees values that agree to float32's noise)."""
+    args = ["tune", "--space", "kp=5:50:log", "--space", "kd=0.1:2:log", "--trials", "8", "--batch", "8",
+            "--seconds", "2", "--push-at", "0.2", "-q"]
+    run(*args, *WARP, "-o", tmp_path / "warp", check=0)
+    run(*args, "-o", tmp_path / "cpu", check=0)
+    _, rw = read_csv(tmp_path / "warp" / "trials.csv")
+    _, rc = read_csv(tmp_path / "cpu" / "trials.csv")
+    assert [(r["kp"], r["kd"], r["status"]) for r in rw] == [(r["kp"], r["kd"], r["status"]) for r in rc]
+    for a, b in zip(rw, rc):
+        assert abs(float(a["last_1s_std_mm"]) - float(b["last_1s_std_mm"])) < 1e-4, (a, b)
+    m = json.loads((tmp_path / "warp" / "manifest.json").read_text())
+    assert m["inputs"]["options"]["backend"] == "warp"
+
+
 def test_sine_force_lab_on_warp(tmp_path):
     """The lab (torque mode, each body from its own searched stand pose,
     a force per step) agrees with cpu."""

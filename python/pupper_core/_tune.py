@@ -213,6 +213,18 @@ def _sampler(optuna: Any, name: str, seed: int, generation: int, batch: int, mul
     raise TuneError(f"--sampler {name} is unknown: use one of {', '.join(SAMPLERS)}")
 
 
+#: Options that change how a study runs, never its numbers: a resume may
+#: change them.
+RUN_ONLY = ("threads", "chunk_cells", "ray")
+
+
+def _compared(inputs: Mapping[str, Any]) -> dict[str, Any]:
+    """The inputs a resume must repeat: all but the run-only options."""
+    out = dict(inputs)
+    out["options"] = {k: v for k, v in dict(inputs.get("options", {})).items() if k not in RUN_ONLY}
+    return out
+
+
 def _inputs(space: list[Dimension], objectives: list[str], maximize: bool, batch: int, sampler: str,
             seed: int, aggregate: str, options: Mapping[str, Any]) -> dict[str, Any]:
     return {"space": [d.text() for d in space], "objectives": objectives, "maximize": maximize, "batch": batch,
@@ -322,8 +334,9 @@ def tune(
             if not manifest_path.exists():
                 raise TuneError(f"--resume {out_dir}: no tune there (no manifest.json); start it without --resume")
             old = json.loads(manifest_path.read_text())
-            if old.get("inputs") != json.loads(json.dumps(inputs)):
-                diff = [k for k in inputs if old.get("inputs", {}).get(k) != json.loads(json.dumps(inputs))[k]]
+            if _compared(old.get("inputs", {})) != _compared(json.loads(json.dumps(inputs))):
+                now = _compared(json.loads(json.dumps(inputs)))
+                diff = [k for k in now if _compared(old.get("inputs", {})).get(k) != now[k]]
                 raise TuneError(f"cannot resume {out_dir}: this command differs in {', '.join(diff)}; "
                                 "rerun the original command with --resume, or use a new -o")
         elif out_dir.exists() and any(out_dir.iterdir()):

@@ -219,6 +219,9 @@ class Worlds:
             self._table = wp.zeros((self.block, n, 3), dtype=wp.float32)
             self._out_q = wp.zeros((self.block, n, self.nq), dtype=wp.float32)
             self._out_f = wp.zeros((self.block, n, self.nu), dtype=wp.float32)
+            # moving targets (pupper response): each step's ctrl, when driven
+            self._ctrl = wp.zeros((self.block, n, self.nu), dtype=wp.float32)
+            self._driven = wp.zeros(1, dtype=wp.int32)
         self._graph: Any = None
         global MODELS_BUILT
         MODELS_BUILT += 1
@@ -236,6 +239,7 @@ class Worlds:
             dim=self.n,
             inputs=[self._table, self._per_step, self._step, self.force_body, d.xfrc_applied],
         )
+        wp.launch(k.drive, dim=(self.n, self.nu), inputs=[self._ctrl, self._driven, self._step, d.ctrl])
         mjw.step(self.m, d)
         wp.launch(
             record,
@@ -247,9 +251,12 @@ class Worlds:
         )
         wp.launch(tick, dim=1, inputs=[self._step])
 
-    def advance(self, k: int, forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def advance(self, k: int, forces: np.ndarray,
+                ctrl: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Steps every world ``k`` (<= ``block``) times under ``forces`` on
-        the base: (1, n, 3) held for every step, or (k, n, 3) one per step.
+        the base: (1, n, 3) held for every step, or (k, n, 3) one per step;
+        ``ctrl`` (k, n, nu), when given, is every world's ctrl at each step
+        (else ctrl stays as it is).
         Returns qpos (k, n, nq) and actuator forces (k, n, nu), float32; a
         world's row is NaN from the step its state diverged."""
         wp = self._wp
@@ -259,6 +266,9 @@ class Worlds:
         with wp.ScopedDevice(self.device):
             self._table[:rows].assign(np.ascontiguousarray(forces, dtype=np.float32))
             self._per_step.fill_(1 if rows > 1 else 0)
+            if ctrl is not None:
+                self._ctrl[:k].assign(np.ascontiguousarray(ctrl, dtype=np.float32))
+            self._driven.fill_(0 if ctrl is None else 1)
             self._step.zero_()
             if self._graph is None:
                 # one step (push, physics, record) captured once, replayed

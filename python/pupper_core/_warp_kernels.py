@@ -1,4 +1,4 @@
-"""The three small Warp kernels around a pupper step (see ``_warp``).
+"""The four small Warp kernels around a pupper step (see ``_warp``).
 
 A module of its own, imported only once Warp is known to be installed:
 Warp reads kernel annotations at definition time.
@@ -19,6 +19,19 @@ def push(
     w = wp.tid()
     k = step[0] * per_step[0]
     xfrc[w, body] = wp.spatial_vector(table[k, w, 0], table[k, w, 1], table[k, w, 2], 0.0, 0.0, 0.0)
+
+
+@wp.kernel
+def drive(
+    table: wp.array3d(dtype=wp.float32),
+    driven: wp.array(dtype=wp.int32),
+    step: wp.array(dtype=wp.int32),
+    ctrl: wp.array2d(dtype=wp.float32),
+):
+    """Writes this step's ctrl (moving targets), when the call drives it."""
+    w, a = wp.tid()
+    if driven[0] == 1:
+        ctrl[w, a] = table[step[0], w, a]
 
 
 @wp.func

@@ -376,9 +376,25 @@ struct TuneArgs {
     halving: u64,
     #[command(flatten)]
     sim: SimArgs,
+    /// Push force along world z (N; negative pushes down).
+    #[arg(long, default_value_t = SweepSpec::default().push_force, value_name = "N", allow_hyphen_values = true)]
+    push_force: f64,
+    /// Push start time (s).
+    #[arg(long, default_value_t = SweepSpec::default().push_at, value_name = "S", allow_negative_numbers = true)]
+    push_at: f64,
+    /// Push duration (s).
+    #[arg(long, default_value_t = SweepSpec::default().push_duration, value_name = "S", allow_negative_numbers = true)]
+    push_duration: f64,
     /// No push.
     #[arg(long)]
     no_push: bool,
+    /// A continuous vertical force AMPLITUDE*sin(2π·FREQUENCY·t) on the base (N, Hz), e.g. 2,1.2.
+    #[arg(long, value_name = "AMP,HZ", allow_hyphen_values = true)]
+    sine: Option<String>,
+    /// Most cells per batch (a generation runs in batches of at most this many). Never
+    /// changes the numbers.
+    #[arg(long, value_name = "N")]
+    chunk_cells: Option<usize>,
     /// Run directory (default runs/<time>-tune).
     #[arg(long, short = 'o', value_name = "DIR", conflicts_with = "resume")]
     out: Option<PathBuf>,
@@ -402,6 +418,9 @@ struct TuneArgs {
     /// No line per generation.
     #[arg(long, short = 'q')]
     quiet: bool,
+    // last: their help headings would hold every option after them
+    #[command(flatten)]
+    backend: BackendArgs,
     #[command(flatten)]
     population: PopulationArgs,
 }
@@ -449,6 +468,32 @@ impl TuneArgs {
         }
         if let Some(m) = &spec.motor {
             o.insert("motor".into(), serde_json::json!(m));
+        }
+        // the schedule and backend as sweep takes them; a default stays
+        // out, so a study's inputs read as they did before these flags
+        let d = SweepSpec::default();
+        for (k, v, default) in [
+            ("push_force", self.push_force, d.push_force),
+            ("push_at", self.push_at, d.push_at),
+            ("push_duration", self.push_duration, d.push_duration),
+        ] {
+            if v != default {
+                o.insert(k.into(), serde_json::json!(v));
+            }
+        }
+        if let Some(s) = &self.sine {
+            o.insert("sine".into(), serde_json::json!(spec::parse_sine(s)?));
+        }
+        if let Some(c) = self.chunk_cells {
+            o.insert("chunk_cells".into(), serde_json::json!(c));
+        }
+        if self.backend.backend != "cpu" {
+            o.insert("backend".into(), serde_json::json!(self.backend.backend));
+        }
+        for (k, v) in [("device", &self.backend.device), ("ray", &self.backend.ray)] {
+            if let Some(v) = v {
+                o.insert(k.into(), serde_json::json!(v));
+            }
         }
         if let Some(k) = &self.sim.keyframe {
             o.insert("keyframe".into(), serde_json::json!(k));

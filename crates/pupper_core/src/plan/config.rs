@@ -121,11 +121,6 @@ impl SweepConfig {
         let axes: Vec<&str> = self.grid.axes.iter().map(|a| a.axis.name()).collect();
         self.replicates
             .check(self.mode, self.schedule.push.is_some(), &axes)?;
-        if self.response.is_some() && !self.backend.is_cpu() {
-            return Err(Error::Config(
-                "pupper response moves joint targets every step, which the warp backend's batch does not take yet: use --backend cpu".into(),
-            ));
-        }
         if !self.motor.is_ideal() {
             if self.mode != Mode::Torque {
                 return Err(Error::Config(format!(

@@ -320,40 +320,16 @@ impl<'py> WarpBatch<'py> {
     }
 }
 
-impl SimBatch for WarpBatch<'_> {
-    fn len(&self) -> usize {
-        self.place.len()
-    }
-
-    fn actuator_pd(&self) -> bool {
-        true
-    }
-
-    fn targets(&self, sim: usize) -> &[f64] {
-        &self.targets[sim]
-    }
-
-    fn stance(&self, sim: usize) -> f64 {
-        self.stance[sim]
-    }
-
-    fn qpos(&self, sim: usize) -> Result<Vec<f64>> {
-        let (g, w) = self.place[sim];
-        let q = self.groups[g]
-            .worlds
-            .call_method0("qpos")
-            .and_then(|a| a.cast_into::<numpy::PyArray2<f32>>().map_err(PyErr::from))
-            .internal()?;
-        let q = q.readonly();
-        let q = q.as_array();
-        Ok(q.row(w).iter().map(|&x| f64::from(x)).collect())
-    }
-
-    fn advance(
+impl WarpBatch<'_> {
+    /// Steps `ids` for `nstep` steps; `ctrl`, when given, is each
+    /// simulation's ctrl for every step (`nstep` rows of `nu`,
+    /// simulation-major), written on the device before each step.
+    fn rollout(
         &mut self,
         ids: &[usize],
         nstep: usize,
         force: Force<'_>,
+        ctrl: Option<&[f64]>,
         observe: &mut Observer<'_>,
     ) -> Result<Vec<(usize, usize)>> {
         let (nq, nu) = (self.nq, self.nu);
@@ -399,9 +375,31 @@ impl SimBatch for WarpBatch<'_> {
                     }
                 }
                 let table = array3(py, table, [rows, n, 3])?;
+                // moving targets: every world's ctrl for each step of the
+                // piece; worlds outside the call hold their start targets
+                let drive = match ctrl {
+                    None => py.None().into_bound(py),
+                    Some(ctrl) => {
+                        let mut rows = vec![0.0f64; k * n * nu];
+                        for (w, &sim) in group.sims.iter().enumerate() {
+                            for j in 0..k {
+                                let at = (j * n + w) * nu;
+                                let from = match pos_of[sim] {
+                                    usize::MAX => &self.targets[sim][..],
+                                    pos => {
+                                        let s = (pos * nstep + start + j) * nu;
+                                        &ctrl[s..s + nu]
+                                    }
+                                };
+                                rows[at..at + nu].copy_from_slice(from);
+                            }
+                        }
+                        array3(py, rows, [k, n, nu])?
+                    }
+                };
                 let out = group
                     .worlds
-                    .call_method1("advance", (k, table))
+                    .call_method1("advance", (k, table, drive))
                     .map_err(|e| warp_err(py, e))?;
                 let q = out
                     .get_item(0)
@@ -447,6 +445,57 @@ impl SimBatch for WarpBatch<'_> {
             }
         }
         Ok(diverged)
+    }
+}
+
+impl SimBatch for WarpBatch<'_> {
+    fn len(&self) -> usize {
+        self.place.len()
+    }
+
+    fn actuator_pd(&self) -> bool {
+        true
+    }
+
+    fn targets(&self, sim: usize) -> &[f64] {
+        &self.targets[sim]
+    }
+
+    fn stance(&self, sim: usize) -> f64 {
+        self.stance[sim]
+    }
+
+    fn qpos(&self, sim: usize) -> Result<Vec<f64>> {
+        let (g, w) = self.place[sim];
+        let q = self.groups[g]
+            .worlds
+            .call_method0("qpos")
+            .and_then(|a| a.cast_into::<numpy::PyArray2<f32>>().map_err(PyErr::from))
+            .internal()?;
+        let q = q.readonly();
+        let q = q.as_array();
+        Ok(q.row(w).iter().map(|&x| f64::from(x)).collect())
+    }
+
+    fn advance(
+        &mut self,
+        ids: &[usize],
+        nstep: usize,
+        force: Force<'_>,
+        observe: &mut Observer<'_>,
+    ) -> Result<Vec<(usize, usize)>> {
+        self.rollout(ids, nstep, force, None, observe)
+    }
+
+    fn advance_driven(
+        &mut self,
+        ids: &[usize],
+        nstep: usize,
+        force: Force<'_>,
+        ctrl: &[f64],
+        observe: &mut Observer<'_>,
+    ) -> Result<Vec<(usize, usize)>> {
+        self.rollout(ids, nstep, force, Some(ctrl), observe)
     }
 
     fn step_controlled(
