@@ -49,6 +49,11 @@ MODELS_BUILT = 0
 log = logging.getLogger("pupper_core.warp")
 
 
+def mass_rows(model: Any) -> tuple[np.ndarray, ...]:
+    """A body's fields of PER_WORLD_MASS (copies: the model may go)."""
+    return tuple(np.array(getattr(model, f)) for f in PER_WORLD_MASS)
+
+
 class WarpUnavailable(RuntimeError):
     """MuJoCo Warp is missing, or the device is not there."""
 
@@ -140,8 +145,9 @@ class Worlds:
     actuator gain and bias parameters; ``force_range`` (n, nu, 2);
     ``friction`` (n,) the sliding friction of the ``colliding`` geoms, or
     None to keep the model's. ``bodies``: None when every world has the
-    model's masses, else (models, index): the same body with other masses
-    (``mj_setConst`` done on each) and each world's entry in that list; the
+    model's masses, else (rows, index): :func:`mass_rows` of the same body
+    with other masses (``mj_setConst`` done on each) and each world's entry
+    in that list; the
     one Warp model then holds each world's masses, inertias and the
     quantities MuJoCo derives from them, so a population of drawn robots
     (and the lab's heavy body beside the original) is one model.
@@ -203,10 +209,10 @@ class Worlds:
             if bodies is not None:
                 # the host's float64 constants of each body, rounded once:
                 # the numbers a model of that body alone would carry
-                models, index = bodies
-                for f in PER_WORLD_MASS:
-                    rows = np.stack([getattr(b, f) for b in models])[np.asarray(index)]
-                    getattr(m, f).assign(np.ascontiguousarray(rows, dtype=f32))
+                rows, index = bodies
+                for i, f in enumerate(PER_WORLD_MASS):
+                    per_world = np.stack([r[i] for r in rows])[np.asarray(index)]
+                    getattr(m, f).assign(np.ascontiguousarray(per_world, dtype=f32))
             d = mjw.put_data(model, host, nworld=n)
             d.qpos.assign(np.ascontiguousarray(qpos, dtype=f32))
             d.ctrl.assign(np.ascontiguousarray(ctrl, dtype=f32))

@@ -228,11 +228,13 @@ impl<'py> WarpBatch<'py> {
                 let copy = PyModule::import(py, "copy")
                     .and_then(|c| c.getattr("copy"))
                     .internal()?;
+                let rows_of = physics.module.getattr("mass_rows").internal()?;
+                // each body's rows only: a population's models would not fit
                 let mut bodies = Vec::with_capacity(masses.len());
                 for &(_, sim) in &masses {
                     let m = copy.call1((&model,)).internal()?;
                     scaled(&m, &cells[sim])?;
-                    bodies.push(m);
+                    bodies.push(rows_of.call1((&m,)).internal()?);
                 }
                 let bodies = PyList::new(py, bodies).internal()?;
                 let index = PyArray1::from_vec(py, mass_of.iter().map(|&k| k as i64).collect());
