@@ -79,6 +79,10 @@ def test_the_schedule_flags_of_sweep_reach_the_trials(run, tmp_path):
     assert float(rows[0]["push_dip_mm"]) == float(cell[0]["push_dip_mm"])
     p = run("tune", "--resume", tmp_path / "t", "--trials", "4", "-j", "1", "-q", check=0)
     assert "4 trials" in p.stdout, p.stdout + p.stderr
+    # what decides numbers may not change: the refusal names it
+    p = run("tune", "--space", "kp=5:50:log", "--kd", "0.7", "--objective", "push_dip_mm", "--trials", "4",
+            "--batch", "2", *flags, "-q", "--resume", tmp_path / "t", check=2)
+    assert "differs in kd;" in p.stderr and p.stderr.count("\n") == 1, p.stderr
 
 
 def test_a_kill_and_resume_neither_repeat_nor_lose_a_trial(pupper_bin, run, tmp_path):

@@ -232,6 +232,23 @@ def test_bad_backend_input(run, tmp_path, args, words):
     assert not out.exists()
 
 
+def test_a_calibrated_delay_in_torque_mode_needs_cpu(run, tmp_path):
+    """Torque mode runs a model's command delay in the Rust firmware, which
+    warp does not have: refused before anything is written, not dropped."""
+    import mujoco
+
+    from conftest import REPO
+
+    spec = mujoco.MjSpec.from_file(str(REPO / "models" / "pupper_v3" / "pupper_v3.xml"))
+    for a in spec.actuators:
+        a.nsample, a.interp, a.delay = 8, 1, 0.01
+    (tmp_path / "late.xml").write_text(spec.to_xml())
+    out = tmp_path / "never"
+    p = run("sweep", "--model", tmp_path / "late.xml", "--mode", "torque", *WARP, "-o", out, check=2)
+    assert p.stderr.count("\n") == 1 and "command delay of 0.01 s" in p.stderr and "--backend cpu" in p.stderr
+    assert not out.exists()
+
+
 def test_missing_warp_says_what_to_install(run, tmp_path):
     """Without MuJoCo Warp (hidden here by a sitecustomize that blocks its
     import), --backend warp fails in one line naming the extra, exit 2."""

@@ -334,9 +334,11 @@ def tune(
             if not manifest_path.exists():
                 raise TuneError(f"--resume {out_dir}: no tune there (no manifest.json); start it without --resume")
             old = json.loads(manifest_path.read_text())
-            if _compared(old.get("inputs", {})) != _compared(json.loads(json.dumps(inputs))):
-                now = _compared(json.loads(json.dumps(inputs)))
-                diff = [k for k in now if _compared(old.get("inputs", {})).get(k) != now[k]]
+            was, now = _compared(old.get("inputs", {})), _compared(json.loads(json.dumps(inputs)))
+            if was != now:
+                diff = [k for k in sorted(set(was) | set(now)) if k != "options" and was.get(k) != now.get(k)]
+                options = set(was["options"]) | set(now["options"])
+                diff += [k for k in sorted(options) if was["options"].get(k) != now["options"].get(k)]
                 raise TuneError(f"cannot resume {out_dir}: this command differs in {', '.join(diff)}; "
                                 "rerun the original command with --resume, or use a new -o")
         elif out_dir.exists() and any(out_dir.iterdir()):
@@ -562,7 +564,13 @@ def _cli(args_json: str) -> list[str]:
             raise TuneError(f"--resume {a['out']}: no tune there (no manifest.json); start it without --resume")
         manifest = json.loads(path.read_text())
         inputs = manifest["inputs"]
-        kept = {k: a[k] for k in ("out", "resume", "progress", "trials", "budget") if a.get(k) is not None}
+        kept = {k: a[k] for k in ("out", "resume", "progress", "trials", "budget", *RUN_ONLY)
+                if a.get(k) is not None}
+        # what decides numbers comes from the study; a flag that says otherwise is refused
+        for k in ("backend", "device"):
+            if a.get(k) is not None and a[k] != inputs["options"].get(k):
+                raise TuneError(f"cannot resume {a['out']}: it ran with {k} {inputs['options'].get(k) or 'cpu'}, "
+                                f"not {a[k]}; drop --{k}, or use a new -o")
         if "trials" not in kept and "budget" not in kept:
             kept.update({k: v for k, v in manifest.get("stop", {}).items() if v is not None})
         a = {**inputs.pop("options"), **{k: v for k, v in inputs.items() if k != "objectives"},

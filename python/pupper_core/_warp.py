@@ -218,7 +218,8 @@ class Worlds:
             d.ctrl.assign(np.ascontiguousarray(ctrl, dtype=f32))
             self._q0 = wp.array(np.ascontiguousarray(qpos, dtype=f32), dtype=wp.float32)
             self.m, self.d = m, d
-            per_step_bytes = n * (self.nq + self.nu) * 4
+            # records of qpos and forces, and the moving targets' table
+            per_step_bytes = n * (self.nq + 2 * self.nu) * 4
             self.block = max(1, min(1024, RECORD_BYTES // per_step_bytes))
             self._step = wp.zeros(1, dtype=wp.int32)
             self._per_step = wp.zeros(1, dtype=wp.int32)

@@ -527,7 +527,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             .flatten()
             .and_then(|i| stability_note(cfg, info, &i));
         let note = check_start(info, &cfg.schedule.initial)?;
-        cfg.check_motor(info.timestep)?;
+        cfg.check_motor(info)?;
         // Warp and its device are checked before anything is written; on
         // Ray the workers run the physics
         let physics = match ray {

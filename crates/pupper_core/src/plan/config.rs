@@ -165,8 +165,21 @@ impl SweepConfig {
     }
 
     /// Refuses a motor firmware faster than the physics of any cell (the
-    /// model's timestep `model_dt`, or a timestep axis's values).
-    pub fn check_motor(&self, model_dt: f64) -> Result<()> {
+    /// model's timestep, or a timestep axis's values), and a model's command
+    /// delay in torque mode where the backend has no host firmware.
+    pub fn check_motor(&self, info: &ModelInfo) -> Result<()> {
+        // torque mode runs a model's command delay in the Rust firmware,
+        // which warp (the PD in its actuators) does not have
+        if self.mode == Mode::Torque
+            && !self.backend.is_cpu()
+            && let Some(a) = info.actuators.iter().find(|a| a.delay > 0.0)
+        {
+            return Err(Error::Config(format!(
+                "actuator '{}' of this model has a command delay of {} s (a calibrated model?), which torque mode runs on the host: use --backend cpu, or --mode servo (MuJoCo's own delay)",
+                a.name, a.delay
+            )));
+        }
+        let model_dt = info.timestep;
         let axis = self
             .grid
             .axes

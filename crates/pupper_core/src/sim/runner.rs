@@ -119,7 +119,7 @@ pub fn run_cells(
 ) -> Result<Vec<CellResult>> {
     cfg.validate()?;
     cfg.check_gains(physics.info())?;
-    cfg.check_motor(physics.info().timestep)?;
+    cfg.check_motor(physics.info())?;
     if let Some(fps) = opts.frame_rate {
         frame_count(cfg.schedule.duration, fps)?;
     }
