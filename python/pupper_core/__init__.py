@@ -73,11 +73,15 @@ __all__ = [
     "OutputPermissionError",
     "PupperError",
     "RunExistsError",
+    "TuneError",
+    "FitError",
     "RunNotFoundError",
     "Recording",
     "StandReport",
     "SweepResult",
     "info",
+    "gains",
+    "pose",
     "lab",
     "response",
     "tune",
@@ -299,9 +303,35 @@ def response(
         chirp = _sine(chirp)
     if isinstance(joints, str):
         joints = [j for j in joints.split(",") if j]
+    elif isinstance(joints, Mapping):
+        # iterating a dict gives its keys: a typo would pass as a joint list
+        raise TypeError(f"joints must be a joint group or actuator name, or a list of them, not a dict "
+                        f"({joints!r}): e.g. joints=['kfe'] or joints='haa,hfe'")
     return _with_report(_native.response(grid, out=out, progress=callback, signal=signal, amplitude=amplitude,
                             frequency=frequency, chirp=None if chirp is None else list(chirp),
                             hold=hold, joints=list(joints), standing=standing, **_options(options)))
+
+
+def gains(model: str | os.PathLike[str] = "pupper_v3", *, kp: float | None = None, kd: float | None = None,
+          bandwidth: float | None = None, damping: float = 0.7,
+          pose: Sequence[float] | None = None) -> dict[str, Any]:
+    """Servo gains for a ``bandwidth`` (Hz) and ``damping`` ratio per joint,
+    or the natural frequency, damping ratio and stability margin of given
+    ``kp`` and ``kd``, from each joint's inertia at ``pose`` (default: the
+    stand pose), as `pupper gains --json` prints them. A stability margin
+    of 1 or more is past the bound of an explicitly integrated PD at the
+    model's timestep: the joint chatters or diverges there."""
+    return cast("dict[str, Any]", _native.gains(os.fspath(model), kp=kp, kd=kd, bandwidth=bandwidth,
+                                                 damping=damping,
+                                                 pose=None if pose is None else [float(q) for q in pose]))
+
+
+def pose(model: str | os.PathLike[str] = "pupper_v3", variant: Variant = "original",
+         depth: float | None = None) -> dict[str, Any]:
+    """The stand pose of a body, as `pupper pose --json` prints it: each
+    leg's joint angles that put its foot ``depth`` m below the hip (default:
+    the chapter's 0.14 m scaled to the model's legs)."""
+    return cast("dict[str, Any]", _native.pose(os.fspath(model), variant, depth))
 
 
 def tune(space: Sequence[str] | Mapping[str, Any], **options: Any) -> Any:
@@ -337,6 +367,8 @@ def fit(logs: Sequence[str | os.PathLike[str]] | str | os.PathLike[str], **optio
 
     if isinstance(logs, (str, os.PathLike)):
         logs = [logs]
+    elif isinstance(logs, Mapping):
+        raise TypeError(f"logs must be a joint log's path or a list of paths, not a dict ({logs!r})")
     return _fit.fit(list(logs), **options)
 
 
@@ -428,6 +460,15 @@ def load_run(run_dir: str | os.PathLike[str]) -> SweepResult:
 
 
 def __getattr__(name: str) -> Any:
+    # the search's and the fit's errors live beside their (optional) code
+    if name == "TuneError":
+        from pupper_core._tune import TuneError
+
+        return TuneError
+    if name == "FitError":
+        from pupper_core._fit import FitError
+
+        return FitError
     # plots and render import matplotlib / a GL context: only when used
     if name in ("plots", "render"):
         import importlib

@@ -157,6 +157,13 @@ def sweep_defaults() -> dict[str, Any]:
 def stand(**options: Unpack[SimOptions]) -> StandReport:
     """What `pupper stand --json` prints, as a dict."""
 
+def pose(model: str = ..., variant: str = ..., depth: float | None = ...) -> dict[str, Any]:
+    """What `pupper pose --json` prints, as a dict."""
+
+def gains(model: str = ..., *, kp: float | None = ..., kd: float | None = ..., bandwidth: float | None = ...,
+          damping: float = ..., pose: list[float] | None = ...) -> dict[str, Any]:
+    """What `pupper gains --json` prints, as a dict."""
+
 def sweep(
     grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | Sequence[Mapping[str, float | str]] | str | None = ...,
     *,

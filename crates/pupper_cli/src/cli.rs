@@ -18,6 +18,7 @@ use pupper_mujoco::api::{self, SweepRequest, SweepUi};
 use pupper_mujoco::bridge;
 
 use crate::print;
+use crate::pyargs::PyArgs;
 
 const ABOUT: &str = "Physics experiments on the Pupper v3 quadruped in MuJoCo: inspect the robot, \
 make it stand, sweep PD gains, measure how well each setting stands and rejects a push.";
@@ -46,7 +47,7 @@ fn out(text: &str) -> Result<()> {
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
         r => r.map_err(|source| Error::Io {
             action: "write to",
-            path: PathBuf::from("standard output"),
+            path: PathBuf::from(pupper_core::error::STDOUT),
             source,
         }),
     }
@@ -501,6 +502,7 @@ impl TuneArgs {
         if !pose.is_null() {
             o.insert("pose".into(), pose);
         }
+        let mut py = PyArgs::new();
         let mut args = serde_json::json!({
             "space": self.space,
             "objective": self.objective,
@@ -512,28 +514,19 @@ impl TuneArgs {
             "seed": self.population.seed,
             "aggregate": self.aggregate,
             "halving": self.halving,
-            "out": out,
+            "out": py.path(&out),
             "resume": self.resume.is_some(),
             "force": self.force,
             "progress": !self.quiet,
             "plot": self.plot,
-            "compare": self.compare,
+            "compare": self.compare.as_ref().map(|c| py.path(c)),
         });
         if let (Some(a), Some(o)) = (args.as_object_mut(), options.as_object()) {
             for (k, v) in o {
                 a.insert(k.clone(), v.clone());
             }
         }
-        let wrote = bridge::call_helper(
-            "pupper_core._tune",
-            "_cli",
-            &[args.to_string()],
-            &serde_json::json!({}),
-        )?;
-        for p in wrote {
-            eprintln!("wrote {p}");
-        }
-        Ok(0)
+        python_command("pupper_core._tune", "_cli", &py.text(&args))
     }
 }
 
@@ -626,9 +619,10 @@ impl ExciteArgs {
                 self.band
             )));
         }
+        let mut py = PyArgs::new();
         let args = serde_json::json!({
             "model": self.model.model,
-            "out": self.out,
+            "out": py.path(&self.out),
             "force": self.force,
             "kp": self.kp,
             "kd": self.kd,
@@ -640,7 +634,7 @@ impl ExciteArgs {
             "max_velocity": self.max_velocity,
             "seed": self.seed,
         });
-        python_command("pupper_core._fit", "_cli_excite", &args)
+        python_command("pupper_core._fit", "_cli_excite", &py.text(&args))
     }
 }
 
@@ -699,24 +693,30 @@ impl FitArgs {
                 chrono::Local::now().format("%Y%m%d-%H%M%S")
             ))
         });
+        let mut py = PyArgs::new();
         let args = serde_json::json!({
-            "logs": self.logs,
+            "logs": py.paths(&self.logs),
             "model": self.model.model,
             "params": self.params,
             "per": self.per,
-            "out": out,
+            "out": py.path(&out),
             "force": self.force,
             "max_iters": self.max_iters,
             "plot": self.plot,
         });
-        python_command("pupper_core._fit", "_cli_fit", &args)
+        python_command("pupper_core._fit", "_cli_fit", &py.text(&args))
     }
 }
 
 /// A command whose work is in pupper's Python package: its flags as JSON
 /// to `module.func`, which returns the files it wrote (said on stderr).
-fn python_command(module: &str, func: &str, args: &serde_json::Value) -> Result<u8> {
-    for p in bridge::call_helper(module, func, &[args.to_string()], &serde_json::json!({}))? {
+fn python_command(module: &str, func: &str, args_json: &str) -> Result<u8> {
+    for p in bridge::call_helper(
+        module,
+        func,
+        &[args_json.to_string()],
+        &serde_json::json!({}),
+    )? {
         eprintln!("wrote {p}");
     }
     Ok(0)
@@ -1582,13 +1582,14 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
                 chrono::Local::now().format("%Y%m%d-%H%M%S")
             ))
         });
+        let mut py = PyArgs::new();
         let mut args = serde_json::json!({
             "variants": a.variants,
             "objective": a.rank.clone().unwrap_or_else(|| "last_1s_std_mm".into()),
             "trials": a.trials,
             "batch": a.batch,
             "seed": a.population.seed,
-            "out": out,
+            "out": py.path(&out),
             "force": a.force,
             "progress": !a.quiet,
             "seconds": a.seconds,
@@ -1601,15 +1602,7 @@ fn lab(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
         if let (Some(d), Some(m)) = (a.depth, args.as_object_mut()) {
             m.insert("depth".into(), serde_json::json!(d));
         }
-        for p in bridge::call_helper(
-            "pupper_core._tune",
-            "_lab_cli",
-            &[args.to_string()],
-            &serde_json::json!({}),
-        )? {
-            eprintln!("wrote {p}");
-        }
-        return Ok(0);
+        return python_command("pupper_core._tune", "_lab_cli", &py.text(&args));
     }
     let spec = SweepSpec {
         model: a.model.model.clone(),

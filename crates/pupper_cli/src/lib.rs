@@ -6,6 +6,7 @@
 
 mod cli;
 mod print;
+mod pyargs;
 
 use std::ffi::OsString;
 use std::sync::atomic::{AtomicBool, Ordering};

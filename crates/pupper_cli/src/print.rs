@@ -652,7 +652,8 @@ impl std::fmt::Display for Sig {
         if v == 0.0 || !v.is_finite() {
             return write!(f, "{v}");
         }
-        if v.abs() < 1e-3 {
+        // past a million, digits say nothing a reader can use
+        if v.abs() < 1e-3 || v.abs() >= 1e6 {
             return write!(f, "{v:.2e}");
         }
         let digits = (2 - v.abs().log10().floor() as i32).clamp(0, 6) as usize;

@@ -61,7 +61,7 @@ pub enum Error {
     Display(String),
     #[error("{0}")]
     Cluster(String),
-    #[error("cannot {action} {}: {source}{}", path.display(), io_fix(source))]
+    #[error("cannot {action} {}: {source}{}", path.display(), io_fix(source, path))]
     Io {
         action: &'static str,
         path: PathBuf,
@@ -140,9 +140,18 @@ impl Error {
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
+/// The path an error names when standard output could not be written.
+pub const STDOUT: &str = "standard output";
+
 /// The fix for an I/O failure a user can act on.
-fn io_fix(e: &std::io::Error) -> &'static str {
+fn io_fix(e: &std::io::Error, path: &std::path::Path) -> &'static str {
     match e.kind() {
+        // what was printed has no run directory to resume
+        std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded
+            if path == std::path::Path::new(STDOUT) =>
+        {
+            "; free some space or send the output elsewhere"
+        }
         std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded => {
             "; free some space, then continue with --resume (finished cells are kept)"
         }

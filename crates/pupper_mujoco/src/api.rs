@@ -205,7 +205,7 @@ pub fn stand(spec: &SweepSpec) -> Result<StandReport> {
     let sweep = spec.build()?;
     let cfg = &sweep.config;
     let (results, note, setup) = bridge::with_model(&cfg.model, true, |model| {
-        let note = check_start(model.info(), &cfg.schedule.initial)?;
+        let note = check_start(model.info(), &cfg.schedule.initial, true)?;
         let cells = cfg.grid.cells();
         let physics = bridge::physics(model, &cfg.backend)?;
         let r = runner::run_cells(
@@ -268,7 +268,7 @@ pub fn record(cfg: &SweepConfig, cells: &[Cell], fps: f64) -> Result<Vec<Recordi
     };
     bridge::with_config_model(cfg, |model| {
         let cfg = &resolved(cfg, model)?;
-        check_start(model.info(), &cfg.schedule.initial)?;
+        check_start(model.info(), &cfg.schedule.initial, false)?;
         let physics = bridge::physics(model, &cfg.backend)?;
         let results = runner::run_cells(physics.as_ref(), cfg, cells, opts, &mut runner::NoHooks)?;
         results
@@ -308,9 +308,12 @@ pub fn record_run(dir: &std::path::Path, indices: &[usize], fps: f64) -> Result<
 /// The checks of where cells start that need the model; notes when the
 /// start is a fallback (no `home` keyframe) or asks a joint to go past its
 /// range.
-fn check_start(info: &ModelInfo, initial: &InitialState) -> Result<Vec<String>> {
+fn check_start(info: &ModelInfo, initial: &InitialState, standing: bool) -> Result<Vec<String>> {
     let (targets, notes) = start_targets(info, initial)?;
     let mut notes = notes;
+    if standing {
+        notes.extend(info.ground_note());
+    }
     // the stand-pose search keeps inside the ranges
     if !matches!(initial, InitialState::Auto | InitialState::AutoDepth(_))
         && let Some(t) = targets
@@ -406,8 +409,14 @@ fn stability_note(cfg: &SweepConfig, info: &ModelInfo, inertia: &[f64]) -> Optio
         }
     }
     let (m, id, joint) = worst?;
+    // an absurd gain's margin in two digits, not three hundred
+    let m = if m < 1e6 {
+        format!("{m:.2}")
+    } else {
+        format!("{m:.2e}")
+    };
     Some(format!(
-        "{past} cell(s) lie past the stability bound of an explicitly integrated PD at the timestep (worst: {id} on {joint}, margin {m:.2}): they may chatter at the torque limit or diverge; `pupper gains --kp KP --kd KD` shows the bound per joint"
+        "{past} cell(s) lie past the stability bound of an explicitly integrated PD at the timestep (worst: {id} on {joint}, margin {m}): they may chatter at the torque limit or diverge; `pupper gains --kp KP --kd KD` shows the bound per joint"
     ))
 }
 
@@ -428,7 +437,16 @@ fn resolved(cfg: &SweepConfig, model: &bridge::LoadedModel<'_>) -> Result<SweepC
         }
         let mut seen: Vec<u64> = Vec::new();
         for cell in cfg.grid.cells() {
-            let dt = cfg.setup(&cell, info).timestep.unwrap_or(info.timestep);
+            let setup = cfg.setup(&cell, info);
+            // without a spring the joint never follows: every figure would be
+            // a 100 % error printed as `ok`
+            if let Some(&a) = e.joints.iter().find(|&&a| setup.kp(a) <= 0.0) {
+                return Err(Error::Config(format!(
+                    "cell {} gives {} kp 0: a joint without a servo spring does not follow its target, so there is no response to measure; give kp > 0 (--kp or a kp grid starting above 0)",
+                    cell.id, info.actuators[a].name
+                )));
+            }
+            let dt = setup.timestep.unwrap_or(info.timestep);
             if !seen.contains(&dt.to_bits()) {
                 seen.push(dt.to_bits());
                 e.validate(cfg.schedule.duration, dt)?;
@@ -526,7 +544,9 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             .ok()
             .flatten()
             .and_then(|i| stability_note(cfg, info, &i));
-        let note = check_start(info, &cfg.schedule.initial)?;
+        // hung in the air, a response run needs no floor
+        let standing = cfg.response.as_ref().is_none_or(|e| e.standing);
+        let note = check_start(info, &cfg.schedule.initial, standing)?;
         cfg.check_motor(info)?;
         // Warp and its device are checked before anything is written; on
         // Ray the workers run the physics

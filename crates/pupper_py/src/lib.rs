@@ -250,16 +250,28 @@ fn spec_from(py: Python<'_>, options: Option<&Bound<'_, PyDict>>) -> PyResult<Sw
     }
     let kw = PyDict::new(py);
     kw.set_item("allow_nan", false)?;
-    let text: String = PyModule::import(py, "json")?
-        .getattr("dumps")?
-        .call((options,), Some(&kw))
-        .map_err(|e| {
-            ConfigError::new_err(format!(
-                "an option is not a finite number or not a plain value ({}): use finite numbers, strings, lists",
-                e.value(py)
-            ))
-        })?
-        .extract()?;
+    // numpy's numbers and arrays (np.float32(60), np.array([...])) are the
+    // plain values their tolist() gives
+    let tolist = PyModule::import(py, "operator")?
+        .getattr("methodcaller")?
+        .call1(("tolist",))?;
+    kw.set_item("default", tolist)?;
+    let dumps = PyModule::import(py, "json")?.getattr("dumps")?;
+    let mut fields = Vec::with_capacity(options.len());
+    for (k, v) in options.iter() {
+        let value: String = dumps
+            .call((&v,), Some(&kw))
+            .map_err(|_| {
+                ConfigError::new_err(format!(
+                    "{k}={} is not a plain value: give {k} a number, a string or a list of them",
+                    v.repr().map(|r| r.to_string()).unwrap_or_default()
+                ))
+            })?
+            .extract()?;
+        let key: String = dumps.call1((k.str()?,))?.extract()?;
+        fields.push(format!("{key}:{value}"));
+    }
+    let text = format!("{{{}}}", fields.join(","));
     let mut de = serde_json::Deserializer::from_str(&text);
     serde_path_to_error::deserialize(&mut de).map_err(|e| {
         let what = e.inner().to_string();
@@ -274,6 +286,15 @@ fn spec_from(py: Python<'_>, options: Option<&Bound<'_, PyDict>>) -> PyResult<Sw
         }
         PyTypeError::new_err(format!("{}: {what}", e.path()))
     })
+}
+
+/// A grid value: a number, never a bool (Python's `True` is an int 1, and
+/// `kp=[True, False]` is a mistake, not kp 1 and 0).
+fn number(x: &Bound<'_, PyAny>) -> Option<f64> {
+    if x.is_instance_of::<pyo3::types::PyBool>() {
+        return None;
+    }
+    x.extract::<f64>().ok()
 }
 
 /// A grid as Python gives it: a dict of axis -> values (numbers, or text
@@ -316,7 +337,7 @@ fn grid_from(grid: Option<&Bound<'_, PyAny>>, preset: Option<String>) -> PyResul
                         "cell {i} has no '{a}': give every cell the same axes"
                     ))
                 })?;
-                row.push(v.extract::<f64>().map_err(|_| {
+                row.push(number(&v).ok_or_else(|| {
                     GridError::new_err(format!("cell {i}'s '{a}' is not a number"))
                 })?);
             }
@@ -342,7 +363,7 @@ fn grid_from(grid: Option<&Bound<'_, PyAny>>, preset: Option<String>) -> PyResul
             } else if let Ok(names) = values.extract::<Vec<String>>() {
                 // names (the variant axis), parsed as the CLI parses them
                 AxisInput::Text(names.join(","))
-            } else if let Ok(v) = values.extract::<f64>() {
+            } else if let Some(v) = number(&values) {
                 AxisInput::Values(vec![v])
             } else {
                 let items: Vec<Bound<'_, PyAny>> = values
@@ -357,7 +378,7 @@ fn grid_from(grid: Option<&Bound<'_, PyAny>>, preset: Option<String>) -> PyResul
                 let v = items
                     .iter()
                     .map(|x| {
-                        x.extract::<f64>().map_err(|_| {
+                        number(x).ok_or_else(|| {
                             GridError::new_err(format!(
                                 "grid axis '{name}' has a non-numeric value {}: use numbers like 10 or 0.5",
                                 x.repr().map(|r| r.to_string()).unwrap_or_default()
@@ -409,6 +430,48 @@ fn info<'py>(py: Python<'py>, model: PathBuf, variant: &str) -> PyResult<Bound<'
     let source = ModelSource::parse(&model.to_string_lossy()).map_err(to_py)?;
     let body = pupper_core::robot::variant::variant(variant).map_err(to_py)?;
     to_dict(py, &api::info(&source, body).map_err(to_py)?)
+}
+
+/// The stand pose of a body (what `pupper pose --json` prints), as a dict.
+#[pyfunction]
+#[pyo3(signature = (model=PathBuf::from("pupper_v3"), variant="original", depth=None))]
+fn pose<'py>(
+    py: Python<'py>,
+    model: PathBuf,
+    variant: &str,
+    depth: Option<f64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let source = ModelSource::parse(&model.to_string_lossy()).map_err(to_py)?;
+    let body = pupper_core::robot::variant::variant(variant).map_err(to_py)?;
+    to_dict(py, &api::pose(&source, body, depth).map_err(to_py)?)
+}
+
+/// Gains for a bandwidth, or given gains' margins per joint (what `pupper
+/// gains --json` prints), as a dict.
+#[pyfunction]
+#[pyo3(signature = (model=PathBuf::from("pupper_v3"), *, kp=None, kd=None, bandwidth=None, damping=0.7, pose=None))]
+fn gains<'py>(
+    py: Python<'py>,
+    model: PathBuf,
+    kp: Option<f64>,
+    kd: Option<f64>,
+    bandwidth: Option<f64>,
+    damping: f64,
+    pose: Option<Vec<f64>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    use pupper_core::robot::gains::Ask;
+    let ask = match (bandwidth, kp, kd) {
+        (Some(hz), None, None) => Ask::Bandwidth { hz, zeta: damping },
+        (None, Some(kp), Some(kd)) => Ask::Gains { kp, kd },
+        _ => {
+            return Err(to_py(Error::Config(
+                "gains() needs bandwidth=HZ (with damping=, default 0.7) or both kp= and kd="
+                    .into(),
+            )));
+        }
+    };
+    let source = ModelSource::parse(&model.to_string_lossy()).map_err(to_py)?;
+    to_dict(py, &api::gains(&source, pose, ask).map_err(to_py)?)
 }
 
 /// Stand report (what `pupper stand --json` prints), as a dict. Keyword
@@ -988,6 +1051,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     }
     m.add_function(wrap_pyfunction!(info, m)?)?;
     m.add_function(wrap_pyfunction!(stand, m)?)?;
+    m.add_function(wrap_pyfunction!(pose, m)?)?;
+    m.add_function(wrap_pyfunction!(gains, m)?)?;
     m.add_function(wrap_pyfunction!(_shutdown, m)?)?;
     m.add_function(wrap_pyfunction!(best_rows, m)?)?;
     m.add_function(wrap_pyfunction!(result::_result_from_state, m)?)?;

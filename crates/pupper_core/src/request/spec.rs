@@ -26,6 +26,10 @@ use crate::sim::cluster::Address;
 use crate::sim::runner::RunOptions;
 
 /// Where the grid comes from.
+/// The most batch threads a run may ask for: more than any machine's cores,
+/// and few enough that MuJoCo's thread pool is never asked for 2^40.
+pub const MAX_THREADS: usize = 1024;
+
 #[derive(Debug, Clone, Default, PartialEq)]
 pub enum GridInput {
     /// No grid: one cell at the default gains.
@@ -226,6 +230,12 @@ impl SweepSpec {
             return Err(config_error(
                 "depth sets how deep the searched stand pose puts the feet: give it with --pose auto (pupper lab always searches)".into(),
             ));
+        }
+        if self.threads > MAX_THREADS {
+            return Err(config_error(format!(
+                "--threads {} is more than {MAX_THREADS}: give 0 (every core) or a count up to {MAX_THREADS}",
+                self.threads
+            )));
         }
         let grid = self.grid()?;
         grid.check_size(self.max_cells)?;

@@ -184,6 +184,7 @@ impl ModelInfo {
             sensors: vec![],
             qpos0: vec![0.0; 7 + hinges],
             legs: vec![],
+            ground: true,
         }
     }
 }
@@ -250,6 +251,56 @@ pub fn scale_numeric(kind: &str, actuator: &str) -> String {
     format!("pupper:{kind}:{actuator}")
 }
 
+/// A custom numeric that scales a gain (`pupper:kp_scale:ACT`,
+/// `pupper:kd_scale:ACT`), checked: `Some((0 for kp or 1 for kd, actuator
+/// index, scale))`, or None for a numeric that is not a gain scale. A scale
+/// is one finite number in (0, 100]: zero or below would flip or remove the
+/// servo, and the run would print `ok` for a robot that no servo holds.
+pub fn gain_scale(
+    numeric: &str,
+    values: &[f64],
+    actuators: &[ActuatorInfo],
+    model: &str,
+) -> Result<Option<(usize, usize, f64)>> {
+    let Some(rest) = numeric.strip_prefix("pupper:") else {
+        return Ok(None);
+    };
+    let Some((k, actuator)) = [("kp_scale:", 0), ("kd_scale:", 1)]
+        .iter()
+        .find_map(|(kind, k)| rest.strip_prefix(kind).map(|a| (*k, a)))
+    else {
+        return Ok(None);
+    };
+    let bad = |why: String| {
+        Err(Error::Model(format!(
+            "{model}: custom numeric '{numeric}' {why}"
+        )))
+    };
+    let Some(index) = actuators.iter().position(|a| a.name == actuator) else {
+        let names: Vec<&str> = actuators.iter().map(|a| a.name.as_str()).collect();
+        return bad(format!(
+            "names no actuator of the model: use one of {}, or remove it",
+            names.join(", ")
+        ));
+    };
+    let [scale] = values else {
+        return bad(format!(
+            "has {} values: a gain scale is one number (size=\"1\")",
+            values.len()
+        ));
+    };
+    if !(scale.is_finite() && *scale > 0.0 && *scale <= MAX_GAIN_SCALE) {
+        return bad(format!(
+            "is {scale}: a gain scale must be a number in (0, {MAX_GAIN_SCALE}]; refit the model or remove it"
+        ));
+    }
+    Ok(Some((k, index, *scale)))
+}
+
+/// The largest gain scale a model may declare: a fit that lands past it has
+/// found no servo but a different robot.
+pub const MAX_GAIN_SCALE: f64 = 100.0;
+
 impl ActuatorInfo {
     /// Kp of an affine position servo (gain), Kd (−biasprm[2]).
     pub fn kp_kd(&self) -> (f64, f64) {
@@ -310,6 +361,19 @@ pub struct ModelInfo {
     /// colliding foot), measured at the default pose.
     #[serde(default)]
     pub legs: Vec<LegInfo>,
+    /// Whether a geom fixed in the world can touch a foot (a floor): a
+    /// model without one falls forever. Written only when false, so the
+    /// info of every model with a floor reads as before.
+    #[serde(default = "yes", skip_serializing_if = "is_yes")]
+    pub ground: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn is_yes(v: &bool) -> bool {
+    *v
 }
 
 /// Joint groups by what a leg joint does, in a leg's joint order:
@@ -317,6 +381,17 @@ pub struct ModelInfo {
 pub const JOINT_GROUPS: [&str; 3] = ["haa", "hfe", "kfe"];
 
 impl ModelInfo {
+    /// What a standing run should know of the ground: a note when the
+    /// robot has legs but nothing in the world for its feet to touch.
+    pub fn ground_note(&self) -> Option<String> {
+        (!self.ground && !self.legs.is_empty()).then(|| {
+            format!(
+                "{} has no ground the feet can touch (no geom fixed in the world that collides with them): the robot falls from the start and every cell reads `fell`; add a floor, e.g. <geom type=\"plane\" size=\"0 0 0.05\"/> in the worldbody, or include the model in a scene that has one",
+                self.source
+            )
+        })
+    }
+
     /// The joint group of actuator `a`: what its joint does in its leg, as
     /// measured on the compiled model (see [`LegInfo::joints`]); None for
     /// a joint in no leg.
@@ -449,5 +524,62 @@ impl ModelInfo {
                     self.name
                 ))
             })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn actuator(name: &str) -> ActuatorInfo {
+        ActuatorInfo {
+            name: name.into(),
+            joint: Some(0),
+            gainprm: [5.0, 0.0, 0.0],
+            biasprm: [0.0, -5.0, -0.1],
+            forcerange: None,
+            ctrlrange: None,
+            gear: 1.0,
+            delay: 0.0,
+            gain_scale: [1.0, 1.0],
+        }
+    }
+
+    fn check(numeric: &str, values: &[f64]) -> Result<Option<(usize, usize, f64)>> {
+        gain_scale(numeric, values, &[actuator("a"), actuator("knee")], "m.xml")
+    }
+
+    #[test]
+    fn a_gain_scale_names_its_gain_and_actuator() {
+        assert_eq!(
+            check("pupper:kp_scale:knee", &[0.9]).unwrap(),
+            Some((0, 1, 0.9))
+        );
+        assert_eq!(
+            check("pupper:kd_scale:a", &[1.2]).unwrap(),
+            Some((1, 0, 1.2))
+        );
+        // not a gain scale: left to whoever reads it
+        assert_eq!(check("other", &[1.0, 2.0]).unwrap(), None);
+        assert_eq!(check("pupper:kp_max:a", &[30.0]).unwrap(), None);
+    }
+
+    #[test]
+    fn a_bad_gain_scale_is_refused_with_its_name() {
+        let e = |n: &str, v: &[f64]| check(n, v).unwrap_err().to_string();
+        for v in [-1.0, 0.0, f64::NAN, f64::INFINITY, 1e3] {
+            let msg = e("pupper:kp_scale:a", &[v]);
+            assert!(
+                msg.contains("'pupper:kp_scale:a'") && msg.contains("(0, 100]"),
+                "{msg}"
+            );
+        }
+        assert!(e("pupper:kd_scale:a", &[-5.0]).contains("must be a number in (0, 100]"));
+        let msg = e("pupper:kp_scale:elbow", &[1.0]);
+        assert!(
+            msg.contains("names no actuator") && msg.contains("a, knee"),
+            "{msg}"
+        );
+        assert!(e("pupper:kp_scale:a", &[1.0, 1.0]).contains("has 2 values"));
     }
 }

@@ -107,13 +107,22 @@ pub fn call_helper(
             return Ok(vec![]);
         }
         if !(out.is_instance_of::<PyList>() || out.is_instance_of::<pyo3::types::PyTuple>()) {
-            return Ok(vec![out.to_string()]);
+            return Ok(vec![shown(&out)]);
         }
         let items: Vec<Bound<'_, PyAny>> = out
             .try_iter()
             .internal()?
             .collect::<PyResult<_>>()
             .internal()?;
-        Ok(items.iter().map(|i| i.to_string()).collect())
+        Ok(items.iter().map(shown).collect())
     })
+}
+
+/// A helper's returned path as text: a path that is not UTF-8 (a str with
+/// surrogate escapes) through its bytes, shown lossily, never an error.
+fn shown(item: &Bound<'_, PyAny>) -> String {
+    match item.extract::<std::path::PathBuf>() {
+        Ok(p) => p.display().to_string(),
+        Err(_) => item.to_string(),
+    }
 }

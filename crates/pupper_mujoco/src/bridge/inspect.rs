@@ -6,8 +6,7 @@ use pyo3::prelude::*;
 use super::python::{Mujoco, PyResultExt};
 use pupper_core::error::Result;
 use pupper_core::robot::model::{
-    ActuatorInfo, JointInfo, KeyframeInfo, LegInfo, ModelInfo, ModelSource, SensorInfo,
-    scale_numeric,
+    ActuatorInfo, JointInfo, KeyframeInfo, LegInfo, ModelInfo, ModelSource, SensorInfo, gain_scale,
 };
 
 impl<'py> Mujoco<'py> {
@@ -114,14 +113,11 @@ impl<'py> Mujoco<'py> {
             let data: Vec<f64> = list("numeric_data")?.extract().internal()?;
             for n in 0..nnumeric {
                 let name = self.name_of(model, "mjOBJ_NUMERIC", n)?;
-                for (k, kind) in ["kp_scale", "kd_scale"].iter().enumerate() {
-                    if let Some(a) = actuators
-                        .iter_mut()
-                        .find(|a| scale_numeric(kind, &a.name) == name)
-                        && size[n] >= 1
-                    {
-                        a.gain_scale[k] = data[adr[n] as usize];
-                    }
+                let values = &data[adr[n] as usize..(adr[n] + size[n]) as usize];
+                if let Some((k, actuator, scale)) =
+                    gain_scale(&name, values, &actuators, &source.display())?
+                {
+                    actuators[actuator].gain_scale[k] = scale;
                 }
             }
         }
@@ -158,6 +154,7 @@ impl<'py> Mujoco<'py> {
             _ => source.display(),
         };
         let legs = self.legs(model, &bodies, &jtype).internal()?;
+        let ground = self.ground(model, &legs).internal()?;
         Ok(ModelInfo {
             name,
             source: source.display(),
@@ -188,7 +185,42 @@ impl<'py> Mujoco<'py> {
                 .and_then(|q| q.extract())
                 .internal()?,
             legs,
+            ground,
         })
+    }
+
+    /// Whether a geom of a body welded to the world (no joint between them)
+    /// can collide with some foot of `legs` (MuJoCo's contype/conaffinity
+    /// rule). True for a model without legs: there is no foot to ask for.
+    fn ground(&self, model: &Bound<'py, PyAny>, legs: &[LegInfo]) -> PyResult<bool> {
+        if legs.is_empty() {
+            return Ok(true);
+        }
+        let get =
+            |n: &str| -> PyResult<Bound<'py, PyAny>> { model.getattr(n)?.call_method0("tolist") };
+        let parent: Vec<usize> = get("body_parentid")?.extract()?;
+        let jnum: Vec<i64> = get("body_jntnum")?.extract()?;
+        let (gbody, ctype, caff): (Vec<usize>, Vec<i64>, Vec<i64>) = (
+            get("geom_bodyid")?.extract()?,
+            get("geom_contype")?.extract()?,
+            get("geom_conaffinity")?.extract()?,
+        );
+        let welded = |mut b: usize| {
+            while b != 0 {
+                if jnum[b] != 0 {
+                    return false;
+                }
+                b = parent[b];
+            }
+            true
+        };
+        Ok((0..gbody.len()).any(|g| {
+            welded(gbody[g])
+                && legs.iter().any(|l| {
+                    let f = l.foot_geom;
+                    ctype[g] & caff[f] != 0 || caff[g] & ctype[f] != 0
+                })
+        }))
     }
 
     /// SHA-256 of the compiled model as MuJoCo saves it (MJB): the robot
