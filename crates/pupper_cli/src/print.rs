@@ -201,8 +201,25 @@ fn short(text: &str) -> String {
 }
 
 pub fn sweep(o: &SweepOutcome) -> String {
-    let col = |name: &str| o.header.iter().position(|h| h == name);
-    let replicated = col("failure_fraction").is_some();
+    let replicated = col(o, "failure_fraction").is_some();
+    let mut s = table(o, replicated);
+    steadiest(&mut s, o);
+    if replicated {
+        steadiest_robust(&mut s, o);
+    }
+    counts(&mut s, o);
+    footer(&mut s, o);
+    s
+}
+
+/// Where column `name` is in a run's table.
+fn col(o: &SweepOutcome, name: &str) -> Option<usize> {
+    o.header.iter().position(|h| h == name)
+}
+
+/// A sweep's rows as a table: the case, the axes, the metrics shown.
+fn table(o: &SweepOutcome, replicated: bool) -> String {
+    let col = |name: &str| col(o, name);
     let shown: &[(&str, &str, usize, usize)] = if replicated {
         &SHOWN_REPLICATED
     } else {
@@ -253,6 +270,12 @@ pub fn sweep(o: &SweepOutcome) -> String {
         }
         let _ = writeln!(s, "{}", line.trim_end());
     }
+    s
+}
+
+/// The steadiest cell's line, when the table has the columns it needs.
+fn steadiest(s: &mut String, o: &SweepOutcome) {
+    let col = |name: &str| col(o, name);
     // the steadiest cell by the --best-by rule (it stood, under 5 %
     // saturation; nanometres are a tie the smaller dip breaks)
     if let (Some(si), Some(_)) = (col("last_1s_std_mm"), col("status")) {
@@ -295,9 +318,11 @@ pub fn sweep(o: &SweepOutcome) -> String {
             }
         }
     }
-    if replicated {
-        steadiest_robust(&mut s, o);
-    }
+}
+
+/// How many cells fell, saturated or had replicates that fell.
+fn counts(s: &mut String, o: &SweepOutcome) {
+    let col = |name: &str| col(o, name);
     let bad = o
         .rows
         .iter()
@@ -332,6 +357,10 @@ pub fn sweep(o: &SweepOutcome) -> String {
             "{bad} cell(s) fell or diverged: see the status and event_time columns"
         );
     }
+}
+
+/// How many cells ran and where the table went.
+fn footer(s: &mut String, o: &SweepOutcome) {
     match &o.out {
         Some(d) if o.cells_run == 0 => {
             let _ = writeln!(
@@ -353,7 +382,6 @@ pub fn sweep(o: &SweepOutcome) -> String {
         }
         None => {}
     }
-    s
 }
 
 /// The steadiest cell over the replicates (the `--best-by` rule on the whole

@@ -1,0 +1,269 @@
+//! Flag groups that several commands share, each defined once and
+//! `#[command(flatten)]`ed into the commands that take it.
+
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
+use pupper_core::Result;
+use pupper_core::plan::mode::Mode;
+use pupper_core::request::spec::{self, SweepSpec};
+use pupper_core::robot::model::ModelSource;
+
+/// `--grid`, repeatable.
+#[derive(Args, Debug)]
+pub(super) struct GridArg {
+    /// A grid axis and its values, AXIS=VALUES; repeat for more axes.
+    #[arg(
+        long = "grid",
+        short = 'g',
+        value_name = "AXIS=VALUES",
+        allow_hyphen_values = true
+    )]
+    pub(super) grid: Vec<String>,
+}
+
+#[derive(Args, Debug)]
+pub(super) struct ModelArg {
+    /// Built-in model name (pupper_v3, pupper_v3_fixed) or path to an MJCF file.
+    #[arg(long, short = 'm', default_value_t = SweepSpec::default().model, value_name = "NAME|PATH")]
+    pub(super) model: String,
+}
+
+impl ModelArg {
+    pub(super) fn source(&self) -> Result<ModelSource> {
+        ModelSource::parse(&self.model)
+    }
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub(super) enum ModeArg {
+    /// MuJoCo's affine actuators do the PD (gains written into gainprm/biasprm).
+    Servo,
+    /// PD computed in Rust every step, clipped to --max-torque; actuators as direct torque inputs.
+    Torque,
+}
+
+impl From<ModeArg> for Mode {
+    fn from(m: ModeArg) -> Mode {
+        match m {
+            ModeArg::Servo => Mode::Servo,
+            ModeArg::Torque => Mode::Torque,
+        }
+    }
+}
+
+impl From<Mode> for ModeArg {
+    fn from(m: Mode) -> ModeArg {
+        match m {
+            Mode::Servo => ModeArg::Servo,
+            Mode::Torque => ModeArg::Torque,
+        }
+    }
+}
+
+/// What every simulating command shares: the model, the controller, how
+/// long, and where cells start. Defaults come from `SweepSpec::default()`.
+#[derive(Args, Debug)]
+pub(super) struct SimArgs {
+    #[command(flatten)]
+    pub(super) model: ModelArg,
+    /// A named body: original, long-leg (thighs and calves 1.5x), heavy (torso mass 2x) (in a
+    /// sweep: where the grid has no variant, leg_scale or torso_mass_scale axis).
+    #[arg(long, default_value_t = SweepSpec::default().variant, value_name = "NAME")]
+    pub(super) variant: String,
+    /// Who computes the PD torques.
+    #[arg(long, value_enum, default_value_t = ModeArg::from(SweepSpec::default().mode))]
+    pub(super) mode: ModeArg,
+    /// Simulated seconds (in a sweep: of every cell) [default: 10; response: 3]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub(super) seconds: Option<f64>,
+    /// Proportional gain (N·m/rad) of every actuator (in a sweep: where the grid has no kp axis)
+    /// [default: each actuator's own, as the model declares it; Pupper v3: 5]
+    #[arg(long, allow_negative_numbers = true)]
+    pub(super) kp: Option<f64>,
+    /// Derivative gain (N·m·s/rad) of every actuator (in a sweep: where the grid has no kd axis)
+    /// [default: each actuator's own, as the model declares it; Pupper v3: 0.1]
+    #[arg(long, allow_negative_numbers = true)]
+    pub(super) kd: Option<f64>,
+    /// Torque limit (N·m) of every actuator, in both modes [default: each actuator's own
+    /// force range, else its control range; Pupper v3's motors: 3]
+    #[arg(long, value_name = "NM", allow_negative_numbers = true)]
+    pub(super) max_torque: Option<f64>,
+    /// Keyframe to reset to; its ctrl (or joint qpos) gives the joint targets.
+    /// [default: home; response: the searched stand pose, as --pose auto]
+    #[arg(long, value_name = "NAME", conflicts_with = "pose")]
+    pub(super) keyframe: Option<String>,
+    /// Start and target joint angles (rad), one per actuator in ctrl order, comma-separated;
+    /// or `auto`: a stand pose searched on the body (in a sweep: on each cell's own; see `pupper pose`), the base
+    /// just above the floor.
+    #[arg(long, value_name = "Q1,Q2,...|auto", allow_hyphen_values = true)]
+    pub(super) pose: Option<String>,
+    /// With --pose auto: aim the feet this far below the hips (m) [default: the chapter's
+    /// 0.14 m on Pupper v3's legs, scaled to the model's leg length]
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    pub(super) depth: Option<f64>,
+    /// Torque mode's servo firmware and motor, KEY=VALUE,...: rate=HZ (the PD's update rate,
+    /// torque held between updates), filter=HZ (first-order low-pass on the derivative),
+    /// counts=N (encoder counts per revolution; the derivative is then the encoder's
+    /// difference), delay=S (command delay: the PD tracks the target of S ago), noload=RAD_S
+    /// (torque limit falling linearly to 0 at this speed). E.g. rate=1000,filter=100,counts=16384
+    /// [default: ideal, the PD every physics step on the exact state]
+    #[arg(long, value_name = "SPEC")]
+    pub(super) motor: Option<String>,
+}
+
+impl SimArgs {
+    /// These arguments over the spec's defaults.
+    pub(super) fn spec(&self) -> Result<SweepSpec> {
+        Ok(SweepSpec {
+            model: self.model.model.clone(),
+            variant: self.variant.clone(),
+            mode: self.mode.into(),
+            seconds: self.seconds.unwrap_or(SweepSpec::default().seconds),
+            kp: self.kp,
+            kd: self.kd,
+            max_torque: self.max_torque,
+            keyframe: self
+                .keyframe
+                .clone()
+                .unwrap_or_else(|| SweepSpec::default().keyframe),
+            pose: self.pose.as_deref().map(spec::parse_pose).transpose()?,
+            depth: self.depth,
+            motor: self.motor.clone(),
+            ..SweepSpec::default()
+        })
+    }
+}
+
+/// The push and the sine force, as sweep and tune take them.
+#[derive(Args, Debug)]
+pub(super) struct ScheduleArgs {
+    /// Push force along world z (N; negative pushes down).
+    #[arg(long, default_value_t = SweepSpec::default().push_force, value_name = "N", allow_hyphen_values = true)]
+    pub(super) push_force: f64,
+    /// Push start time (s).
+    #[arg(long, default_value_t = SweepSpec::default().push_at, value_name = "S", allow_negative_numbers = true)]
+    pub(super) push_at: f64,
+    /// Push duration (s).
+    #[arg(long, default_value_t = SweepSpec::default().push_duration, value_name = "S", allow_negative_numbers = true)]
+    pub(super) push_duration: f64,
+    /// No push.
+    #[arg(long)]
+    pub(super) no_push: bool,
+    /// A continuous vertical force AMPLITUDE*sin(2π·FREQUENCY·t) on the base (N, Hz), e.g. 2,1.2.
+    #[arg(long, value_name = "AMP,HZ", allow_hyphen_values = true)]
+    pub(super) sine: Option<String>,
+}
+
+impl ScheduleArgs {
+    /// `--sine`, parsed. Apart from [`ScheduleArgs::apply`] because sweep
+    /// checks it before the simulation flags and tune after them, which
+    /// decides the error a command line with two mistakes gets.
+    pub(super) fn sine(&self) -> Result<Option<[f64; 2]>> {
+        self.sine.as_deref().map(spec::parse_sine).transpose()
+    }
+
+    /// These flags over `spec`, with the `sine` [`ScheduleArgs::sine`] gave.
+    pub(super) fn apply(&self, sine: Option<[f64; 2]>, spec: SweepSpec) -> SweepSpec {
+        SweepSpec {
+            push: !self.no_push,
+            push_force: self.push_force,
+            push_at: self.push_at,
+            push_duration: self.push_duration,
+            sine,
+            ..spec
+        }
+    }
+}
+
+/// Where sweep and tune write. Tune says its own default name in its
+/// `--out` help.
+#[derive(Args, Debug)]
+pub(super) struct OutputArgs {
+    /// Run directory (default runs/<time>-<grid>).
+    #[arg(long, short = 'o', value_name = "DIR", conflicts_with = "resume")]
+    pub(super) out: Option<PathBuf>,
+    /// Overwrite pupper's files in an existing --out directory.
+    #[arg(long)]
+    pub(super) force: bool,
+}
+
+/// Randomized replicates: a population of plausible robots per cell.
+#[derive(Args, Debug)]
+#[command(next_help_heading = "Randomized replicates")]
+pub(super) struct PopulationArgs {
+    /// Runs of every cell, each on a robot drawn by --randomize. Writes replicates.csv (a row
+    /// per cell and replicate, with the drawn values and its metrics); summary.csv then holds,
+    /// per metric, `mean:METRIC` and `p95:METRIC` (the worst-side 95th percentile: the 5th for
+    /// final_z) over the replicates that stayed up, and `failure_fraction` (fell or diverged).
+    /// Replicates are more simulations in the same batches; --trace and --render show
+    /// replicate 0 of each cell.
+    #[arg(long, default_value_t = SweepSpec::default().replicates, value_name = "R")]
+    pub(super) replicates: u32,
+    /// Seed of the draws. Each draw is a function of (seed, cell id, replicate, quantity)
+    /// alone, so the numbers are the same whatever the threads, batches or resume points.
+    #[arg(long, default_value_t = SweepSpec::default().seed, value_name = "S")]
+    pub(super) seed: u64,
+    /// What differs between replicates, QUANTITY=DISTRIBUTION; repeat for more.
+    /// Relative (a factor uniform in 1±P): torso_mass=±10%, leg_mass=±10% (thigh and calf),
+    /// motor_gain=±5% (drawn per actuator). Uniform ranges: friction=0.5:1.2 (feet and floor);
+    /// with a push (sweep, not lab): push_force=-35:-15 (N), push_at=1.5:3 (s). Torque mode only: q_noise=N(0,0.002) (rad,
+    /// on the angles the PD reads, every step), delay=0:3 (whole control steps the PD reads
+    /// late), and the --motor model's motor_delay=0:0.01 (s), motor_filter=50:200 (Hz),
+    /// motor_noload=20:40 (rad/s). `+-10%` may stand for `±10%`.
+    #[arg(long, value_name = "QUANTITY=DIST", allow_hyphen_values = true)]
+    pub(super) randomize: Vec<String>,
+}
+
+impl PopulationArgs {
+    pub(super) fn apply(&self, spec: SweepSpec) -> SweepSpec {
+        SweepSpec {
+            replicates: self.replicates,
+            seed: self.seed,
+            randomize: self.randomize.clone(),
+            ..spec
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+#[command(next_help_heading = "Backend")]
+pub(super) struct BackendArgs {
+    /// What steps the physics. cpu: MuJoCo on this machine's cores, float64 (the reference).
+    /// warp: MuJoCo Warp, float32, thousands of cells at once on a GPU (tens of thousands of
+    /// cells a batch); needs the optional extra: pip install 'pupper_core[gpu]' (in a
+    /// checkout: make setup PUPPER_EXTRAS=gpu). Results agree with cpu to about 1e-4 m in
+    /// base z on the chapter's schedule; the manifest records backend, device and precision.
+    /// In torque mode warp runs the PD inside MuJoCo's actuators (gain kp, bias -kp·q - kd·q̇,
+    /// clipped at the torque limit), so --randomize delay, q_noise and motor_gain need cpu.
+    #[arg(long, default_value = "cpu", value_name = "NAME", value_parser = ["cpu", "warp"])]
+    pub(super) backend: String,
+    /// The Warp device for --backend warp: cuda:0 (the first GPU; cuda:1 the second) or cpu
+    /// (slow: for tests on machines without a GPU) [default: cuda:0]. `pupper doctor` lists
+    /// the devices Warp sees.
+    #[arg(long, value_name = "DEVICE")]
+    pub(super) device: Option<String>,
+    /// Run the cells as tasks on a Ray cluster: auto (the RAY_ADDRESS variable, or the cluster
+    /// this machine is a node of), ray://HOST:PORT (Ray's client port, 10001 by default) or
+    /// HOST:PORT (the head's port, from a node). Each task is a batch of neighbouring cells
+    /// through one node's cores (-j sets the CPUs per task, default the smallest node's; on
+    /// warp with a CUDA device a task takes one GPU instead);
+    /// each finished task is written here as it arrives, so Ctrl-C, a dead driver or a lost
+    /// node lose only running tasks (Ray retries those of a dead worker), and --resume
+    /// continues on Ray or locally. Same summary.csv as a local run. Every node needs the same
+    /// pupper_core and mujoco (checked) and model file; needs the optional extra:
+    /// pip install 'pupper_core[ray]' (in a checkout: make setup PUPPER_EXTRAS=ray).
+    #[arg(long, value_name = "ADDRESS")]
+    pub(super) ray: Option<String>,
+}
+
+impl BackendArgs {
+    pub(super) fn apply(&self, spec: SweepSpec) -> SweepSpec {
+        SweepSpec {
+            backend: self.backend.clone(),
+            device: self.device.clone(),
+            ray: self.ray.clone(),
+            ..spec
+        }
+    }
+}

@@ -1,0 +1,200 @@
+//! `pupper excite` and `pupper fit`: the excitation to play on the robot,
+//! and the model fitted to the logs it gives. Both run in Python.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use pupper_core::{Error, Result};
+
+use super::args::ModelArg;
+use super::python::python_command;
+use super::rundir_name;
+use crate::pyargs::PyArgs;
+
+#[derive(Args, Debug)]
+#[command(after_help = "The log (CSV): `# key: value` lines, then a header
+time,ACTUATOR.target,ACTUATOR.q[,ACTUATOR.qd][,ACTUATOR.tau],... in s, rad, rad/s, N·m.
+Keys: kp and kd (the gains in use: one value, or one per actuator in column order; required),
+mode (servo or torque), base (suspended). Play the file's targets on the robot, hung in the air, at
+its gains; log the measured angles (and velocities, torques where the servos report them) into the
+same columns. The format, the fit and the motor model: docs/fit.md.
+
+Examples:
+  pupper excite -o excite.csv                      8 s per joint group at the model's own gains
+  pupper excite --kd 0.3 --signal chirp -o excite_kd03.csv   a second log at another kd")]
+pub(super) struct ExciteArgs {
+    #[command(flatten)]
+    model: ModelArg,
+    /// The log to write.
+    #[arg(long, short = 'o', value_name = "FILE", default_value = "excite.csv")]
+    out: PathBuf,
+    /// Overwrite --out.
+    #[arg(long)]
+    force: bool,
+    /// Kp of every actuator [default: each actuator's own]
+    #[arg(long, allow_negative_numbers = true)]
+    kp: Option<f64>,
+    /// Kd of every actuator [default: each actuator's own]
+    #[arg(long, allow_negative_numbers = true)]
+    kd: Option<f64>,
+    /// multisine (8 log-spaced sines with low crest factor) or chirp (logarithmic sweep).
+    #[arg(long, default_value = "multisine", value_name = "NAME")]
+    signal: String,
+    /// The excited band (Hz), F0,F1.
+    #[arg(long, default_value = "0.3,6", value_name = "F0,F1")]
+    band: String,
+    /// Seconds of excitation per joint group.
+    #[arg(
+        long,
+        default_value_t = 8.0,
+        value_name = "S",
+        allow_negative_numbers = true
+    )]
+    seconds: f64,
+    /// Seconds held at the rest pose before and between groups.
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        value_name = "S",
+        allow_negative_numbers = true
+    )]
+    hold: f64,
+    /// Largest swing of a joint from its rest angle (rad); smaller where the range, the speed
+    /// limit or the torque limit at the gains asks.
+    #[arg(
+        long,
+        default_value_t = 0.3,
+        value_name = "RAD",
+        allow_negative_numbers = true
+    )]
+    amplitude: f64,
+    /// Fastest commanded joint speed (rad/s).
+    #[arg(
+        long,
+        default_value_t = 8.0,
+        value_name = "RAD_S",
+        allow_negative_numbers = true
+    )]
+    max_velocity: f64,
+    /// Seed of the multisine's phases.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+impl ExciteArgs {
+    pub(super) fn run(&self) -> Result<u8> {
+        let band: Vec<f64> = self
+            .band
+            .split(',')
+            .map(|v| v.trim().parse::<f64>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|_| {
+                Error::Config(format!(
+                    "--band {} is not two numbers F0,F1 (Hz): give e.g. 0.3,6",
+                    self.band
+                ))
+            })?;
+        if band.len() != 2 || band.iter().any(|f| !f.is_finite()) {
+            return Err(Error::Config(format!(
+                "--band {} is not two numbers F0,F1 (Hz): give e.g. 0.3,6",
+                self.band
+            )));
+        }
+        // JSON writes NaN as null, which Python would read as "not given"
+        let given = [("kp", self.kp), ("kd", self.kd)];
+        let numbers = [
+            ("seconds", Some(self.seconds)),
+            ("hold", Some(self.hold)),
+            ("amplitude", Some(self.amplitude)),
+            ("max-velocity", Some(self.max_velocity)),
+        ];
+        for (flag, v) in given.into_iter().chain(numbers) {
+            if let Some(v) = v.filter(|v| !v.is_finite()) {
+                return Err(Error::Config(format!(
+                    "--{flag} {v} is not a finite number: give --{flag} a number"
+                )));
+            }
+        }
+        let mut py = PyArgs::new();
+        let args = serde_json::json!({
+            "model": self.model.model,
+            "out": py.path(&self.out),
+            "force": self.force,
+            "kp": self.kp,
+            "kd": self.kd,
+            "signal": self.signal,
+            "band": band,
+            "seconds": self.seconds,
+            "hold": self.hold,
+            "amplitude": self.amplitude,
+            "max_velocity": self.max_velocity,
+            "seed": self.seed,
+        });
+        python_command("pupper_core._fit", "_cli_excite", &py.text(&args))
+    }
+}
+
+#[derive(Args, Debug)]
+#[command(
+    after_help = "The fit replays each log through the model hung in the air (free joint removed,
+contacts off) at the log's gains and fits the angles (and velocities and torques where
+logged) by mujoco.sysid's bounded Levenberg-Marquardt. With angles only, joint damping and the
+servo's kd act as one damping: fit a second log at another kd (pupper excite --kd) or log torque,
+or leave one of them out of --params; fit warns when they are confounded. calibrated.xml keeps
+armature, damping and friction loss in the joints, the delay in the actuators (MuJoCo's own
+actuator delay) and the gain scales as custom numerics that pupper applies to every gain it
+commands. Needs the fit extra (make setup PUPPER_EXTRAS=fit).
+
+Examples:
+  pupper excite -o ex1.csv && pupper excite --kd 0.3 -o ex2.csv    then play both on the robot
+  pupper fit robot1.csv robot2.csv -o runs/fit --plot
+  pupper fit robot1.csv --params armature,frictionloss,kp_scale,delay --per group
+  pupper response --model runs/fit/calibrated.xml --grid kp=5,20 --grid kd=0.1,0.5"
+)]
+pub(super) struct FitArgs {
+    /// Joint logs (CSV; see below), fitted together.
+    #[arg(required = true, value_name = "LOG")]
+    logs: Vec<PathBuf>,
+    #[command(flatten)]
+    model: ModelArg,
+    /// What to fit, comma-separated: armature, damping, frictionloss, kp_scale, kd_scale, delay.
+    #[arg(
+        long,
+        default_value = "armature,damping,frictionloss,kp_scale,kd_scale,delay",
+        value_name = "NAMES"
+    )]
+    params: String,
+    /// One value of each parameter for all actuators, per joint group (haa, hfe, kfe) or per joint.
+    #[arg(long, default_value = "all", value_name = "all|group|joint")]
+    per: String,
+    /// Run directory (default runs/<time>-fit).
+    #[arg(long, short = 'o', value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Overwrite pupper's files in an existing --out directory.
+    #[arg(long)]
+    force: bool,
+    /// Most Levenberg-Marquardt iterations.
+    #[arg(long, default_value_t = 50, value_name = "N")]
+    max_iters: u64,
+    /// Write DIR/plots/fit_<log>.png: measured against simulated angle per joint, before and after.
+    #[arg(long)]
+    plot: bool,
+}
+
+impl FitArgs {
+    pub(super) fn run(&self) -> Result<u8> {
+        let out = self.out.clone().unwrap_or_else(|| rundir_name("fit"));
+        let mut py = PyArgs::new();
+        let args = serde_json::json!({
+            "logs": py.paths(&self.logs),
+            "model": self.model.model,
+            "params": self.params,
+            "per": self.per,
+            "out": py.path(&out),
+            "force": self.force,
+            "max_iters": self.max_iters,
+            "plot": self.plot,
+        });
+        python_command("pupper_core._fit", "_cli_fit", &py.text(&args))
+    }
+}

@@ -1,0 +1,79 @@
+//! `pupper gains`: PD gains from each joint's reflected inertia, or what
+//! given gains do, with the stability bound at the model's timestep.
+
+use clap::Args;
+use pupper_core::request::spec;
+use pupper_core::{Error, Result};
+use pupper_mujoco::api;
+
+use super::args::ModelArg;
+use crate::print;
+
+#[derive(Args, Debug)]
+#[command(
+    after_help = "Stability: MuJoCo's Euler integrator (and pupper's torque mode) applies a PD
+force computed from the state at the start of each step, then steps velocity and position
+semi-implicitly. With a = h^2 kp / I and b = h kd / I (h the timestep, I the joint's inertia) that
+discrete system is stable exactly when a + 2b < 4 and b < 2 (Jury's test on its characteristic
+polynomial z^2 - (2 - a - b) z + (1 - b)). stability_margin = max((a + 2b)/4, b/2): 1 or more is
+past the bound, where the joint chatters or diverges.
+
+Examples:
+  pupper gains --bandwidth 8 --damping 0.7
+  pupper gains --kp 20 --kd 0.5 --json"
+)]
+pub(super) struct GainsArgs {
+    #[command(flatten)]
+    model: ModelArg,
+    /// The −3 dB bandwidth (Hz) the gains should give.
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true, conflicts_with_all = ["kp", "kd"])]
+    bandwidth: Option<f64>,
+    /// The damping ratio with --bandwidth.
+    #[arg(
+        long,
+        default_value_t = 0.7,
+        value_name = "ZETA",
+        allow_negative_numbers = true
+    )]
+    damping: f64,
+    /// Given gains: their natural frequency, damping ratio and stability margin per joint.
+    #[arg(long, allow_negative_numbers = true, requires = "kd")]
+    kp: Option<f64>,
+    #[arg(long, allow_negative_numbers = true, requires = "kp")]
+    kd: Option<f64>,
+    /// The pose the inertias are read at, one angle per actuator [default: the stand pose].
+    #[arg(long, value_name = "Q1,Q2,...", allow_hyphen_values = true)]
+    pose: Option<String>,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+impl GainsArgs {
+    pub(super) fn run(&self) -> Result<u8> {
+        use pupper_core::robot::gains::Ask;
+        let ask = match (self.bandwidth, self.kp, self.kd) {
+            (Some(hz), _, _) => Ask::Bandwidth {
+                hz,
+                zeta: self.damping,
+            },
+            (None, Some(kp), Some(kd)) => Ask::Gains { kp, kd },
+            _ => {
+                return Err(Error::Config(
+                    "pupper gains needs --bandwidth HZ (with --damping, default 0.7) or --kp and --kd".into(),
+                ));
+            }
+        };
+        let pose = match self.pose.as_deref().map(spec::parse_pose).transpose()? {
+            Some(spec::PoseInput::Angles(p)) => Some(p),
+            _ => None,
+        };
+        let r = api::gains(&self.model.source()?, pose, ask)?;
+        if self.json {
+            outln!("{}", print::json(&r)?);
+        } else {
+            outp!("{}", print::gains(&r));
+        }
+        Ok(0)
+    }
+}

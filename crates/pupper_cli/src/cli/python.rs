@@ -1,0 +1,38 @@
+//! The two ways a command reaches pupper's Python package for its work:
+//! flags as JSON to a module's `_cli` function, and the run's report.
+
+use pupper_core::Result;
+use pupper_mujoco::bridge;
+
+/// A command whose work is in pupper's Python package: its flags as JSON
+/// to `module.func`, which returns the files it wrote (said on stderr).
+pub(super) fn python_command(module: &str, func: &str, args_json: &str) -> Result<u8> {
+    for p in bridge::call_helper(
+        module,
+        func,
+        &[args_json.to_string()],
+        &serde_json::json!({}),
+    )? {
+        eprintln!("wrote {p}");
+    }
+    Ok(0)
+}
+
+/// Writes DIR/report.html. The path crosses as its bytes (hex), so a
+/// directory whose name is not UTF-8 is the same directory in Python.
+pub(super) fn write_report(dir: &std::path::Path) -> Result<()> {
+    use std::os::unix::ffi::OsStrExt;
+    let hex: String = dir
+        .as_os_str()
+        .as_bytes()
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    bridge::call_helper(
+        "pupper_core._report",
+        "_cli_hex",
+        &[hex],
+        &serde_json::json!({}),
+    )?;
+    Ok(())
+}

@@ -1,0 +1,187 @@
+//! `pupper tune`: Optuna's search over grid axes, run in Python; this
+//! side hands it the flags as JSON.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use pupper_core::request::spec::SweepSpec;
+use pupper_core::{Error, Result};
+use serde_json::Value;
+
+use super::args::{BackendArgs, OutputArgs, PopulationArgs, ScheduleArgs, SimArgs};
+use super::python::python_command;
+use super::rundir_name;
+use crate::pyargs::PyArgs;
+
+#[derive(Args, Debug)]
+#[command(
+    after_help = "A trial whose robot fell or diverged is told a penalty of 1e6 (the worst
+value) and keeps its status in trials.csv. The sampler of generation g is seeded from (--seed, g)
+and sees only finished trials, so the same command gives the same trials in the same order at any
+thread count and after --resume (which re-runs the trials a kill left unfinished). Show the study:
+optuna-dashboard sqlite:///DIR/study.db. Needs the tune extra (make setup PUPPER_EXTRAS=tune).
+
+Examples:
+  pupper tune --space kp=5:200:log --space kd=0.05:10:log --trials 64 --batch 16
+  pupper tune --space kp.hfe=5:100:log --space kp.kfe=5:100:log --kd 0.5 --budget 2000000
+  pupper tune --space kp=5:200:log --space kd=0.05:5:log --objective last_1s_std_mm,push_dip_mm --trials 48"
+)]
+// the shared --out's help names sweep's default
+#[command(mut_arg("out", |a| a.help("Run directory (default runs/<time>-tune)")))]
+pub(super) struct TuneArgs {
+    /// A searched axis: AXIS=LOW:HIGH (linear), LOW:HIGH:log, LOW:HIGH:int, or choices A|B|C;
+    /// repeat for more. Any grid axis (kp, kd, kp.hfe, max_torque, variant, ...).
+    #[arg(long, value_name = "AXIS=RANGE", allow_hyphen_values = true)]
+    space: Vec<String>,
+    /// The summary.csv column to minimize, or several comma-separated (a Pareto front).
+    #[arg(long, default_value = "last_1s_std_mm", value_name = "COLUMN[,COLUMN]")]
+    objective: String,
+    /// Maximize the objective(s) instead.
+    #[arg(long)]
+    maximize: bool,
+    /// Stop after this many finished trials.
+    #[arg(long, value_name = "N", conflicts_with = "budget")]
+    trials: Option<u64>,
+    /// Spend at most this many cell-steps (the last generation may be smaller).
+    #[arg(long, value_name = "CELL_STEPS")]
+    budget: Option<u64>,
+    /// Trials per generation, run as one batch.
+    #[arg(long, default_value_t = 8, value_name = "B")]
+    batch: u64,
+    /// tpe (with a constant liar), cmaes (population = --batch), gp (needs torch), random.
+    #[arg(long, default_value = "tpe", value_name = "NAME")]
+    sampler: String,
+    /// With replicates, the objective over them: mean, p95 (the worse side), worst, fail-rate.
+    #[arg(long, default_value = "mean", value_name = "NAME")]
+    aggregate: String,
+    /// Successive halving over the replicates (an eta of 2 or more, with --replicates): each
+    /// generation runs every trial on replicates/eta robots first and only its best 1/eta on
+    /// all of them; the others are told pruned with their first value.
+    #[arg(long, default_value_t = 0, value_name = "ETA")]
+    halving: u64,
+    #[command(flatten)]
+    sim: SimArgs,
+    #[command(flatten)]
+    schedule: ScheduleArgs,
+    /// Most cells per batch (a generation runs in batches of at most this many). Never
+    /// changes the numbers.
+    #[arg(long, value_name = "N")]
+    chunk_cells: Option<usize>,
+    #[command(flatten)]
+    output: OutputArgs,
+    /// Continue an interrupted study in DIR (the same inputs, or --resume DIR alone).
+    #[arg(long, value_name = "DIR")]
+    resume: Option<PathBuf>,
+    /// Batch threads; 0 uses all cores. Never changes the numbers.
+    #[arg(long, short = 'j', default_value_t = 0, value_name = "N")]
+    threads: usize,
+    /// Write DIR/plots/tune_progress.png (best objective against cell-steps spent) and, for
+    /// two searched axes, tune_trials.png (the trials over that plane).
+    #[arg(long)]
+    plot: bool,
+    /// With --plot: a sweep's run directory of the same question (e.g. a grid over the same
+    /// axes), drawn behind the search: its best-so-far curve and its heatmap.
+    #[arg(long, value_name = "DIR", requires = "plot")]
+    compare: Option<PathBuf>,
+    /// No line per generation.
+    #[arg(long, short = 'q')]
+    quiet: bool,
+    // last: their help headings would hold every option after them
+    #[command(flatten)]
+    backend: BackendArgs,
+    #[command(flatten)]
+    population: PopulationArgs,
+}
+
+impl TuneArgs {
+    pub(super) fn run(&self) -> Result<u8> {
+        let options = self.options()?;
+        let out = match (&self.resume, &self.output.out) {
+            (Some(d), _) | (None, Some(d)) => d.clone(),
+            (None, None) => rundir_name("tune"),
+        };
+        let mut py = PyArgs::new();
+        let mut args = serde_json::json!({
+            "space": self.space,
+            "objective": self.objective,
+            "maximize": self.maximize,
+            "trials": self.trials,
+            "budget": self.budget,
+            "batch": self.batch,
+            "sampler": self.sampler,
+            "seed": self.population.seed,
+            "aggregate": self.aggregate,
+            "halving": self.halving,
+            "out": py.path(&out),
+            "resume": self.resume.is_some(),
+            "force": self.output.force,
+            "progress": !self.quiet,
+            "plot": self.plot,
+            "compare": self.compare.as_ref().map(|c| py.path(c)),
+        });
+        if let Some(a) = args.as_object_mut() {
+            a.extend(options);
+        }
+        python_command("pupper_core._tune", "_cli", &py.text(&args))
+    }
+
+    /// The study's simulation inputs, each one's JSON as the spec serializes
+    /// it. A study's manifest records them and --resume compares them, so
+    /// the keys and their order are fixed: the first eight always, the rest
+    /// only when given (the schedule and backend only away from their
+    /// defaults, as before tune took those flags; a keyframe whenever named,
+    /// even `home`).
+    fn options(&self) -> Result<serde_json::Map<String, Value>> {
+        let sim = self.sim.spec()?;
+        let sine = self.schedule.sine()?;
+        let spec = SweepSpec {
+            threads: self.threads,
+            chunk_cells: self.chunk_cells,
+            ..self
+                .schedule
+                .apply(sine, self.backend.apply(self.population.apply(sim)))
+        };
+        let d = SweepSpec::default();
+        let keep = [
+            ("model", true),
+            ("variant", true),
+            ("mode", true),
+            ("seconds", true),
+            ("push", true),
+            ("threads", true),
+            ("replicates", true),
+            ("randomize", true),
+            // decided on the flags, not on their JSON: a NaN is JSON null
+            ("kp", spec.kp.is_some()),
+            ("kd", spec.kd.is_some()),
+            ("max_torque", spec.max_torque.is_some()),
+            ("depth", spec.depth.is_some()),
+            ("motor", spec.motor.is_some()),
+            ("push_force", spec.push_force != d.push_force),
+            ("push_at", spec.push_at != d.push_at),
+            ("push_duration", spec.push_duration != d.push_duration),
+            ("sine", spec.sine.is_some()),
+            ("chunk_cells", spec.chunk_cells.is_some()),
+            ("backend", spec.backend != d.backend),
+            ("device", spec.device.is_some()),
+            ("ray", spec.ray.is_some()),
+            ("keyframe", self.sim.keyframe.is_some()),
+            ("pose", spec.pose.is_some()),
+        ];
+        let Value::Object(mut all) =
+            serde_json::to_value(&spec).map_err(|e| Error::Internal(format!("options: {e}")))?
+        else {
+            return Err(Error::Internal("options".into()));
+        };
+        let mut o = serde_json::Map::new();
+        for (key, given) in keep {
+            if given {
+                let v = all
+                    .remove(key)
+                    .ok_or_else(|| Error::Internal(format!("options: {key}")))?;
+                o.insert(key.into(), v);
+            }
+        }
+        Ok(o)
+    }
+}
