@@ -9,7 +9,7 @@ use pyo3::exceptions::{PyIndexError, PyKeyError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::ConfigError;
+use crate::error::{ConfigError, InternalError, to_py};
 use pupper_core::results::best;
 use pupper_core::sim::metrics::METRIC_NAMES;
 
@@ -124,8 +124,8 @@ impl SweepResult {
                 .unbind(),
             None => py.None(),
         };
-        let config_text = serde_json::to_string(p.config)
-            .map_err(|e| crate::InternalError::new_err(e.to_string()))?;
+        let config_text =
+            serde_json::to_string(p.config).map_err(|e| InternalError::new_err(e.to_string()))?;
         let config = PyModule::import(py, "json")?
             .getattr("loads")?
             .call1((config_text,))?
@@ -403,7 +403,7 @@ impl SweepResult {
             max_saturation,
             ..best::Rule::new(metric, &by.unwrap_or_default())
         };
-        let groups = best::best(&self.header, &self.rows, &rule).map_err(crate::to_py)?;
+        let groups = best::best(&self.header, &self.rows, &rule).map_err(to_py)?;
         if !grouped {
             return match groups.first().and_then(|g| g.best) {
                 Some(i) => Ok(self.row(py, i as isize)?.into_any()),

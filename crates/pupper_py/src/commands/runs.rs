@@ -1,0 +1,88 @@
+//! Run directories read back and put together, and pupper's ranking rule
+//! on any table.
+
+use std::path::PathBuf;
+
+use pyo3::prelude::*;
+
+use pupper_core::results::{best, output};
+
+use crate::convert::to_dict;
+use crate::error::to_py;
+use crate::result::{Parts, SweepResult};
+
+/// Shards of one sweep put together into `out` (what `pupper merge` does);
+/// the merged run, read back.
+#[pyfunction]
+#[pyo3(signature = (dirs, out, *, force=false))]
+pub(crate) fn merge(
+    py: Python<'_>,
+    dirs: Vec<PathBuf>,
+    out: PathBuf,
+    force: bool,
+) -> PyResult<SweepResult> {
+    let existing = match force {
+        true => pupper_core::results::rundir::Existing::Overwrite,
+        false => pupper_core::results::rundir::Existing::Refuse,
+    };
+    let (dir, _) = pupper_core::results::rundir::merge(&dirs, &out, existing).map_err(to_py)?;
+    load_run(py, dir)
+}
+
+/// A run directory read back: its rows checked against its manifest.
+#[pyfunction]
+pub(crate) fn load_run(py: Python<'_>, run_dir: PathBuf) -> PyResult<SweepResult> {
+    let run = pupper_core::results::tables::read_run(&run_dir).map_err(to_py)?;
+    let cell_steps = vec![None; run.rows.len()];
+    SweepResult::new(
+        py,
+        Parts {
+            header: run.header,
+            rows: run.rows,
+            traces: &run.traces,
+            out: Some(&run_dir),
+            complete: run.manifest.complete,
+            wall_seconds: f64::NAN,
+            config: &run.manifest.config,
+            cell_steps,
+            tables: run.details,
+        },
+    )
+}
+
+/// The manifest of a run directory, as a dict.
+#[pyfunction]
+pub(crate) fn read_manifest(py: Python<'_>, dir: PathBuf) -> PyResult<Bound<'_, PyAny>> {
+    to_dict(py, &output::read_manifest(&dir).map_err(to_py)?)
+}
+
+/// pupper's ranking rule (`best::best`) on any table: `header` and rows of
+/// text as summary.csv holds them; the best row of each group of `by`, in
+/// order of first appearance (None for a group with no eligible row).
+/// Plots mark the cell the CLI names, through this one rule.
+#[pyfunction]
+#[pyo3(signature = (header, rows, metric, *, by = Vec::new(), minimize = true, max_saturation = best::MAX_SATURATION))]
+pub(crate) fn best_rows(
+    header: Vec<String>,
+    rows: Vec<Vec<String>>,
+    metric: String,
+    by: Vec<String>,
+    minimize: bool,
+    max_saturation: f64,
+) -> PyResult<Vec<Option<usize>>> {
+    let rule = best::Rule {
+        max_saturation,
+        minimize,
+        ..best::Rule::new(&metric, &by)
+    };
+    if let Some(r) = rows.iter().find(|r| r.len() != header.len()) {
+        return Err(pyo3::exceptions::PyValueError::new_err(format!(
+            "a row has {} fields for {} columns",
+            r.len(),
+            header.len()
+        )));
+    }
+    best::best(&header, &rows, &rule)
+        .map(|groups| groups.into_iter().map(|g| g.best).collect())
+        .map_err(to_py)
+}

@@ -1,0 +1,109 @@
+//! `sweep` and what every sweep-like command runs through: the spec built,
+//! run with Python progress and Ctrl-C, its table a `SweepResult`.
+
+use pyo3::exceptions::PyKeyboardInterrupt;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use pupper_core::request::spec::SweepSpec;
+use pupper_core::results::{best, output};
+use pupper_mujoco::api::{self, SweepRequest};
+
+use crate::convert::{grid_from, out_from, spec_from, to_dict};
+use crate::error::{pythonic, to_py};
+use crate::progress::{Active, PyUi};
+use crate::result::{Parts, SweepResult};
+
+/// Runs a sweep; returns its table as a `SweepResult`.
+///
+/// `grid`: a dict, `AXIS=VALUES` strings or one string; other keyword
+/// arguments are the fields of the Rust `SweepSpec`. On Ctrl-C the finished
+/// chunks are kept (and written when `out` is given) and KeyboardInterrupt
+/// is raised.
+#[pyfunction]
+#[pyo3(signature = (grid=None, *, preset=None, out=None, progress=None, **options))]
+pub(crate) fn sweep(
+    py: Python<'_>,
+    grid: Option<&Bound<'_, PyAny>>,
+    preset: Option<String>,
+    out: Option<&Bound<'_, PyAny>>,
+    progress: Option<Bound<'_, PyAny>>,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<SweepResult> {
+    let spec = SweepSpec {
+        grid: grid_from(grid, preset)?,
+        out: out_from(out)?,
+        ..spec_from(py, options)?
+    };
+    run_spec(py, spec, progress, "python: pupper_core.sweep", None)
+}
+
+/// Checks grid axis names as `--grid` does (GridError naming the known
+/// axes); what a search checks before it writes anything.
+#[pyfunction]
+pub(crate) fn check_axes(names: Vec<String>) -> PyResult<()> {
+    for n in names {
+        pupper_core::plan::grid::Axis::parse(&n).map_err(to_py)?;
+    }
+    Ok(())
+}
+
+/// The defaults of every sweep keyword argument, as `SweepSpec::default()`
+/// holds them (the Python signature takes its defaults from here).
+#[pyfunction]
+pub(crate) fn sweep_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+    to_dict(py, &SweepSpec::defaults_json())
+}
+
+/// Runs a spec with Python progress and Ctrl-C; writes best.csv by `rule`.
+pub(crate) fn run_spec(
+    py: Python<'_>,
+    spec: SweepSpec,
+    progress: Option<Bound<'_, PyAny>>,
+    command: &str,
+    rule: Option<&best::Rule>,
+) -> PyResult<SweepResult> {
+    let sweep = spec.build().map_err(to_py)?;
+    if let Some(rule) = rule {
+        best::best(&output::header_of(&sweep.config), &[], rule).map_err(to_py)?;
+    }
+    let _active = Active::start()?;
+    let req = SweepRequest {
+        sweep,
+        command: vec![command.into()],
+    };
+    let mut ui = PyUi::new(py, progress);
+    let outcome = api::run_sweep(&req, &mut ui).map_err(to_py)?;
+    for n in &outcome.notes {
+        PyErr::warn(
+            py,
+            &py.get_type::<pyo3::exceptions::PyUserWarning>(),
+            &std::ffi::CString::new(pythonic(n)).unwrap_or_default(),
+            1,
+        )?;
+    }
+    ui.stopped()?;
+    if !outcome.complete {
+        // interrupted inside a MuJoCo call: finished chunks are kept
+        return Err(PyKeyboardInterrupt::new_err(
+            "sweep interrupted; finished cells are kept (resume=True continues a run directory)",
+        ));
+    }
+    if let Some(rule) = rule {
+        api::write_best(&outcome, rule).map_err(to_py)?;
+    }
+    SweepResult::new(
+        py,
+        Parts {
+            header: outcome.header,
+            rows: outcome.rows,
+            traces: &outcome.traces,
+            out: outcome.out.as_deref(),
+            complete: outcome.complete,
+            wall_seconds: outcome.wall_seconds,
+            config: &req.sweep.config,
+            tables: outcome.details,
+            cell_steps: outcome.cell_steps,
+        },
+    )
+}
