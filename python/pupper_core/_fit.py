@@ -11,33 +11,45 @@ hung in the air (the free joint removed, contacts off), and fits joint
 armature, damping and friction loss, the servo's kp and kd scales and its
 command delay to the logged angles (and torques, where logged) by
 `mujoco.sysid`'s bounded Levenberg–Marquardt, every rollout of a Jacobian
-in one batch on all cores. Intervals are sysid's Gauss–Newton 95 % ones.
+in one batch on all cores. Intervals are sysid's Gauss–Newton 95 % ones,
+their residual noise floored at NOISE_FLOOR (noise-free logs). What cannot
+be trusted is said as a warning: a parameter on a bound, an interval that
+is infinite or below 0, confounded parameters, a log made worse, a joint
+that never moves (left out); a fit that ends worse than the nominal values
+restarts from them, and keeps them if it cannot do better.
 
 Outputs (a run directory): ``fit.csv``, ``calibrated.xml`` (the model with
 the fitted values, written through `MjSpec`; every command loads it with
-``--model``), ``residuals.csv``, ``manifest.json`` and, with ``plot``,
-``plots/fit_<log>.png`` (measured against simulated angle per joint,
-before and after).
+``--model``), ``residuals.csv``, ``manifest.json``, ``warnings.csv`` (when
+there are warnings) and, with ``plot``, ``plots/fit_<log>.png`` (measured
+against simulated angle per joint, before and after).
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import ctypes
 import hashlib
 import io
 import json
 import math
 import os
+import shutil
+import signal
 import sys
+import threading
 import time
-from collections.abc import Sequence
+import warnings as _warnings
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from pupper_core._joint_log import JointLog, LogError, read_log, write_log
+from pupper_core._joint_log import JointLog, LogError, check_gains, read_log, write_log
+from pupper_core._native import ConfigError
 
 __all__ = ["fit", "excite", "FitResult", "FitError", "PARAMS"]
 
@@ -55,13 +67,37 @@ GROUPS = ("haa", "hfe", "kfe")
 PER = ("all", "group", "joint")
 #: The custom numeric a calibrated model keeps a gain scale in, per actuator.
 SCALE_NUMERIC = "pupper:{kind}:{actuator}"
+#: The longest log (s) fit takes and excite writes: an excitation is seconds
+#: to a minute; a longer time axis is in other units (ms) or several runs.
+MAX_LOG_SECONDS = 600.0
+#: The least residual noise the intervals assume, per kind of signal (angle
+#: rad, velocity rad/s, torque N·m): finer than any servo reports (a 16-bit
+#: encoder alone quantises to 2.8e-5 rad RMS), so a real log is never
+#: floored, while a noise-free (simulated) log gets the intervals a
+#: near-perfect sensor would, not the simulator's round-off.
+NOISE_FLOOR = (1e-5, 1e-3, 1e-4)
+#: An angle column that changes by no more than this (rad) never moves.
+STILL_RAD = 1e-9
+#: A correlation past which two parameters are said to be confounded
+#: (damping and kd scale, which angles alone show only as a sum: 0.95).
+CONFOUNDED = 0.99
+#: A fit may allocate at most this fraction of the machine's memory.
+MEMORY_FRACTION = 0.5
+#: A fit's peak memory over its rollouts' state and sensors (measured 1.0 to
+#: 2.5 times: sysid copies them as it resamples).
+MEMORY_COPIES = 2.5
+#: The files a fit writes in its run directory (and removes if it stops).
+RUN_FILES = ("fit.csv", "residuals.csv", "calibrated.xml", "manifest.json", "warnings.csv", "report.html")
 
 
-class FitError(ValueError):
+class FitError(ConfigError, ValueError):
     """Bad input to `fit` or `excite`: one line naming the problem and the fix."""
+
+    kind = "config"
 
 
 def _sysid() -> Any:
+    sysid: Any
     try:
         import scipy  # noqa: F401  (sysid's own imports hide a missing one)
         from mujoco import sysid
@@ -79,15 +115,21 @@ def _sysid() -> Any:
 # ---------------------------------------------------------------- the robot
 
 
-def _model_file(model: str | os.PathLike[str]) -> Path:
+#: The built-in models: their file, and whether the base is welded.
+BUILTINS = {"pupper_v3": ("pupper_v3/scene.xml", False), "pupper_v3_fixed": ("pupper_v3/pupper_v3.xml", True)}
+
+
+def _model_file(model: str | os.PathLike[str]) -> tuple[Path, bool]:
+    """A model's file, and whether its base is welded to the world (the
+    built-in pupper_v3_fixed: the robot file, free joint removed)."""
     p = Path(model)
     if p.is_file():
-        return p.resolve()
-    builtin = Path(__file__).parent / "models" / str(model) / "scene.xml"
-    if builtin.is_file():
-        return builtin
-    raise FitError(f"model '{model}' is neither an MJCF file nor a built-in model with a file "
-                   "(pupper_v3): give --model PATH or pupper_v3")
+        return p.resolve(), False
+    if str(model) in BUILTINS:
+        rel, fixed = BUILTINS[str(model)]
+        return Path(__file__).parent / "models" / rel, fixed
+    raise FitError(f"model '{model}' is neither an MJCF file nor a built-in model "
+                   f"({', '.join(BUILTINS)}): give --model PATH or pupper_v3")
 
 
 @dataclass
@@ -108,6 +150,14 @@ class Robot:
     frictionloss: np.ndarray
     rest: np.ndarray
     timestep: float
+    #: each joint's inertia at rest (kg·m², armature included)
+    inertia: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: the base welded to the world (pupper_v3_fixed): calibrated.xml keeps it so
+    fixed_base: bool = False
+
+    def natural_hz(self, kp: np.ndarray) -> np.ndarray:
+        """Each joint's natural frequency (Hz) at stiffness ``kp``."""
+        return np.asarray(np.sqrt(np.asarray(kp) / self.inertia) / (2 * math.pi))
 
     def members(self, per: str) -> list[tuple[str, list[int]]]:
         """The parameter sets: (suffix, actuator indices)."""
@@ -124,7 +174,7 @@ def load_robot(model: str | os.PathLike[str]) -> Robot:
 
     import pupper_core as pc
 
-    path = _model_file(model)
+    path, fixed = _model_file(model)
     try:
         m = mujoco.MjModel.from_xml_path(str(path))
     except ValueError as e:
@@ -132,11 +182,12 @@ def load_robot(model: str | os.PathLike[str]) -> Robot:
     info = pc.info(str(path))
     group_of: dict[int, str] = {}
     for leg in info["legs"]:
-        for k, j in enumerate(leg["joints"]):
-            group_of[j] = GROUPS[min(k, 2)]
+        for k, leg_joint in enumerate(leg["joints"]):
+            group_of[leg_joint] = GROUPS[min(k, 2)]
     acts, joints, groups, ranges, limits = [], [], [], {}, []
     own_kp, own_kd, arm, damp, fric, rest = [], [], [], [], [], []
-    key = next((k for k in range(m.nkey) if mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_KEY, k) == "home"), None)
+    key: int | None = next((k for k in range(m.nkey)
+                            if mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_KEY, k) == "home"), None)
     for a, ai in enumerate(info["actuators"]):
         j = ai["joint"]
         if j is None:
@@ -162,7 +213,22 @@ def load_robot(model: str | os.PathLike[str]) -> Robot:
         rest.append(q)
     return Robot(path, acts, joints, groups, ranges, np.array(limits), np.array(own_kp),
                  np.array(own_kd), np.array(arm), np.array(damp), np.array(fric), np.array(rest),
-                 float(m.opt.timestep))
+                 float(m.opt.timestep), _inertia(m, joints, rest), fixed)
+
+
+def _inertia(m: Any, joints: list[str], rest: list[float]) -> np.ndarray:
+    """Each joint's own inertia at the rest pose: its diagonal of the mass
+    matrix (the same whether the base is free or welded)."""
+    import mujoco
+
+    d = mujoco.MjData(m)
+    ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints]
+    for jid, q in zip(ids, rest):
+        d.qpos[m.jnt_qposadr[jid]] = q
+    mujoco.mj_forward(m, d)
+    full = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, full)
+    return np.array([max(float(full[m.jnt_dofadr[j], m.jnt_dofadr[j]]), 1e-12) for j in ids])
 
 
 def _history_samples(robot: Robot) -> int:
@@ -254,14 +320,64 @@ def _multisine(t: np.ndarray, band: tuple[float, float], count: int, rng: np.ran
     k = np.arange(1, count + 1)
     phase = -np.pi * k * (k - 1) / count + rng.uniform(0, 2 * np.pi)
     s = np.sin(2 * np.pi * f[:, None] * t[None, :] + phase[:, None]).sum(0)
-    return s / np.max(np.abs(s))
+    return np.asarray(s / np.max(np.abs(s)))
 
 
 def _chirp(t: np.ndarray, band: tuple[float, float]) -> np.ndarray:
     f0, f1 = band
     span = t[-1] if t[-1] > 0 else 1.0
     r = (f1 / f0) ** (1 / span)
-    return np.sin(2 * np.pi * f0 * (r ** t - 1) / math.log(r))
+    return np.asarray(np.sin(2 * np.pi * f0 * (r ** t - 1) / math.log(r)))
+
+
+# ------------------------------------------------------------------ signals
+
+
+@contextlib.contextmanager
+def _stop_on_signals(what: str) -> Iterator[None]:
+    """SIGINT and SIGTERM stop ``what`` with KeyboardInterrupt, as Ctrl-C
+    stops Python, and the handlers from before are put back after. (The CLI's
+    own handler only sets a flag its Rust loops read, which a fit never
+    does; off the main thread Python cannot take a signal, and this does
+    nothing.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt(f"{what} stopped by {signal.Signals(signum).name}: nothing written")
+
+    saved = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        # the kernel's action too: a handler installed outside Python (the
+        # CLI's) shows in Python as SIG_DFL or None, and only this puts it back
+        raw = _raw_action(sig)
+        saved.append((sig, signal.signal(sig, stop), raw))
+    try:
+        yield
+    finally:
+        for sig, previous, raw in reversed(saved):
+            if callable(previous) or raw is None:
+                signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
+            else:
+                _libc().sigaction(int(sig), raw, None)
+
+
+def _libc() -> Any:
+    return ctypes.CDLL(None, use_errno=True)
+
+
+def _raw_action(sig: int) -> Any:
+    """The current sigaction of ``sig`` as bytes (a buffer larger than any
+    platform's struct), or None where there is no libc to ask."""
+    try:
+        buf = ctypes.create_string_buffer(1024)
+        return buf if _libc().sigaction(int(sig), None, buf) == 0 else None
+    except (OSError, AttributeError):
+        return None
+
+
+# ------------------------------------------------------------------- excite
 
 
 def excite(model: str | os.PathLike[str] = "pupper_v3", *, out: str | os.PathLike[str] = "excite.csv",
@@ -269,26 +385,121 @@ def excite(model: str | os.PathLike[str] = "pupper_v3", *, out: str | os.PathLik
            amplitude: float = 0.3, signal: str = "multisine", band: Sequence[float] = (0.3, 6.0),
            max_velocity: float = 8.0, seed: int = 0, force: bool = False) -> Path:
     """Writes an excitation to play on the robot and the nominal model's
-    response to it, in the joint-log format; returns the file's path."""
+    response to it, in the joint-log format; returns the file's path. Gains
+    past the explicit PD's stability bound are said as a warning."""
+    path, notes = _excite(model, out=out, kp=kp, kd=kd, seconds=seconds, hold=hold, amplitude=amplitude,
+                          signal=signal, band=band, max_velocity=max_velocity, seed=seed, force=force)
+    for note in notes:
+        _warnings.warn(note, stacklevel=2)
+    return path
+
+
+def _excite(model: str | os.PathLike[str], *, out: str | os.PathLike[str], kp: float | None, kd: float | None,
+            seconds: float, hold: float, amplitude: float, signal: str, band: Sequence[float],
+            max_velocity: float, seed: int, force: bool) -> tuple[Path, list[str]]:
+    """`excite`, and its notes."""
     robot = load_robot(model)
-    out = Path(out)
-    if out.exists() and not force:
-        raise FitError(f"{out} exists: give another --out, or --force to overwrite it")
+    out = _excite_out(out, force)
+    lo, hi = _excite_options(robot, signal, band, seconds, hold, amplitude, max_velocity)
+    gains_kp, gains_kd = _excite_gains(robot, kp, kd)
+    notes = _stability_notes(robot, gains_kp, gains_kd)
+    with _stop_on_signals("excite"):
+        times, targets = _excite_targets(robot, gains_kp, signal, (lo, hi), seconds, hold, amplitude,
+                                         max_velocity, seed)
+        spec = suspended_spec(robot, gains_kp, gains_kd)
+        sens = simulate(spec, robot, times, targets)
+        if not np.all(np.isfinite(sens)):
+            raise FitError(f"the model diverges at kp {gains_kp.max():g}, kd {gains_kd.max():g}: its response "
+                           "is not finite; lower the gains (pupper gains --kp KP --kd KD shows the bound)")
+        nu = len(robot.actuators)
+        write_log(out, times, robot.actuators, target=targets, q=sens[:, :nu], qd=sens[:, nu:2 * nu],
+                  tau=sens[:, 2 * nu:], kp=gains_kp, kd=gains_kd,
+                  note=f"pupper excite {signal} {lo:g}-{hi:g} Hz; q, qd, tau: the nominal model's response")
+    return out, notes
+
+
+def _excite_out(out: str | os.PathLike[str], force: bool) -> Path:
+    path = Path(out)
+    if path.is_dir():
+        raise FitError(f"--out {path} is a directory: give a file path (e.g. {path / 'excite.csv'})")
+    if path.exists() and not force:
+        raise FitError(f"{path} exists: give another --out, or --force to overwrite it")
+    parent = path.parent
+    if not parent.is_dir():
+        raise FitError(f"--out {path}: its directory {parent} does not exist: create it "
+                       f"(mkdir -p {parent}) or give another --out")
+    return path
+
+
+def _number(name: str, v: Any) -> float:
+    """A flag's number; the CLI passes NaN and infinity as null."""
+    if v is None or not isinstance(v, (int, float)) or not math.isfinite(v):
+        # the CLI passes NaN and infinity alike, as null
+        raise FitError(f"--{name} {'(nan or inf)' if v is None else v} is not a finite number: give e.g. "
+                       f"--{name} {dict(seconds=8, hold=1, amplitude=0.3, band='0.3,6').get(name, 8)}")
+    return float(v)
+
+
+def _excite_options(robot: Robot, signal: str, band: Sequence[float], seconds: float, hold: float,
+                    amplitude: float, max_velocity: float) -> tuple[float, float]:
+    """Checks excite's options; returns the band."""
     if signal not in ("multisine", "chirp"):
         raise FitError(f"--signal {signal} is unknown: use multisine or chirp")
-    lo, hi = (float(b) for b in band)
+    lo, hi = (_number("band", b) for b in band)
     if not (0 < lo < hi < 0.5 / robot.timestep / 4):
         raise FitError(f"--band {lo:g},{hi:g} Hz is not 0 < F0 < F1 below a quarter of the "
                        f"Nyquist rate ({0.125 / robot.timestep:g} Hz): give e.g. 0.3,6")
     for name, v in (("seconds", seconds), ("amplitude", amplitude), ("max-velocity", max_velocity)):
-        if not (math.isfinite(v) and v > 0):
+        if not _number(name, v) > 0:
             raise FitError(f"--{name} {v} must be > 0")
-    if not (math.isfinite(hold) and hold >= 0):
+    if not _number("hold", hold) >= 0:
         raise FitError(f"--hold {hold} must be >= 0")
-    gains_kp = np.full(len(robot.actuators), kp) if kp is not None else robot.own_kp
-    gains_kd = np.full(len(robot.actuators), kd) if kd is not None else robot.own_kd
-    if np.isnan(gains_kp).any() or np.isnan(gains_kd).any() or (gains_kp < 0).any() or (gains_kd < 0).any():
+    groups = len([g for g in GROUPS if g in robot.groups] or ["joint"])
+    total = hold + groups * (seconds + hold)
+    if total > MAX_LOG_SECONDS:
+        most = max((MAX_LOG_SECONDS - hold) / groups - hold, 0.0)
+        raise FitError(f"--seconds {seconds:g} --hold {hold:g} make a {total:.4g} s log ({groups} joint "
+                       f"groups), past the {MAX_LOG_SECONDS:g} s fit takes: give --seconds of at most "
+                       f"{math.floor(most * 10) / 10:g} (8 is the default)")
+    return lo, hi
+
+
+def _excite_gains(robot: Robot, kp: float | None, kd: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """The gains to excite at: --kp/--kd, else the model's own."""
+    n = len(robot.actuators)
+    for key, v in (("kp", kp), ("kd", kd)):
+        if v is not None:
+            try:
+                check_gains([float(v)], key, f"--{key} {v:g}", "")
+            except LogError as e:
+                raise FitError(str(e)) from None
+    gains_kp = np.full(n, float(kp)) if kp is not None else robot.own_kp
+    gains_kd = np.full(n, float(kd)) if kd is not None else robot.own_kd
+    if np.isnan(gains_kp).any() or np.isnan(gains_kd).any() or (gains_kp <= 0).any() or (gains_kd < 0).any():
         raise FitError("the model's actuators have no PD gains of their own: give --kp and --kd")
+    return gains_kp, gains_kd
+
+
+def _stability_notes(robot: Robot, kp: np.ndarray, kd: np.ndarray) -> list[str]:
+    """A note when the gains lie past the stability bound of an explicitly
+    integrated PD at the timestep (pupper gains' margin, 1 or more)."""
+    from pupper_core import _native
+
+    g = _native.gains(str(robot.file), kp=float(kp.max()), kd=float(kd.max()), bandwidth=None,
+                      damping=0.7, pose=None)
+    worst = max(g.get("joints", []), key=lambda j: float(j.get("stability_margin", 0.0)), default=None)
+    if worst is None or not float(worst["stability_margin"]) >= 1:
+        return []
+    return [f"kp {kp.max():g}, kd {kd.max():g} lie past the stability bound of an explicitly integrated PD "
+            f"at the timestep (worst: {worst['actuator']}, margin {float(worst['stability_margin']):.3g}): "
+            "the nominal response in the log may chatter at the torque limit or diverge; "
+            f"`pupper gains --kp {kp.max():g} --kd {kd.max():g}` shows the bound per joint"]
+
+
+def _excite_targets(robot: Robot, gains_kp: np.ndarray, signal: str, band: tuple[float, float], seconds: float,
+                    hold: float, amplitude: float, max_velocity: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The excitation's times and targets: per joint group a multisine or
+    chirp inside the ranges and the speed and torque limits, with holds."""
     dt = robot.timestep
     rng = np.random.default_rng(seed)
     groups = [g for g in GROUPS if g in robot.groups] or ["joint"]
@@ -303,7 +514,7 @@ def excite(model: str | os.PathLike[str] = "pupper_v3", *, out: str | os.PathLik
     for gi, g in enumerate(groups):
         start = n_hold + gi * (n_seg + n_hold)
         for a in (i for i, x in enumerate(robot.groups) if x == g or g == "joint"):
-            s = (_multisine(ts, (lo, hi), 8, rng) if signal == "multisine" else _chirp(ts, (lo, hi))) * taper
+            s = (_multisine(ts, band, 8, rng) if signal == "multisine" else _chirp(ts, band)) * taper
             speed = np.max(np.abs(np.diff(s))) / dt
             amp = min(amplitude, max_velocity / max(speed, 1e-9))
             rng_a = robot.ranges[robot.actuators[a]]
@@ -313,13 +524,7 @@ def excite(model: str | os.PathLike[str] = "pupper_v3", *, out: str | os.PathLik
                 # the PD's stiffness alone may ask 80 % of the motor's torque
                 amp = min(amp, 0.8 * robot.limits[a] / gains_kp[a])
             targets[start:start + n_seg, a] = robot.rest[a] + max(amp, 0.0) * s
-    spec = suspended_spec(robot, gains_kp, gains_kd)
-    sens = simulate(spec, robot, times, targets)
-    nu = len(robot.actuators)
-    write_log(out, times, robot.actuators, target=targets, q=sens[:, :nu], qd=sens[:, nu:2 * nu],
-              tau=sens[:, 2 * nu:], kp=gains_kp, kd=gains_kd,
-              note=f"pupper excite {signal} {lo:g}-{hi:g} Hz; q, qd, tau: the nominal model's response")
-    return out
+    return times, targets
 
 
 # ---------------------------------------------------------------------- fit
@@ -336,7 +541,10 @@ class FitResult:
     out: Path | None
     seconds: float
     warnings: list[str] = field(default_factory=list)
+    #: the actuators fitted (a joint that never moves is left out)
     actuators: list[str] = field(default_factory=list)
+    #: the intervals assume NOISE_FLOOR: the residual was below it (noise-free logs)
+    floored: bool = False
 
     def value(self, name: str) -> float:
         return next(float(r["fitted"]) for r in self.table if r["parameter"] == name)
@@ -362,7 +570,8 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         params: str | Sequence[str] = DEFAULT_PARAMS, per: str = "all", out: str | os.PathLike[str] | None = None,
         force: bool = False, max_iters: int = 50, plot: bool = False, progress: bool = True) -> FitResult:
     """Fits ``params`` (per ``all`` actuators, joint ``group`` or ``joint``)
-    to the joint ``logs`` and, with ``out``, writes the run directory."""
+    to the joint ``logs`` and, with ``out``, writes the run directory.
+    SIGINT and SIGTERM stop it (KeyboardInterrupt) with nothing written."""
     names = _parse_params(params)
     if per not in PER:
         raise FitError(f"--per {per} is unknown: use all, group or joint")
@@ -371,42 +580,143 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
     if max_iters < 1:
         raise FitError("--max-iters must be >= 1")
     out_dir = Path(out) if out is not None else None
+    if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
+        raise FitError(f"--out {out_dir} is a file: give a directory for the run (e.g. runs/fit)")
     if out_dir is not None and out_dir.exists() and any(out_dir.iterdir()) and not force:
         raise FitError(f"{out_dir} exists and is not empty: give another --out, or --force")
-    robot = load_robot(model)
+    with _stop_on_signals("fit"):
+        robot = load_robot(model)
+        read = _read_logs(logs, robot)
+        _check_memory(read, robot, len(names) * len(robot.members(per)))
+        sysid = _sysid()
+        started = time.perf_counter()
+        # sysid's linear algebra on a degenerate problem divides by zero: the
+        # outcome is checked and said below, numpy's warnings would only leak
+        with np.errstate(all="ignore"):
+            pb = _problem(sysid, robot, read, names, per)
+            sol = _solve(sysid, pb, max_iters)
+        result = _result(pb, sol, out_dir, time.perf_counter() - started)
+        if out_dir is not None:
+            _write_run(out_dir, result, pb, sol, model, names, per, force, plot)
+    return result
+
+
+def _read_logs(paths: Sequence[str | os.PathLike[str]], robot: Robot) -> list[JointLog]:
+    """Reads and checks every log, and refuses the same log given twice."""
+    read: list[JointLog] = []
+    for p in paths:
+        try:
+            lg = read_log(Path(p), robot.ranges)
+        except LogError as e:
+            raise FitError(str(e)) from None
+        _check_log(lg, robot)
+        twin = next((x for x in read if x.sha256 == lg.sha256), None)
+        if twin is not None:
+            # a copy adds no information, yet would narrow every interval
+            raise FitError(f"{lg.path} has the same content as {twin.path} (sha256 {lg.sha256[:12]}): "
+                           "give each log once")
+        read.append(lg)
+    return read
+
+
+def _check_log(lg: JointLog, robot: Robot) -> None:
+    missing = [a for a in robot.actuators if a not in lg.actuators]
+    if missing:
+        raise FitError(f"{lg.path}: column '{missing[0]}.target' is missing: a log must cover "
+                       f"every actuator of the model ({len(robot.actuators)})")
+    if lg.base != "suspended":
+        raise FitError(f"{lg.path}: '# base: {lg.base}': fit replays logs of the robot hung in "
+                       "the air (base: suspended); standing logs are not supported yet")
+    if lg.duration <= PARAMS["delay"][2] * 4:
+        raise FitError(f"{lg.path}: the log spans {lg.duration:g} s, too short for the delay "
+                       f"range (0 to {PARAMS['delay'][2]:g} s): log at least a few seconds")
+    dts = np.diff(lg.times)
+    if np.max(np.abs(dts - dts.mean())) > 1e-6 * max(dts.mean(), 1e-9) + 1e-9:
+        raise FitError(f"{lg.path}: samples are not evenly spaced in time: resample the log "
+                       "to a fixed rate")
+    spacing = float(dts.mean())
+    # samples a second or more apart, which in ms would be a servo's rate
+    ms = (f" (its samples are {spacing:g} apart: the time column looks like milliseconds; divide it "
+          "by 1000)") if 1e-4 <= spacing / 1000 <= 0.1 and spacing >= 0.5 else ""
+    if lg.duration > MAX_LOG_SECONDS:
+        raise FitError(f"{lg.path}: the log spans {lg.duration:.4g} s, past the {MAX_LOG_SECONDS:g} s "
+                       f"fit takes{ms}: times are in s; split a longer recording")
+    order = _order(lg, robot)
+    hz = robot.natural_hz(lg.kp[order])
+    k = int(np.argmax(hz))
+    if 1 / spacing < 2 * hz[k]:
+        # the samples cannot show a motion faster than half their rate
+        raise FitError(f"{lg.path}: sampled at {1 / spacing:.3g} Hz, too slow for the joints' dynamics{ms}: "
+                       f"at the log's kp {lg.kp[order][k]:g} {robot.actuators[k]} swings at {hz[k]:.3g} Hz, "
+                       f"past half the sample rate; log at {10 * hz[k]:.0f} Hz or more")
+
+
+def _memory_limit() -> float:
+    """The bytes a fit may allocate: a fraction of the machine's memory."""
     try:
-        read = [read_log(p, robot.ranges) for p in logs]
-    except LogError as e:
-        raise FitError(str(e)) from None
-    for lg in read:
-        missing = [a for a in robot.actuators if a not in lg.actuators]
-        if missing:
-            raise FitError(f"{lg.path}: column '{missing[0]}.target' is missing: a log must cover "
-                           f"every actuator of the model ({len(robot.actuators)})")
-        if lg.base != "suspended":
-            raise FitError(f"{lg.path}: '# base: {lg.base}': fit replays logs of the robot hung in "
-                           "the air (base: suspended); standing logs are not supported yet")
-        if lg.duration <= PARAMS["delay"][2] * 4:
-            raise FitError(f"{lg.path}: the log spans {lg.duration:g} s, too short for the delay "
-                           f"range (0 to {PARAMS['delay'][2]:g} s): log at least a few seconds")
-        dts = np.diff(lg.times)
-        if np.max(np.abs(dts - dts.mean())) > 1e-6 * max(dts.mean(), 1e-9) + 1e-9:
-            raise FitError(f"{lg.path}: samples are not evenly spaced in time: resample the log "
-                           "to a fixed rate")
-    sysid = _sysid()
+        total = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        total = 16 * 2**30
+    return MEMORY_FRACTION * float(total)
+
+
+def _check_memory(read: list[JointLog], robot: Robot, n_params: int) -> None:
+    """Refuses a fit whose rollouts would not fit in memory, before any is
+    allocated: every Jacobian rolls each log out once per parameter and once
+    more, keeping the full state and the sensors of every physics step, and
+    sysid copies them (MEMORY_COPIES)."""
     import mujoco
 
-    started = time.perf_counter()
-    order = [lg.actuators.index(a) for a in robot.actuators]
+    m = suspended_spec(robot, read[0].kp, read[0].kd).compile()
+    per_step = 8 * (mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS) + m.nsensordata)
+    steps = sum(lg.duration / min(robot.timestep, float(np.mean(np.diff(lg.times)))) + 1 for lg in read)
+    need = per_step * steps * (n_params + 1) * MEMORY_COPIES
+    limit = _memory_limit()
+    if need > limit:
+        raise FitError(f"the fit would allocate about {_size(need)} ({len(read)} log(s), {steps:,.0f} physics "
+                       f"steps, {n_params + 1} rollouts of each per Jacobian), past {_size(limit)} "
+                       f"({MEMORY_FRACTION:.0%} of this machine's memory): fit fewer or shorter logs at once, "
+                       "or fewer parameters (--params, --per all)")
+
+
+def _size(n: float) -> str:
+    return f"{n / 2**30:.1f} GiB" if n >= 2**30 else f"{n / 2**20:.0f} MiB"
+
+
+@dataclass
+class _Problem:
+    """A fit set up: the logs as sysid sequences, what is fitted, the
+    parameters at their nominal values and what was left out (said)."""
+
+    robot: Robot
+    logs: list[JointLog]
+    sequences: list[Any]
+    pdict: Any
+    labels: list[tuple[str, str, list[int], float]]
+    x_nominal: np.ndarray
+    #: the enabled sensors, as indices into (angles, velocities, torques) x actuators
+    sensors: list[int]
+    gains: dict[int, tuple[np.ndarray, np.ndarray]]
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def kept(self) -> list[int]:
+        """The actuators whose angle is fitted."""
+        nu = len(self.robot.actuators)
+        return [s for s in self.sensors if s < nu]
+
+
+def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], per: str) -> _Problem:
+    nu = len(robot.actuators)
+    has_tau = all(lg.tau is not None for lg in read)
+    has_qd = all(lg.qd is not None for lg in read)
+    sensors, warnings = _enabled_sensors(robot, read, has_qd, has_tau)
     # one spec per gain setting: its actuators run at the logged gains
     specs: dict[tuple[bytes, bytes], Any] = {}
     gains: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     sequences = []
-    nu = len(robot.actuators)
-    has_tau = all(lg.tau is not None for lg in read)
-    has_qd = all(lg.qd is not None for lg in read)
-    sensors = [*range(nu)] + ([*range(nu, 2 * nu)] if has_qd else []) + ([*range(2 * nu, 3 * nu)] if has_tau else [])
     for li, lg in enumerate(read):
+        order = _order(lg, robot)
         kp, kd = lg.kp[order], lg.kd[order]
         key = (kp.tobytes(), kd.tobytes())
         if key not in specs:
@@ -420,7 +730,8 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         t = lg.times - lg.times[0]
         target = lg.target[:, order]
         q = lg.q[:, order]
-        cols = [q, lg.qd[:, order] if has_qd else np.zeros_like(q), lg.tau[:, order] if has_tau else np.zeros_like(q)]
+        cols = [q, lg.qd[:, order] if lg.qd is not None and has_qd else np.zeros_like(q),
+                lg.tau[:, order] if lg.tau is not None and has_tau else np.zeros_like(q)]
         y = np.hstack(cols)
         # the start: where the robot rests when the log begins on a hold
         # (the mean of its first samples, less noise than one)
@@ -432,12 +743,60 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         control = sysid.TimeSeries.from_control_names(*_held(t, target, m.opt.timestep), m)
         measured = sysid.TimeSeries.from_names(t, y, m)
         sequences.append(sysid.ModelSequences(f"log{li}", spec, lg.path.stem, x0, control, measured))
+    kept = {s for s in sensors if s < nu}
+    pdict, labels, x_nominal = _parameters(sysid, robot, names, per, gains, kept, warnings)
+    return _Problem(robot, read, sequences, pdict, labels, x_nominal, sensors, gains, warnings)
 
+
+def _order(lg: JointLog, robot: Robot) -> list[int]:
+    """A log's columns in the model's actuator order."""
+    return [lg.actuators.index(a) for a in robot.actuators]
+
+
+def _enabled_sensors(robot: Robot, read: list[JointLog], has_qd: bool,
+                     has_tau: bool) -> tuple[list[int], list[str]]:
+    """The signals the fit compares: a joint whose angle never moves shows
+    nothing (and sysid, which divides each signal by its size, would divide
+    by zero), so it is left out, as is a velocity or torque column that is
+    all zero; each is said. Refuses a fit with nothing left."""
+    nu = len(robot.actuators)
+    warnings: list[str] = []
+    still: dict[int, JointLog] = {}
+    for lg in read:
+        for k, c in enumerate(_order(lg, robot)):
+            if k not in still and float(np.ptp(lg.q[:, c])) <= STILL_RAD:
+                still[k] = lg
+    for k, lg in sorted(still.items()):
+        warnings.append(f"{robot.actuators[k]} never moves in {lg.path.name} (its angle stays at "
+                        f"{lg.q[0, _order(lg, robot)[k]]:.6g} rad): left out of the fit")
+    if len(still) == nu:
+        raise FitError(f"no joint moves in {', '.join(sorted({lg.path.name for lg in still.values()}))} "
+                       "(every angle column is constant): nothing to fit; log a run where the joints "
+                       "move (pupper excite writes its targets)")
+    sensors = [k for k in range(nu) if k not in still]
+    for block, fld, on in ((1, "qd", has_qd), (2, "tau", has_tau)):
+        for k in (k for k in range(nu) if on and k not in still):
+            zero = next((lg for lg in read if not np.any(getattr(lg, fld)[:, _order(lg, robot)[k]])), None)
+            if zero is not None:
+                warnings.append(f"{zero.path.name}: column '{robot.actuators[k]}.{fld}' is all zero: left "
+                                "out of the fit (drop the column if the servo does not report it)")
+            else:
+                sensors.append(block * nu + k)
+    return sensors, warnings
+
+
+def _parameters(sysid: Any, robot: Robot, names: list[str], per: str, gains: dict[int, tuple[np.ndarray, np.ndarray]],
+                kept: set[int], warnings: list[str]) -> tuple[Any, list[tuple[str, str, list[int], float]], np.ndarray]:
+    """The parameters at their nominal values (the vector returned, before
+    sysid moves those on a bound inside for its start)."""
     pdict = sysid.ParameterDict()
     nominal = {"armature": robot.armature, "damping": robot.damping, "frictionloss": robot.frictionloss}
     labels: list[tuple[str, str, list[int], float]] = []
     for kind in names:
         for suffix, members in robot.members(per):
+            if not kept.intersection(members):
+                warnings.append(f"{kind + suffix} is not fitted: none of its joints moves")
+                continue
             if kind in nominal:
                 values = nominal[kind][members]
                 nom = float(values[0]) if np.all(values == values[0]) else float(np.mean(values))
@@ -447,55 +806,218 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
             modifier = _modifier(kind, members, robot, gains)
             pdict.add(sysid.Parameter(kind + suffix, nom, lo, max(hi, 4 * nom), modifier=modifier))
             labels.append((kind + suffix, kind, members, nom))
-    pdict.move_off_bounds()
-    enabled = [(s.name, sysid.SignalType.MjSensor) for s in sequences[0].spec.sensors
-               if [x.name for x in sequences[0].spec.sensors].index(s.name) in sensors]
-    weights = None
-    residual_fn = _residual_fn(sysid, sequences, enabled, weights)
     x_nominal = pdict.as_vector().copy()
-    before = _rms(residual_fn, pdict, x_nominal, nu)
+    pdict.move_off_bounds()
+    return pdict, labels, x_nominal
+
+
+@dataclass
+class _Solution:
+    """Where the fit ended: the values, the interval half-widths (NaN where
+    not meaningful), the correlations, the RMS angle errors."""
+
+    x: np.ndarray
+    half: np.ndarray
+    corr: np.ndarray | None
+    residual_fn: Any
+    params: Any
+    before: list[list[float]]
+    after: list[list[float]]
+    floored: bool
+    warnings: list[str]
+
+
+def _solve(sysid: Any, pb: _Problem, max_iters: int) -> _Solution:
+    nu = len(pb.robot.actuators)
+    enabled = [(s.name, sysid.SignalType.MjSensor) for s in pb.sequences[0].spec.sensors
+               if [x.name for x in pb.sequences[0].spec.sensors].index(s.name) in pb.sensors]
+    residual_fn = _residual_fn(sysid, pb.sequences, enabled, None)
+    _check_finite(residual_fn, pb)
+    before = _rms(residual_fn, pb.pdict, pb.x_nominal, pb.sensors, nu)
     sink = io.StringIO()
-    opt, res = sysid.optimize(pdict, residual_fn, optimizer="mujoco", verbose=False,
-                              max_iters=max_iters, x_scale="jac", output=sink)
-    if has_tau or has_qd:
+    opt, res = _optimize(sysid, pb.pdict, residual_fn, max_iters, sink)
+    weights = None
+    if any(s >= nu for s in pb.sensors):
         # whiten: each kind of signal by its own noise, so the pooled
         # variance of the intervals means something
-        weights = _whitening(residual_fn, opt, nu, sensors)
-        residual_fn = _residual_fn(sysid, sequences, enabled, weights)
-        opt, res = sysid.optimize(opt, residual_fn, optimizer="mujoco", verbose=False,
-                                  max_iters=max_iters, x_scale="jac", output=sink)
-    r_star, _, _ = residual_fn(opt.as_vector(), opt.copy())
-    _, half = sysid.calculate_intervals(r_star, res.jac, alpha=0.05)
-    after = _rms(residual_fn, opt, opt.as_vector(), nu)
-    x = opt.as_vector()
+        weights = _whitening(residual_fn, opt, nu, pb.sensors)
+        residual_fn = _residual_fn(sysid, pb.sequences, enabled, weights)
+        opt, res = _optimize(sysid, opt, residual_fn, max_iters, sink)
     warnings: list[str] = []
-    cov, _ = sysid.calculate_intervals(r_star, res.jac, alpha=0.05)
+    opt, res = _no_worse_than_nominal(sysid, pb, residual_fn, opt, res, max_iters, sink, warnings)
+    x = opt.as_vector()
+    half, corr, floored = _intervals(sysid, pb, residual_fn, opt, res, weights)
+    after = before if res is None else _rms(residual_fn, opt, x, pb.sensors, nu)
+    return _Solution(x, half, corr, residual_fn, opt, before, after, floored, warnings)
+
+
+def _optimize(sysid: Any, start: Any, residual_fn: Any, max_iters: int, sink: io.StringIO) -> tuple[Any, Any]:
+    try:
+        opt, res = sysid.optimize(start, residual_fn, optimizer="mujoco", verbose=False,
+                                  max_iters=max_iters, x_scale="jac", output=sink)
+        return opt, res
+    except np.linalg.LinAlgError as e:
+        raise FitError(f"the fit's linear algebra failed ({e}): the logs do not determine the parameters; "
+                       "fit fewer (--params) or give logs where every joint moves") from None
+
+
+def _check_finite(residual_fn: Any, pb: _Problem) -> None:
+    """Refuses logs the nominal model cannot replay (it diverges)."""
+    p = pb.pdict.copy()
+    p.update_from_vector(pb.x_nominal)
+    r, _, _ = residual_fn(pb.x_nominal, p)
+    for lg, ri in zip(pb.logs, r):
+        if not np.all(np.isfinite(ri)):
+            raise FitError(f"{lg.path}: the model's replay of it is not finite at the nominal values (it "
+                           f"diverges at the log's gains, kp up to {lg.kp.max():g}, kd up to {lg.kd.max():g}): "
+                           "check the gains in its header")
+
+
+def _cost(residual_fn: Any, params: Any, x: np.ndarray) -> float:
+    p = params.copy()
+    p.update_from_vector(x)
+    r, _, _ = residual_fn(x, p)
+    return float(sum(np.sum(np.square(ri)) for ri in r))
+
+
+def _no_worse_than_nominal(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any, res: Any, max_iters: int,
+                           sink: io.StringIO, warnings: list[str]) -> tuple[Any, Any]:
+    """A fit that ends worse than the nominal values (it started from them
+    with those on a bound moved inside, and can stall in a flat valley or a
+    step, like the delay's below one timestep) is restarted from them
+    exactly; if it still ends worse, the nominal values are kept (``res``
+    None: no interval means anything there)."""
+    nominal = _cost(residual_fn, pb.pdict, pb.x_nominal)
+    ended = _cost(residual_fn, opt, opt.as_vector())
+    if ended <= nominal:
+        return opt, res
+    start = pb.pdict.copy()
+    start.update_from_vector(pb.x_nominal)
+    opt2, res2 = _optimize(sysid, start, residual_fn, max_iters, sink)
+    again = _cost(residual_fn, opt2, opt2.as_vector())
+    if again <= nominal:
+        warnings.append(f"the fit ended worse than the nominal values (cost {ended:.4g} against {nominal:.4g}): "
+                        "restarted from them")
+        return opt2, res2
+    warnings.append(f"the fit ended worse than the nominal values (cost {ended:.4g}, restarted from them "
+                    f"{again:.4g}, against {nominal:.4g}): the nominal values are kept and no interval is "
+                    "meaningful; check the logs (an angle offset, the gains in the header, a joint's columns "
+                    "under another's name)")
+    return start, None
+
+
+def _intervals(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any, res: Any,
+               weights: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None, bool]:
+    """sysid's Gauss-Newton 95 % half-widths (infinite where the logs do not
+    determine a parameter), the correlations, and whether the residual noise
+    behind them was floored at NOISE_FLOOR."""
+    n = len(pb.labels)
+    if res is None:
+        return np.full(n, math.nan), None, False
+    r_star, _, _ = residual_fn(opt.as_vector(), opt.copy())
+    r_iv, floored = _interval_residuals(r_star, _predictions(residual_fn, opt, opt.as_vector()), weights,
+                                        pb.sensors, len(pb.robot.actuators))
+    try:
+        cov, half = sysid.calculate_intervals(r_iv, res.jac, alpha=0.05)
+    except (np.linalg.LinAlgError, ValueError):
+        return np.full(n, math.inf), None, floored
+    half = np.where(np.isnan(half), math.inf, half)
     sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     corr = cov / np.outer(sd, sd)
-    for i, (a_name, a_kind, a_mem, _) in enumerate(labels):
-        for j, (b_name, b_kind, b_mem, _) in enumerate(labels):
-            if i < j and a_mem == b_mem and {a_kind, b_kind} == {"damping", "kd_scale"} and abs(corr[i, j]) > 0.95:
-                warnings.append(
-                    f"{a_name} and {b_name} are confounded (correlation {corr[i, j]:+.2f}): the logs "
-                    "show only their sum; add a log at another kd (pupper excite --kd) or a torque column")
-    table = []
-    for i, (name, kind, members, nom) in enumerate(labels):
-        unit = PARAMS[kind][0]
-        table.append({"parameter": name, "kind": kind, "actuators": " ".join(robot.actuators[k] for k in members),
-                      "nominal": nom, "fitted": float(x[i]), "low95": float(x[i] - half[i]),
-                      "high95": float(x[i] + half[i]), "unit": unit})
-    seconds = time.perf_counter() - started
-    result = FitResult(table, {lg.path.name: v for lg, v in zip(read, before)},
-                       {lg.path.name: v for lg, v in zip(read, after)}, out_dir, seconds, warnings,
-                       list(robot.actuators))
-    if out_dir is not None:
-        _write(out_dir, result, robot, read, labels, x, model, names, per, force)
-        if plot:
-            _plot(out_dir, robot, read, sequences, residual_fn, pdict, x_nominal, opt)
-        from pupper_core import _report
+    return half, (corr if np.all(np.isfinite(corr)) else None), floored
 
-        _report.report(out_dir)
-    return result
+
+def _interval_residuals(r_star: list[np.ndarray], preds: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+                        weights: np.ndarray | None, sensors: list[int], nu: int) -> tuple[list[np.ndarray], bool]:
+    """The residual the intervals' pooled variance is taken from: sysid's
+    own, unless a kind of signal's RMS error lies below its NOISE_FLOOR (a
+    noise-free log), where that kind counts at the floor instead."""
+    low = set()
+    for block in range(3):
+        cols = [p for p, s in enumerate(sensors) if s // nu == block]
+        if cols:
+            err = np.concatenate([(me[:, cols] - pr[:, cols]).ravel() for _, me, pr in preds])
+            if math.sqrt(float(np.mean(err ** 2))) < NOISE_FLOOR[block]:
+                low.add(block)
+    if not low:
+        return r_star, False
+    # sysid divides each signal by its norm / sqrt(2) and multiplies by its weight
+    total = 0.0
+    for _, me, pr in preds:
+        for p, s in enumerate(sensors):
+            scale = (1.0 if weights is None else float(weights[p])) * math.sqrt(2) / float(np.linalg.norm(me[:, p]))
+            e2 = len(me) * NOISE_FLOOR[s // nu] ** 2 if s // nu in low else float(np.sum((me[:, p] - pr[:, p]) ** 2))
+            total += scale ** 2 * e2
+    size = sum(int(np.size(r)) for r in r_star)
+    return [np.full(size, math.sqrt(total / size))], True
+
+
+def _judge(pb: _Problem, sol: _Solution) -> list[str]:
+    """What the user must know of each parameter: on a bound, undetermined,
+    an interval past a physical bound (every parameter is >= 0), a delay
+    under one timestep, confounded pairs; and logs the fit made worse."""
+    out: list[str] = []
+    lo_b, hi_b = pb.pdict.get_bounds()
+    for i, (name, kind, _, _) in enumerate(pb.labels):
+        x, h, unit = float(sol.x[i]), float(sol.half[i]), PARAMS[kind][0]
+        u = f" {unit}" if unit else ""
+        span = float(hi_b[i] - lo_b[i])
+        bound = next(((side, b) for side, b in (("lower", float(lo_b[i])), ("upper", float(hi_b[i])))
+                      if abs(x - b) <= 1e-6 * span), None)
+        if bound is not None:
+            # a Gauss-Newton interval assumes a minimum inside the bounds
+            out.append(f"{name} ends on its {bound[0]} bound ({bound[1]:g}{u}): its interval is not meaningful; "
+                       "the logs ask for a value the fit does not allow, or show none")
+        if kind == "delay" and 0 < x < pb.robot.timestep * (1 - 1e-9):
+            out.append(f"{name} ends at {x:.3g} s, under one timestep ({pb.robot.timestep:g} s): MuJoCo applies "
+                       "any delay up to a timestep as a whole step, so the logs cannot place it there; read it "
+                       f"as 0 or {pb.robot.timestep:g} s")
+        if math.isinf(h):
+            out.append(f"{name}: the logs do not determine it (its 95 % interval is infinite): leave it out "
+                       "of --params, or give logs that excite it")
+        elif bound is None and math.isfinite(h) and x - h < 0:
+            out.append(f"{name}'s 95 % interval [{x - h:.4g}, {x + h:.4g}]{u} reaches below 0, which it cannot "
+                       "be: the logs show it poorly or it is near 0; read its upper end as a bound")
+    out += _confounded(pb, sol)
+    for lg, rms0, rms1 in zip(pb.logs, sol.before, sol.after):
+        # by more than 1 % and a micro-radian: not round-off
+        if np.mean(rms1) > 1.01 * np.mean(rms0) + 1e-6:
+            out.append(f"{lg.path.name}: the RMS angle error rose ({np.mean(rms0) * 1e3:.3f} -> "
+                       f"{np.mean(rms1) * 1e3:.3f} mrad): the fitted model explains it worse than the nominal one; "
+                       "check the log (an angle offset, the gains in its header)")
+    return out
+
+
+def _confounded(pb: _Problem, sol: _Solution) -> list[str]:
+    out: list[str] = []
+    if sol.corr is None:
+        return out
+    for i, (a_name, a_kind, a_mem, _) in enumerate(pb.labels):
+        for j, (b_name, b_kind, b_mem, _) in enumerate(pb.labels):
+            c = float(sol.corr[i, j])
+            if i >= j or abs(c) <= 0.95:
+                continue
+            if a_mem == b_mem and {a_kind, b_kind} == {"damping", "kd_scale"}:
+                out.append(f"{a_name} and {b_name} are confounded (correlation {c:+.2f}): the logs "
+                           "show only their sum; add a log at another kd (pupper excite --kd) or a torque column")
+            elif abs(c) > CONFOUNDED:
+                out.append(f"{a_name} and {b_name} are confounded (correlation {c:+.3f}): the logs cannot tell "
+                           "them apart; leave one out of --params, or add logs that separate them")
+    return out
+
+
+def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float) -> FitResult:
+    table = []
+    for i, (name, kind, members, nom) in enumerate(pb.labels):
+        x, h = float(sol.x[i]), float(sol.half[i])
+        table.append({"parameter": name, "kind": kind,
+                      "actuators": " ".join(pb.robot.actuators[k] for k in members),
+                      "nominal": nom, "fitted": x, "low95": x - h, "high95": x + h, "unit": PARAMS[kind][0]})
+    kept = pb.kept
+    return FitResult(table, {lg.path.name: v for lg, v in zip(pb.logs, sol.before)},
+                     {lg.path.name: v for lg, v in zip(pb.logs, sol.after)}, out_dir, seconds,
+                     pb.warnings + sol.warnings + _judge(pb, sol), [pb.robot.actuators[k] for k in kept],
+                     floored=sol.floored)
 
 
 def _held(t: np.ndarray, target: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -559,8 +1081,11 @@ def _predictions(residual_fn: Any, params: Any, x: np.ndarray) -> list[tuple[np.
     return out
 
 
-def _rms(residual_fn: Any, params: Any, x: np.ndarray, nu: int) -> list[list[float]]:
-    return [[float(v) for v in np.sqrt(np.mean((me[:, :nu] - pr[:, :nu]) ** 2, axis=0))]
+def _rms(residual_fn: Any, params: Any, x: np.ndarray, sensors: list[int], nu: int) -> list[list[float]]:
+    """Each log's RMS angle error per fitted actuator (the predictions'
+    columns are the enabled sensors, angles first)."""
+    cols = [p for p, s in enumerate(sensors) if s < nu]
+    return [[float(v) for v in np.sqrt(np.mean((me[:, cols] - pr[:, cols]) ** 2, axis=0))]
             for _, me, pr in _predictions(residual_fn, params, x)]
 
 
@@ -585,13 +1110,37 @@ def _whitening(residual_fn: Any, opt: Any, nu: int, sensors: list[int]) -> np.nd
     return weights
 
 
-def _write(out: Path, res: FitResult, robot: Robot, logs: list[JointLog], labels: list[Any], x: np.ndarray,
-           model: Any, names: list[str], per: str, force: bool) -> None:
+def _write_run(out: Path, res: FitResult, pb: _Problem, sol: _Solution, model: Any, names: list[str], per: str,
+               force: bool, plot: bool) -> None:
+    """The run directory; a run stopped or failing while it writes leaves
+    none of its files (nor the directory, if it made it)."""
+    made = not out.exists()
+    wrote: list[Path] = []
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        _write(out, res, pb, sol.x, model, names, per)
+        if plot:
+            wrote += _plot(out, pb, sol)
+        from pupper_core import _report
+
+        _report.report(out)
+    except BaseException as e:
+        for f in [out / n for n in RUN_FILES] + wrote + [out / "plots" / f"fit_{lg.path.stem}.png" for lg in pb.logs]:
+            f.unlink(missing_ok=True)
+        if made:
+            shutil.rmtree(out, ignore_errors=True)
+        if isinstance(e, OSError):
+            raise FitError(f"cannot write the run directory {out} ({e.strerror or e}): check the path, its "
+                           "permissions and the free space") from None
+        raise
+
+
+def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, names: list[str], per: str) -> None:
     import mujoco
 
     from pupper_core._files import atomic_write
 
-    out.mkdir(parents=True, exist_ok=True)
+    robot, logs = pb.robot, pb.logs
 
     def table(tmp: Path) -> None:
         with tmp.open("w", newline="") as f:
@@ -608,17 +1157,69 @@ def _write(out: Path, res: FitResult, robot: Robot, logs: list[JointLog], labels
             w = csv.writer(f, lineterminator="\n")
             w.writerow(["log", "actuator", "rms_before_rad", "rms_after_rad"])
             for lg in logs:
-                for k, a in enumerate(robot.actuators):
+                for k, a in enumerate(res.actuators):
                     w.writerow([lg.path.name, a, repr(res.rms_before[lg.path.name][k]),
                                 repr(res.rms_after[lg.path.name][k])])
 
     atomic_write(out / "residuals.csv", residuals)
-    # the calibrated model: the full robot with the fitted values
+    _write_warnings(out, res)
+    xml = _calibrated_xml(robot, pb.labels, x)
+    atomic_write(out / "calibrated.xml", lambda tmp: _write_text(tmp, xml))
+    manifest = {
+        "command": "fit",
+        "inputs": {"model": str(model), "logs": [{"path": str(lg.path), "sha256": lg.sha256} for lg in logs],
+                   "params": names, "per": per},
+        "fit": {r["parameter"]: {"nominal": r["nominal"], "fitted": r["fitted"], "low95": r["low95"],
+                                 "high95": r["high95"], "unit": r["unit"]} for r in res.table},
+        "rms_before_rad": res.rms_before, "rms_after_rad": res.rms_after,
+        "warnings": res.warnings, "seconds": res.seconds,
+        "intervals": {"noise_floor": dict(zip(("angle_rad", "velocity_rad_s", "torque_nm"), NOISE_FLOOR)),
+                      "floored": res.floored},
+        "versions": {"mujoco": mujoco.__version__, "pupper": _version()},
+    }
+    atomic_write(out / "manifest.json", lambda tmp: _write_text(tmp, json.dumps(manifest, indent=2) + "\n"))
+
+
+def _write_text(path: Path, text: str) -> None:
+    path.write_text(text)
+
+
+def _write_warnings(out: Path, res: FitResult) -> None:
+    """warnings.csv: one row per warning (the parameter it is about, if
+    one), only when there are any (a stale one from --force goes)."""
+    from pupper_core._files import atomic_write
+
+    path = out / "warnings.csv"
+    if not res.warnings:
+        path.unlink(missing_ok=True)
+        return
+    names = sorted((r["parameter"] for r in res.table), key=len, reverse=True)
+
+    def write(tmp: Path) -> None:
+        with tmp.open("w", newline="") as f:
+            w = csv.writer(f, lineterminator="\n")
+            w.writerow(["parameter", "warning"])
+            for text in res.warnings:
+                w.writerow([next((n for n in names if text.startswith(n)), ""), text])
+
+    atomic_write(path, write)
+
+
+def _calibrated_xml(robot: Robot, labels: list[tuple[str, str, list[int], float]], x: np.ndarray) -> str:
+    """The whole robot with the fitted values, written through MjSpec."""
+    import mujoco
+
     spec = mujoco.MjSpec.from_file(str(robot.file))
     # assets stay where the original's are
     base = robot.file.parent
     spec.meshdir = str((base / spec.meshdir).resolve()) if spec.meshdir else str(base)
     spec.texturedir = str((base / spec.texturedir).resolve()) if spec.texturedir else str(base)
+    if robot.fixed_base:
+        # the model fitted had its base welded: so has its calibration
+        for j in [j for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]:
+            spec.delete(j)
+        for k in list(spec.keys):
+            spec.delete(k)
     scales: dict[tuple[str, int], float] = {}
     n = _history_samples(robot)
     for (name, kind, members, _), v in zip(labels, x):
@@ -637,19 +1238,7 @@ def _write(out: Path, res: FitResult, robot: Robot, logs: list[JointLog], labels
     for (kind, i), v in sorted(scales.items()):
         spec.add_numeric(name=SCALE_NUMERIC.format(kind=kind, actuator=robot.actuators[i]), data=[v])
     spec.modelname = f"{spec.modelname}_calibrated" if spec.modelname else "calibrated"
-    xml = spec.to_xml()
-    atomic_write(out / "calibrated.xml", lambda tmp: tmp.write_text(xml))
-    manifest = {
-        "command": "fit",
-        "inputs": {"model": str(model), "logs": [{"path": str(lg.path), "sha256": lg.sha256} for lg in logs],
-                   "params": names, "per": per},
-        "fit": {r["parameter"]: {"nominal": r["nominal"], "fitted": r["fitted"], "low95": r["low95"],
-                                 "high95": r["high95"], "unit": r["unit"]} for r in res.table},
-        "rms_before_rad": res.rms_before, "rms_after_rad": res.rms_after,
-        "warnings": res.warnings, "seconds": res.seconds,
-        "versions": {"mujoco": mujoco.__version__, "pupper": _version()},
-    }
-    atomic_write(out / "manifest.json", lambda tmp: tmp.write_text(json.dumps(manifest, indent=2) + "\n"))
+    return str(spec.to_xml())
 
 
 def _version() -> str:
@@ -658,8 +1247,9 @@ def _version() -> str:
     return str(__version__)
 
 
-def _plot(out: Path, robot: Robot, logs: list[JointLog], sequences: list[Any], residual_fn: Any, pdict: Any,
-          x0: np.ndarray, opt: Any) -> list[Path]:
+def _plot(out: Path, pb: _Problem, sol: _Solution) -> list[Path]:
+    """Per log, measured against simulated angle of each fitted joint, at
+    the nominal and the fitted values."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -667,23 +1257,25 @@ def _plot(out: Path, robot: Robot, logs: list[JointLog], sequences: list[Any], r
 
     from pupper_core._files import atomic_write
 
-    nu = len(robot.actuators)
-    first = _predictions(residual_fn, pdict, x0)
-    last = _predictions(residual_fn, opt, opt.as_vector())
+    kept = pb.kept
+    nu = len(kept)
+    first = _predictions(sol.residual_fn, pb.pdict, pb.x_nominal)
+    last = _predictions(sol.residual_fn, sol.params, sol.x)
     (out / "plots").mkdir(exist_ok=True)
     wrote = []
-    for lg, (t, me, p0), (_, _, p1) in zip(logs, first, last):
+    for lg, (t, me, p0), (_, _, p1) in zip(pb.logs, first, last):
         cols = 4 if nu >= 4 else nu
         rows = math.ceil(nu / cols)
         fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 2.4 * rows), sharex=True, squeeze=False)
         for k in range(nu):
+            # the predictions' first columns are the fitted joints' angles
             ax = axes[k // cols][k % cols]
             ax.plot(t, me[:, k], color="black", lw=1.0, label="measured")
             ax.plot(t, p0[:, k], color="tab:gray", lw=0.8, ls="--", label="nominal model")
             ax.plot(t, p1[:, k], color="tab:orange", lw=0.8, label="fitted model")
             r0 = np.sqrt(np.mean((me[:, k] - p0[:, k]) ** 2)) * 1e3
             r1 = np.sqrt(np.mean((me[:, k] - p1[:, k]) ** 2)) * 1e3
-            ax.set_title(f"{robot.actuators[k]}: RMS {r0:.2f} → {r1:.2f} mrad", fontsize=8)
+            ax.set_title(f"{pb.robot.actuators[kept[k]]}: RMS {r0:.2f} → {r1:.2f} mrad", fontsize=8)
             ax.tick_params(labelsize=7)
         axes[0][0].legend(fontsize=7, loc="upper right")
         for ax in axes[-1]:
@@ -708,8 +1300,9 @@ def _cli_fit(args_json: str) -> list[str]:
     width = max(len(r["parameter"]) for r in res.table)
     print(f"{'parameter':<{width}}  {'nominal':>10}  {'fitted':>10}  {'95 % interval':>25}  unit")
     for r in res.table:
-        print(f"{r['parameter']:<{width}}  {r['nominal']:>10.4g}  {r['fitted']:>10.4g}  "
-              f"[{r['low95']:>10.4g}, {r['high95']:>10.4g}]  {r['unit']}")
+        interval = (f"[{r['low95']:>10.4g}, {r['high95']:>10.4g}]" if not math.isnan(r["low95"])
+                    else f"{'(not meaningful)':>25}")
+        print(f"{r['parameter']:<{width}}  {r['nominal']:>10.4g}  {r['fitted']:>10.4g}  {interval}  {r['unit']}")
     for name in res.rms_before:
         b, f = np.mean(res.rms_before[name]) * 1e3, np.mean(res.rms_after[name]) * 1e3
         print(f"{name}: RMS angle error {b:.3f} -> {f:.3f} mrad (mean over {len(res.actuators)} joints)")
@@ -720,6 +1313,8 @@ def _cli_fit(args_json: str) -> list[str]:
     if res.out is None:
         return []
     wrote = [str(res.out / n) for n in ("fit.csv", "residuals.csv", "calibrated.xml")]
+    if res.warnings:
+        wrote.append(str(res.out / "warnings.csv"))
     if (res.out / "plots").is_dir():
         wrote += [str(p) for p in sorted((res.out / "plots").glob("fit_*.png"))]
     return wrote + [str(res.out / "report.html")]
@@ -727,7 +1322,9 @@ def _cli_fit(args_json: str) -> list[str]:
 
 def _cli_excite(args_json: str) -> list[str]:
     a = json.loads(args_json)
-    path = excite(**a)
+    path, notes = _excite(a.pop("model", "pupper_v3"), **a)
+    for note in notes:
+        print(f"note: {note}", file=sys.stderr)
     sys.stdout.flush()
     return [str(path)]
 

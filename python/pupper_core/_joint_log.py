@@ -31,7 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["JointLog", "LogError", "read_log", "write_log", "FIELDS"]
+from pupper_core._native import ConfigError
+
+__all__ = ["JointLog", "LogError", "read_log", "write_log", "FIELDS", "KP_MAX", "KD_MAX"]
 
 MAGIC = "# pupper joint log 1"
 #: A column's suffix, what it holds, its unit.
@@ -39,10 +41,20 @@ FIELDS = {"target": ("commanded angle", "rad"), "q": ("measured angle", "rad"),
           "qd": ("measured velocity", "rad/s"), "tau": ("measured torque", "N·m")}
 MODES = ("servo", "torque")
 BASES = ("suspended", "standing")
+#: The largest gains a log may say (N·m/rad, N·m·s/rad): past any servo. A
+#: kp of 1e4 asks 10 N·m per mrad of error, three orders above Pupper's
+#: 3 N·m limit at its usual kp 5; a larger number is in other units
+#: (per degree, firmware counts) or a typo.
+KP_MAX = 1e4
+KD_MAX = 1e3
+#: Header keys that say how the log was run: each may appear once.
+SINGLE_KEYS = ("kp", "kd", "mode", "base")
 
 
-class LogError(ValueError):
+class LogError(ConfigError, ValueError):
     """A joint log that cannot be used: one line naming file, column and row."""
+
+    kind = "config"
 
 
 @dataclass
@@ -76,10 +88,52 @@ def _gains(text: str, n: int, key: str, where: str) -> np.ndarray:
                        f"write e.g. '# {key}: 5'") from None
     if len(values) == 1:
         values = values * n
-    if len(values) != n or not all(math.isfinite(v) and v >= 0 for v in values):
-        raise LogError(f"{where}: '# {key}: {text}' must be one gain >= 0, or one per logged "
+    if len(values) != n:
+        raise LogError(f"{where}: '# {key}: {text}' must be one gain, or one per logged "
                        f"actuator ({n}) in column order")
+    check_gains(values, key, where, f"'# {key}: {text}'")
     return np.asarray(values)
+
+
+def check_gains(values: Sequence[float], key: str, where: str, said: str) -> None:
+    """Refuses gains no servo runs at: kp must be > 0 (a servo at kp 0 holds
+    nothing, and a fit could not see its kp), kd >= 0, both finite and at
+    most KP_MAX / KD_MAX."""
+    top, unit = (KP_MAX, "N·m/rad") if key == "kp" else (KD_MAX, "N·m·s/rad")
+    at = f"{where}: {said}" if said else where
+    for v in values:
+        if not math.isfinite(v):
+            raise LogError(f"{at}: {v} is not a finite number: write the gains in use")
+        if key == "kp" and v <= 0:
+            raise LogError(f"{at}: kp must be > 0 ({v:g}): a servo at kp 0 does not hold its joint; "
+                           "write the gains in use")
+        if v < 0:
+            raise LogError(f"{at}: {key} must be >= 0 ({v:g}): write the gains in use")
+        if v > top:
+            raise LogError(f"{at}: {key} {v:g} is past {top:g} {unit}, more than any servo delivers "
+                           f"(a {key} of {top:g} asks {top / 1e3:g} N·m per mrad{'' if key == 'kp' else '/s'} "
+                           f"of error): it is likely in other units (per degree, firmware counts); "
+                           f"write {unit}")
+
+
+def _meta(lines: list[str], name: str) -> tuple[dict[str, str], dict[str, int], int]:
+    """The ``# key: value`` lines above the header, the line number of each
+    key, and the header's index. A key that says how the log was run may not
+    appear twice."""
+    meta: dict[str, str] = {}
+    seen: dict[str, int] = {}
+    for i, line in enumerate(lines):
+        if not line.startswith("#"):
+            return meta, seen, i
+        if ":" in line:
+            k, v = line[1:].split(":", 1)
+            key = k.strip().lower()
+            if key in SINGLE_KEYS and key in seen:
+                raise LogError(f"{name}, line {i + 1}: '# {key}:' appears twice (lines {seen[key]} "
+                               f"and {i + 1}): keep the one in use")
+            seen.setdefault(key, i + 1)
+            meta[key] = v.strip()
+    return meta, seen, len(lines)
 
 
 def read_log(path: str | Path, ranges: Mapping[str, tuple[float, float] | None]) -> JointLog:
@@ -96,24 +150,50 @@ def read_log(path: str | Path, ranges: Mapping[str, tuple[float, float] | None])
     except UnicodeDecodeError:
         raise LogError(f"{name} is not a CSV text file (it is binary): give a joint log "
                        "(see `pupper fit --help` for the format)") from None
-    meta: dict[str, str] = {}
+    # a BOM (some editors and spreadsheets write one) is not part of the text
+    text = text.removeprefix("\ufeff")
     lines = text.splitlines()
-    body_start = 0
-    for i, line in enumerate(lines):
-        if not line.startswith("#"):
-            body_start = i
-            break
-        if ":" in line:
-            k, v = line[1:].split(":", 1)
-            meta[k.strip().lower()] = v.strip()
-    else:
-        body_start = len(lines)
+    meta, line_of, body_start = _meta(lines, name)
+    # blank lines at the end are an editor's, not missing samples
+    while len(lines) > body_start and not lines[-1].strip():
+        lines.pop()
     rows = list(csv.reader(lines[body_start:]))
     if not rows or not rows[0] or rows[0][0].strip() != "time":
         first = rows[0][0][:30] if rows and rows[0] else "nothing"
         raise LogError(f"{name} is not a pupper joint log: its header (line {body_start + 1}) "
                        f"starts with '{first}', not 'time' (see `pupper fit --help` for the format)")
     header = [h.strip() for h in rows[0]]
+    columns = _columns(header, ranges, name)
+    data = _numbers(rows[1:], header, body_start, name)
+    for key in ("kp", "kd"):
+        if key not in meta:
+            raise LogError(f"{name}: no '# {key}:' line: the log must say the gains in use "
+                           "(write e.g. '# kp: 5' and '# kd: 0.1' above the header)")
+    acts = list(columns)
+    mode = meta.get("mode", "servo")
+    base = meta.get("base", "suspended")
+    if mode not in MODES:
+        raise LogError(f"{name}: '# mode: {mode}' is not one of {', '.join(MODES)}")
+    if base not in BASES:
+        raise LogError(f"{name}: '# base: {base}' is not one of {', '.join(BASES)}")
+
+    def take(field: str) -> np.ndarray:
+        return data[:, [columns[a][field] for a in acts]]
+
+    target, q = take("target"), take("q")
+    _not_degrees(name, acts, ranges, target, q)
+    return JointLog(
+        path=p, times=data[:, 0], actuators=acts, target=target, q=q,
+        qd=take("qd") if "qd" in columns[acts[0]] else None,
+        tau=take("tau") if "tau" in columns[acts[0]] else None,
+        kp=_gains(meta["kp"], len(acts), "kp", f"{name}, line {line_of['kp']}"),
+        kd=_gains(meta["kd"], len(acts), "kd", f"{name}, line {line_of['kd']}"),
+        mode=mode, base=base, sha256=hashlib.sha256(raw).hexdigest())
+
+
+def _columns(header: list[str], ranges: Mapping[str, tuple[float, float] | None],
+             name: str) -> dict[str, dict[str, int]]:
+    """Each logged actuator's columns by field, checked."""
     columns: dict[str, dict[str, int]] = {}
     for j, h in enumerate(header[1:], start=1):
         act, dot, field = h.rpartition(".")
@@ -140,8 +220,13 @@ def read_log(path: str | Path, ranges: Mapping[str, tuple[float, float] | None])
             miss = next(a for a in columns if field not in columns[a])
             raise LogError(f"{name}: column '{miss}.{field}' is missing while other actuators "
                            f"log .{field}: log it for every actuator or for none")
-    data = np.empty((len(rows) - 1, len(header)))
-    for r, row in enumerate(rows[1:]):
+    return columns
+
+
+def _numbers(rows: list[list[str]], header: list[str], body_start: int, name: str) -> np.ndarray:
+    """The samples, every one a finite number, times strictly increasing."""
+    data = np.empty((len(rows), len(header)))
+    for r, row in enumerate(rows):
         line_no = body_start + 2 + r
         if len(row) != len(header):
             raise LogError(f"{name}, row {line_no}: {len(row)} fields, the header has "
@@ -165,23 +250,11 @@ def read_log(path: str | Path, ranges: Mapping[str, tuple[float, float] | None])
         word = "repeats" if steps[r - 1] == 0 else "goes back"
         raise LogError(f"{name}, column 'time', row {body_start + 2 + r}: time {word} "
                        f"({t[r]:g} after {t[r - 1]:g}): times must increase strictly")
-    where = f"{name}"
-    for key in ("kp", "kd"):
-        if key not in meta:
-            raise LogError(f"{where}: no '# {key}:' line: the log must say the gains in use "
-                           "(write e.g. '# kp: 5' and '# kd: 0.1' above the header)")
-    acts = list(columns)
-    mode = meta.get("mode", "servo")
-    base = meta.get("base", "suspended")
-    if mode not in MODES:
-        raise LogError(f"{where}: '# mode: {mode}' is not one of {', '.join(MODES)}")
-    if base not in BASES:
-        raise LogError(f"{where}: '# base: {base}' is not one of {', '.join(BASES)}")
+    return data
 
-    def take(field: str) -> np.ndarray:
-        return data[:, [columns[a][field] for a in acts]]
 
-    target, q = take("target"), take("q")
+def _not_degrees(name: str, acts: list[str], ranges: Mapping[str, tuple[float, float] | None],
+                 target: np.ndarray, q: np.ndarray) -> None:
     for field, values in (("target", target), ("q", q)):
         for k, a in enumerate(acts):
             top = float(np.max(np.abs(values[:, k])))
@@ -191,13 +264,6 @@ def read_log(path: str | Path, ranges: Mapping[str, tuple[float, float] | None])
                 raise LogError(f"{name}, column '{a}.{field}': values up to {top:.4g} are past "
                                f"the joint's range ({reach:.3g} rad): they look like degrees; the "
                                "log's angles are in rad (multiply by pi/180)")
-    return JointLog(
-        path=p, times=t, actuators=acts, target=target, q=q,
-        qd=take("qd") if "qd" in columns[acts[0]] else None,
-        tau=take("tau") if "tau" in columns[acts[0]] else None,
-        kp=_gains(meta["kp"], len(acts), "kp", where),
-        kd=_gains(meta["kd"], len(acts), "kd", where),
-        mode=mode, base=base, sha256=hashlib.sha256(raw).hexdigest())
 
 
 def _number(v: float) -> str:
@@ -206,7 +272,7 @@ def _number(v: float) -> str:
 
 def write_log(path: str | Path, times: np.ndarray, actuators: Sequence[str], *,
               target: np.ndarray, q: np.ndarray, qd: np.ndarray | None = None,
-              tau: np.ndarray | None = None, kp: Sequence[float], kd: Sequence[float],
+              tau: np.ndarray | None = None, kp: Sequence[float] | np.ndarray, kd: Sequence[float] | np.ndarray,
               mode: str = "servo", base: str = "suspended", note: str = "") -> None:
     """Writes a log in the format above (every digit of each float)."""
     from pupper_core._files import atomic_write
@@ -214,9 +280,9 @@ def write_log(path: str | Path, times: np.ndarray, actuators: Sequence[str], *,
     fields = [("target", target), ("q", q)] + [(f, a) for f, a in (("qd", qd), ("tau", tau))
                                                if a is not None]
 
-    def gains(v: Sequence[float]) -> str:
-        v = [float(x) for x in v]
-        return _number(v[0]) if len(set(v)) == 1 else ",".join(map(_number, v))
+    def gains(v: Sequence[float] | np.ndarray) -> str:
+        values = [float(x) for x in v]
+        return _number(values[0]) if len(set(values)) == 1 else ",".join(map(_number, values))
 
     def write(tmp: Path) -> None:
         with tmp.open("w", newline="") as f:

@@ -84,11 +84,17 @@ pub fn call_helper(
             .map_err(|e| {
                 let kind = exception_name(py, &e);
                 let msg = python_message(py, &e);
+                // Ctrl-C or SIGTERM inside the helper: what the CLI's own
+                // stop gives, exit 130 and one line
+                if e.is_instance_of::<pyo3::exceptions::PyKeyboardInterrupt>(py) {
+                    return Error::Interrupted(msg);
+                }
                 if kind.ends_with("Unavailable") {
                     Error::Display(msg)
                 } else if [
                     "TuneError",
                     "FitError",
+                    "LogError",
                     "ConfigError",
                     "OutputError",
                     "GridError",
