@@ -18,7 +18,22 @@ fn imports() -> BTreeMap<String, BTreeSet<String>> {
             if module == "mod" {
                 continue;
             }
-            let text = std::fs::read_to_string(&path).unwrap();
+            // a folder module (a registry and its kinds) is one module: the
+            // union of its files
+            let text = if path.is_dir() {
+                let mut files: Vec<_> = std::fs::read_dir(&path)
+                    .unwrap()
+                    .map(|e| e.unwrap().path())
+                    .collect();
+                files.sort();
+                files
+                    .iter()
+                    .map(|f| std::fs::read_to_string(f).unwrap())
+                    .collect::<Vec<_>>()
+                    .join("\n")
+            } else {
+                std::fs::read_to_string(&path).unwrap()
+            };
             let mut named = BTreeSet::new();
             for (at, _) in text.match_indices("crate::") {
                 let rest = &text[at + "crate::".len()..];
@@ -107,4 +122,5 @@ fn the_checker_sees_what_it_looks_for() {
     let all = imports();
     assert!(all["sim/runner"].contains("plan/config"));
     assert!(all["plan/grid"].contains("math/decimal"));
+    assert!(all["results/kinds"].contains("sim/result"));
 }

@@ -425,7 +425,7 @@ fn stability_note(cfg: &SweepConfig, info: &ModelInfo, inertia: &[f64]) -> Optio
 fn resolved(cfg: &SweepConfig, model: &bridge::LoadedModel<'_>) -> Result<SweepConfig> {
     let info = model.info();
     let mut c = cfg.clone();
-    if let Some(e) = &mut c.response {
+    if let Some(e) = c.experiment.excitation_mut() {
         if e.joints.is_empty() {
             e.resolve(info)?;
             if let Some(all) = start_inertia(model, &cfg.schedule.initial)? {
@@ -520,6 +520,7 @@ impl Hooks for WriterHooks<'_> {
 /// file is created. An interrupt returns `Ok` with `complete == false`.
 pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcome> {
     let Sweep {
+        kind,
         config: cfg,
         options,
         out,
@@ -545,7 +546,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             .flatten()
             .and_then(|i| stability_note(cfg, info, &i));
         // hung in the air, a response run needs no floor
-        let standing = cfg.response.as_ref().is_none_or(|e| e.standing);
+        let standing = !cfg.experiment.plan().suspended();
         let note = check_start(info, &cfg.schedule.initial, standing)?;
         cfg.check_motor(info)?;
         // Warp and its device are checked before anything is written; on
@@ -565,6 +566,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
             .then(|| info.unlimited_note())
             .flatten();
         let manifest = Manifest {
+            kind: kind.clone(),
             pupper_version: pupper_core::VERSION.to_string(),
             mujoco_version: model.mujoco_version().to_string(),
             python: model.python_executable(),
@@ -717,7 +719,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                     }),
                 )
                 // the standing metrics' windows mean nothing to a response run
-                .chain(cfg.schedule.shortfalls().into_iter().filter(|_| cfg.response.is_none()))
+                .chain(cfg.schedule.shortfalls().into_iter().filter(|_| cfg.experiment.plan().pushes()))
                 .collect(),
         })
     })

@@ -87,7 +87,7 @@ fn small_sweep(mode: Mode, threads: usize, chunk_cells: usize) -> Vec<CellResult
         defaults: Defaults::default(),
         replicates: Default::default(),
         backend: Default::default(),
-        response: None,
+        experiment: pupper_core::plan::experiment::Experiment::Stand,
         motor: Default::default(),
     };
     let opts = RunOptions {
@@ -169,7 +169,7 @@ fn body_variants_change_the_stance() {
         defaults: Defaults::default(),
         replicates: Default::default(),
         backend: Default::default(),
-        response: None,
+        experiment: pupper_core::plan::experiment::Experiment::Stand,
         motor: Default::default(),
     };
     let r = run(&cfg, RunOptions::default());

@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::plan::backend::Backend;
-use crate::plan::excitation::Excitation;
+use crate::plan::experiment::Experiment;
 use crate::plan::grid::{Axis, Cell, Grid};
 use crate::plan::mode::Mode;
 use crate::plan::motor::Motor;
@@ -62,10 +62,10 @@ pub struct SweepConfig {
     /// What steps the physics; the cpu backend is left out of the manifest.
     #[serde(default, skip_serializing_if = "Backend::is_cpu")]
     pub backend: Backend,
-    /// The response experiment: joints excited one per simulation; None
-    /// for a sweep (and left out of its manifest).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub response: Option<Excitation>,
+    /// What the simulations do (the stand kind is left out of the
+    /// manifest; a response writes its excitation under `response`).
+    #[serde(flatten)]
+    pub experiment: Experiment,
     /// The servo firmware and motor of torque mode's PD; the ideal motor
     /// is left out of the manifest.
     #[serde(default, skip_serializing_if = "Motor::is_ideal")]
@@ -82,7 +82,7 @@ impl Default for SweepConfig {
             defaults: Defaults::default(),
             replicates: Replicates::default(),
             backend: Backend::Cpu,
-            response: None,
+            experiment: Experiment::Stand,
             motor: Motor::default(),
         }
     }
@@ -145,7 +145,7 @@ impl SweepConfig {
     /// The simulations each cell runs: its replicates, times the excited
     /// joints in a response run.
     pub fn sims_per_cell(&self) -> usize {
-        self.replicate_count() * self.response.as_ref().map_or(1, |e| e.joints.len().max(1))
+        self.replicate_count() * self.experiment.sims_per_replicate()
     }
 
     /// The physical setting of one replicate of a cell, with its draws.

@@ -233,6 +233,34 @@ impl Excitation {
     }
 }
 
+/// The response kind's plan: one simulation per excited joint, its target
+/// moving on the signal, no push, hung in the air unless `standing`.
+impl crate::plan::kind::KindPlan for Excitation {
+    fn name(&self) -> &'static str {
+        "response"
+    }
+
+    fn excited(&self) -> Vec<Option<usize>> {
+        self.joints.iter().map(|&j| Some(j)).collect()
+    }
+
+    fn pushes(&self) -> bool {
+        false
+    }
+
+    fn suspended(&self) -> bool {
+        !self.standing
+    }
+
+    fn moving_targets(&self) -> bool {
+        true
+    }
+
+    fn target_offset(&self, t: f64, duration: f64) -> f64 {
+        self.offset(t, duration)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

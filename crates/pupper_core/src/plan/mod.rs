@@ -4,7 +4,9 @@
 pub mod backend;
 pub mod config;
 pub mod excitation;
+pub mod experiment;
 pub mod grid;
+pub mod kind;
 pub mod mode;
 pub mod motor;
 pub mod randomize;

@@ -39,6 +39,7 @@ pub fn spec(variants: &[String], grid: &[String], seconds: f64, sine: [f64; 2]) 
         sine: Some(sine),
         seconds,
         trace: true,
+        kind: Some("lab"),
         ..SweepSpec::default()
     }
 }

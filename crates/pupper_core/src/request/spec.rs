@@ -13,6 +13,7 @@ use crate::error::{Error, Result};
 use crate::plan::backend::Backend;
 use crate::plan::config::{Defaults, SweepConfig};
 use crate::plan::excitation::Excitation;
+use crate::plan::experiment::Experiment;
 use crate::plan::grid::{Axis, AxisValues, DEFAULT_MAX_CELLS, Grid, parse_values};
 use crate::plan::mode::Mode;
 use crate::plan::motor::Motor;
@@ -129,6 +130,10 @@ pub struct SweepSpec {
     /// The response experiment (`pupper response`); None: a sweep.
     #[serde(skip)]
     pub response: Option<Excitation>,
+    /// The name a request gives its run in the manifest when it is not the
+    /// experiment's own (`lab`); None: the experiment's.
+    #[serde(skip)]
+    pub kind: Option<&'static str>,
     /// Torque mode's servo firmware and motor (`--motor`); None: ideal.
     pub motor: Option<String>,
 }
@@ -169,6 +174,7 @@ impl Default for SweepSpec {
             ray: None,
             stop_fallen: false,
             response: None,
+            kind: None,
             motor: None,
         }
     }
@@ -178,6 +184,9 @@ impl Default for SweepSpec {
 /// and where it is written.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Sweep {
+    /// What the run is, as its manifest names it: the experiment kind's
+    /// name, or the request's own (the lab is a sweep of bodies).
+    pub kind: String,
     pub config: SweepConfig,
     pub options: RunOptions,
     pub out: Option<PathBuf>,
@@ -253,6 +262,10 @@ impl SweepSpec {
                 self.max_cells
             )));
         }
+        let experiment = match &self.response {
+            Some(e) => Experiment::Response(e.clone()),
+            None => Experiment::Stand,
+        };
         let schedule = Schedule {
             duration: self.seconds,
             initial: match &self.pose {
@@ -264,7 +277,7 @@ impl SweepSpec {
                 None => InitialState::Keyframe(self.keyframe.clone()),
             },
             // a response run excites joints, it does not push the robot
-            push: (self.push && self.response.is_none()).then(|| Push {
+            push: (self.push && experiment.plan().pushes()).then(|| Push {
                 start: self.push_at,
                 duration: self.push_duration,
                 force: [0.0, 0.0, self.push_force],
@@ -300,7 +313,7 @@ impl SweepSpec {
                 randomize,
             },
             backend: Backend::parse(&self.backend, self.device.as_deref())?,
-            response: self.response.clone(),
+            experiment,
             motor: Motor::parse(self.motor.as_deref().unwrap_or(""))?,
         };
         config.validate()?;
@@ -310,6 +323,10 @@ impl SweepSpec {
             (false, false) => Existing::Refuse,
         };
         Ok(Sweep {
+            kind: self
+                .kind
+                .unwrap_or_else(|| config.experiment.name())
+                .to_string(),
             config,
             options: RunOptions {
                 threads: self.threads,

@@ -2,6 +2,7 @@
 //! directory (atomic writes, resume, merge) and the ranking rule.
 
 pub mod best;
+pub mod kinds;
 pub mod output;
 pub mod rundir;
 pub mod tables;

@@ -12,7 +12,6 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 pub use crate::math::decimal::fmt_f64;
 use crate::plan::config::SweepConfig;
-use crate::plan::excitation::{Excitation, Signal};
 use crate::plan::grid::Cell;
 use crate::sim::metrics::{METRIC_NAMES, Metrics};
 
@@ -49,7 +48,7 @@ pub fn header(axes: &[String]) -> Vec<String> {
     h
 }
 
-fn axis_names(config: &SweepConfig) -> Vec<String> {
+pub(crate) fn axis_names(config: &SweepConfig) -> Vec<String> {
     config
         .grid
         .axes
@@ -81,82 +80,6 @@ pub fn cell_fields(cell: &Cell) -> Vec<String> {
 pub fn cell_columns(config: &SweepConfig) -> Vec<String> {
     let mut h: Vec<String> = ["index", "id", "name"].map(String::from).to_vec();
     h.extend(axis_names(config));
-    h
-}
-
-/// The figures a response run's summary shows per joint group.
-pub fn group_metrics(e: &Excitation) -> &'static [&'static str] {
-    match e.signal {
-        Signal::Step { .. } => &[
-            "rise_time_s",
-            "settling_time_s",
-            "overshoot_pct",
-            "ss_error_pct",
-            "peak_torque",
-            "saturation_frac",
-        ],
-        Signal::Sine { .. } => &["gain_db", "phase_deg", "peak_torque", "saturation_frac"],
-        Signal::Chirp { .. } => &[
-            "bandwidth_hz",
-            "phase_at_bw_deg",
-            "resonance_db",
-            "peak_torque",
-            "saturation_frac",
-        ],
-    }
-}
-
-/// The joint groups of a response run, in a leg's order.
-pub fn groups(e: &Excitation) -> Vec<String> {
-    let mut out: Vec<String> = Vec::new();
-    for g in &e.groups {
-        if !out.contains(g) {
-            out.push(g.clone());
-        }
-    }
-    // a leg's order (abduction, hip, knee), then any other
-    let rank = |g: &String| {
-        crate::robot::model::JOINT_GROUPS
-            .iter()
-            .position(|x| x == g)
-            .unwrap_or(usize::MAX)
-    };
-    out.sort_by_key(rank);
-    out
-}
-
-/// summary.csv's header for a response run: per joint group, each figure
-/// (mean over the group's joints; the largest for torque and saturation).
-pub fn response_summary_header(config: &SweepConfig, e: &Excitation) -> Vec<String> {
-    let mut h = cell_columns(config);
-    for g in groups(e) {
-        for m in group_metrics(e) {
-            h.push(format!("{m}.{g}"));
-        }
-        h.push(format!("status.{g}"));
-    }
-    h.push("status".into());
-    h
-}
-
-/// The header of a run's `summary.csv`: the metrics of each cell, or for
-/// a replicated sweep their statistics over the replicates, or for a
-/// response run each joint group's figures.
-pub fn header_of(config: &SweepConfig) -> Vec<String> {
-    if let Some(e) = &config.response {
-        return response_summary_header(config, e);
-    }
-    if config.replicates.is_plain() {
-        return header(&axis_names(config));
-    }
-    let mut h: Vec<String> = ["index", "id", "name"].map(String::from).to_vec();
-    h.extend(axis_names(config));
-    h.extend(["replicates", "failure_fraction"].map(String::from));
-    for m in aggregated() {
-        for s in STATISTICS {
-            h.push(format!("{s}:{m}"));
-        }
-    }
     h
 }
 
@@ -245,6 +168,11 @@ pub struct ModelRecord {
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
+    /// What the run is, as users name it: sweep, lab or response (tune and
+    /// fit write their own manifests). Empty in a manifest written before
+    /// the kind was recorded.
+    #[serde(default)]
+    pub kind: String,
     pub pupper_version: String,
     pub mujoco_version: String,
     pub python: String,
@@ -404,16 +332,19 @@ fn broken_row(path: &Path, line: usize, what: String) -> Error {
 /// The rows of a run's `summary.csv`, by cell index, each checked against
 /// the manifest's grid: its index in range, its id and axis values those of
 /// that cell. A truncated last line is dropped (its cell runs again).
-pub(crate) fn read_rows(dir: &Path, config: &SweepConfig) -> Result<BTreeMap<usize, Vec<String>>> {
+pub(crate) fn read_rows(
+    dir: &Path,
+    config: &SweepConfig,
+    want: &[String],
+) -> Result<BTreeMap<usize, Vec<String>>> {
     let p = dir.join(SUMMARY);
     let mut rows = BTreeMap::new();
     let Some(text) = read_if_there(&p)? else {
         return Ok(rows);
     };
-    let want = header_of(config);
     let cells = config.grid.cells();
     let broken = |line: usize, what: String| broken_row(&p, line, what);
-    for (n, fields) in table_rows(&p, &text, &want)? {
+    for (n, fields) in table_rows(&p, &text, want)? {
         let cell = fields[0]
             .parse::<usize>()
             .ok()

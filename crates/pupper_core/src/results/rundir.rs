@@ -19,9 +19,9 @@ use crate::error::{Error, Result};
 use crate::results::output::Detail;
 use crate::results::output::{
     MANIFEST, Manifest, MergedShard, REPLICATES, SUMMARY, TRACES, Trace, config_diff, csv_bytes,
-    fmt_f64, header_of, read_detail, read_manifest, read_rows, read_traces,
+    fmt_f64, read_detail, read_manifest, read_rows, read_traces,
 };
-use crate::results::tables::{self, BODE, RESPONSE, RESPONSE_TRACES};
+use crate::results::tables::{self, BODE, RESPONSE, RESPONSE_TRACES, header_of};
 use crate::sim::runner::CellResult;
 
 /// The lock file every writer of a run directory holds.
@@ -306,7 +306,7 @@ impl RunWriter {
                         short(&w.manifest.model.sha256)
                     )));
                 }
-                w.rows = read_rows(dir, &w.manifest.config)?;
+                w.rows = read_rows(dir, &w.manifest.config, &header_of(&w.manifest.config))?;
                 for (k, d) in w.details.iter().enumerate() {
                     w.detail_rows[k] = read_detail(dir, d, &w.rows)?;
                 }
@@ -748,7 +748,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, existing: Existing) -> Result<(PathBu
     };
     let mut w = RunWriter::new(Some(out), existing, manifest)?;
     for (d, m) in &parts {
-        let rows = read_rows(d, &config)?;
+        let rows = read_rows(d, &config, &header_of(&config))?;
         let shard = m.shard.as_ref().map(|s| s.shard);
         if let Some(i) = rows.keys().find(|&&i| shard.is_some_and(|s| !s.holds(i))) {
             return Err(bad(format!(
@@ -854,6 +854,7 @@ mod tests {
 
     fn manifest(cfg: SweepConfig) -> Manifest {
         Manifest {
+            kind: "sweep".into(),
             pupper_version: "t".into(),
             mujoco_version: "t".into(),
             python: "t".into(),

@@ -3,7 +3,11 @@
 
 pub mod cluster;
 pub mod frames;
+pub mod joints;
 pub mod metrics;
 pub mod physics;
+pub mod probe;
 pub mod response;
+pub mod result;
 pub mod runner;
+pub mod stand;

@@ -2,99 +2,11 @@
 //! against its target, sampled every step after the hold, reduced to the
 //! step figures or the frequency response when the simulation ends.
 
-use serde::{Deserialize, Serialize};
-
 use crate::math::response::{self as resp, Bode};
 use crate::plan::excitation::{Excitation, Signal};
 use crate::sim::metrics::{SATURATED, Status};
 
-/// Frequencies of a chirp's response, log-spaced over its band.
-pub const CHIRP_POINTS: usize = 24;
-
-/// One excited joint's figures; NaN where the signal has none (no rise
-/// time for a sine, no bandwidth for a step).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct JointMetrics {
-    pub rise_time_s: f64,
-    pub settling_time_s: f64,
-    pub overshoot_pct: f64,
-    pub peak_time_s: f64,
-    pub ss_error_rad: f64,
-    pub ss_error_pct: f64,
-    /// Gain (dB) and phase (deg) at the sine's frequency (sine only).
-    pub gain_db: f64,
-    pub phase_deg: f64,
-    /// −3 dB bandwidth (Hz), the phase there (deg) and the resonance peak
-    /// (dB above the low-frequency gain) (chirp).
-    pub bandwidth_hz: f64,
-    pub phase_at_bw_deg: f64,
-    pub resonance_db: f64,
-    /// Largest |torque| of the excited joint's actuator (N·m) and its share
-    /// of steps at the limit, over the window after the hold.
-    pub peak_torque: f64,
-    pub saturation_frac: f64,
-    /// The cell's gains on this joint against the explicit PD's stability
-    /// bound at the timestep ([`crate::math::response::explicit_pd_margin`]):
-    /// 1 or more is past it.
-    pub stability_margin: f64,
-    pub status: Status,
-}
-
-/// Column names of [`JointMetrics`], in CSV order.
-pub const JOINT_METRIC_NAMES: [&str; 15] = [
-    "rise_time_s",
-    "settling_time_s",
-    "overshoot_pct",
-    "peak_time_s",
-    "ss_error_rad",
-    "ss_error_pct",
-    "gain_db",
-    "phase_deg",
-    "bandwidth_hz",
-    "phase_at_bw_deg",
-    "resonance_db",
-    "peak_torque",
-    "saturation_frac",
-    "stability_margin",
-    "status",
-];
-
-impl JointMetrics {
-    /// The numbers in the order of [`JOINT_METRIC_NAMES`] (status aside).
-    pub fn values(&self) -> [f64; 14] {
-        [
-            self.rise_time_s,
-            self.settling_time_s,
-            self.overshoot_pct,
-            self.peak_time_s,
-            self.ss_error_rad,
-            self.ss_error_pct,
-            self.gain_db,
-            self.phase_deg,
-            self.bandwidth_hz,
-            self.phase_at_bw_deg,
-            self.resonance_db,
-            self.peak_torque,
-            self.saturation_frac,
-            self.stability_margin,
-        ]
-    }
-}
-
-/// One excited joint of one replicate of a cell.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct JointResult {
-    /// The excited actuator, in ctrl order.
-    pub actuator: usize,
-    pub replicate: usize,
-    pub metrics: JointMetrics,
-    /// (seconds after the hold, angle) every `trace_every`-th step, when a
-    /// trace was asked for.
-    #[serde(default)]
-    pub trace: Vec<(f64, f64)>,
-    /// The frequency response (sine: one point; chirp: [`CHIRP_POINTS`]).
-    pub bode: Vec<Bode>,
-}
+pub use crate::sim::joints::{CHIRP_POINTS, JOINT_METRIC_NAMES, JointMetrics, JointResult};
 
 /// Samples of one excited joint.
 pub struct JointProbe {
@@ -244,6 +156,44 @@ impl JointProbe {
             metrics: m,
             trace,
             bode,
+        }
+    }
+}
+/// The response kind's probe: the excited joint's angle after each step,
+/// its figures (with the cell's stability margin on it) added to the cell.
+impl crate::sim::probe::Probe for JointProbe {
+    fn observe(&mut self, s: &crate::sim::probe::Sample<'_>) {
+        JointProbe::observe(
+            self,
+            s.t,
+            s.qpos,
+            s.act.get(self.actuator).copied().unwrap_or(0.0),
+        );
+    }
+
+    fn diverge(&mut self, _t: f64) {
+        JointProbe::diverge(self);
+    }
+
+    fn finish(
+        self: Box<Self>,
+        cell: &mut crate::sim::result::CellResult,
+        done: crate::sim::probe::Finish<'_>,
+    ) {
+        let (cfg, setup) = (done.cfg, done.setup);
+        if let Some(e) = cfg.experiment.excitation() {
+            let a = self.actuator;
+            let mut joint = (*self).finish(e, cfg.schedule.duration, cfg.schedule.trace_every);
+            joint.metrics.stability_margin = crate::math::response::explicit_pd_margin(
+                e.inertia_of(a),
+                setup.gain(a) * setup.kp(a),
+                setup.gain(a) * setup.kd(a),
+                done.dt,
+            );
+            cell.joints.push(joint);
+        }
+        if done.replicate == 0 && cell.frames.is_none() {
+            cell.frames = done.frames.map(crate::sim::frames::FrameRecorder::finish);
         }
     }
 }

@@ -3,14 +3,11 @@
 
 use std::cell::RefCell;
 
-use serde::{Deserialize, Serialize};
-
 use crate::error::{Error, Result};
 use crate::math::motor;
 use crate::math::pd;
-use crate::math::quat;
-use crate::math::response::explicit_pd_margin;
 use crate::plan::config::SweepConfig;
+use crate::plan::experiment::Experiment;
 use crate::plan::grid::Cell;
 use crate::plan::mode::Mode;
 use crate::plan::motor::Motor;
@@ -19,11 +16,15 @@ use crate::plan::schedule::Schedule;
 use crate::plan::setup::CellSetup;
 use crate::robot::layout::Layout;
 use crate::robot::model::ModelInfo;
-use crate::sim::frames::{FrameRecorder, Frames, frame_count};
-use crate::sim::metrics::{Metrics, Recorder, Status};
+use crate::sim::frames::{FrameRecorder, frame_count};
+use crate::sim::metrics::{Metrics, Recorder};
 use crate::sim::physics::SimBatch;
 use crate::sim::physics::{Force, Physics};
-use crate::sim::response::{JointProbe, JointResult};
+use crate::sim::probe::{Finish, Probe, Sample, Start};
+use crate::sim::response::JointProbe;
+use crate::sim::stand::StandProbe;
+
+pub use crate::sim::result::{CellResult, Replicate};
 
 /// Most cells per batch on the cpu backend unless `--chunk-cells` says.
 pub const DEFAULT_CHUNK_CELLS: usize = 256;
@@ -56,37 +57,6 @@ impl Default for RunOptions {
             frame_rate: None,
         }
     }
-}
-
-/// One replicate of a cell: its drawn values (in the order of
-/// [`Replicates::columns`]) and its metrics.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Replicate {
-    pub drawn: Vec<f64>,
-    pub metrics: Metrics,
-}
-
-/// One finished cell.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct CellResult {
-    pub cell: Cell,
-    /// The cell's metrics (of replicate 0 in a replicated sweep).
-    pub metrics: Metrics,
-    /// Every replicate, in a replicated sweep; empty in a plain one.
-    #[serde(default)]
-    pub replicates: Vec<Replicate>,
-    /// Decimated (time, base z) samples when a trace was asked for (of
-    /// replicate 0 in a replicated sweep, as are the frames).
-    pub trace: Vec<(f64, f64)>,
-    /// States at the frame rate, when [`RunOptions::frame_rate`] is set.
-    pub frames: Option<Frames>,
-    /// A response run's excited joints (by joint, then replicate); empty
-    /// in a sweep.
-    #[serde(default)]
-    pub joints: Vec<JointResult>,
-    /// Steps its simulations took in all: the cell-steps it cost.
-    #[serde(default)]
-    pub steps: u64,
 }
 
 /// Callbacks from a running sweep.
@@ -221,11 +191,19 @@ impl Pace {
     }
 }
 
-/// What a simulation measures: the sweep's standing figures, or one
-/// excited joint's response.
-enum Probe {
-    Stand(Box<Recorder>),
-    Joint(JointProbe),
+/// The registry: the probe of a simulation of `cfg`'s experiment kind.
+fn probe(cfg: &SweepConfig, s: &Start<'_>) -> Box<dyn Probe> {
+    match (&cfg.experiment, s.excited) {
+        (Experiment::Response(e), Some(a)) => Box::new(JointProbe::new(
+            a,
+            s.replicate,
+            s.layout.act_qpos[a],
+            s.limits[a],
+            e.hold,
+            s.dt,
+        )),
+        _ => Box::new(StandProbe::new(Recorder::new(s.schedule, s.dt, s.stance))),
+    }
 }
 
 /// Per-simulation accumulators of a chunk.
@@ -233,7 +211,7 @@ struct ChunkState<'a> {
     layout: &'a Layout,
     /// Joint targets per simulation (before any excitation).
     targets: &'a [Vec<f64>],
-    probes: Vec<Probe>,
+    probes: Vec<Box<dyn Probe>>,
     frames: Vec<Option<FrameRecorder>>,
     /// Steps each simulation took (fewer than the schedule's when it
     /// diverged or, with `stop_fallen`, fell).
@@ -254,27 +232,16 @@ impl ChunkState<'_> {
         peak: f64,
         nsat: usize,
     ) {
-        let layout = self.layout;
         self.steps[sim] += 1;
-        match &mut self.probes[sim] {
-            Probe::Stand(r) => {
-                let (Some(zi), Some(qi)) = (layout.base.z(), layout.base.quat()) else {
-                    return;
-                };
-                let z = qpos[zi];
-                let tilt =
-                    quat::tilt([qpos[qi], qpos[qi + 1], qpos[qi + 2], qpos[qi + 3]]).to_degrees();
-                let track: f64 = layout
-                    .act_qpos
-                    .iter()
-                    .zip(&self.targets[sim])
-                    .map(|(&i, &q)| (q - qpos[i]) * (q - qpos[i]))
-                    .sum();
-                let nu = layout.nu;
-                r.observe(z, tilt, track, nu, peak, nsat, nu);
-            }
-            Probe::Joint(j) => j.observe(t, qpos, act.get(j.actuator()).copied().unwrap_or(0.0)),
-        }
+        self.probes[sim].observe(&Sample {
+            t,
+            qpos,
+            act,
+            peak,
+            nsat,
+            targets: &self.targets[sim],
+            layout: self.layout,
+        });
         if let Some(f) = &mut self.frames[sim] {
             f.offer(t, qpos, pushing);
         }
@@ -282,14 +249,11 @@ impl ChunkState<'_> {
 
     /// True when simulation `sim` has fallen and may stop stepping.
     fn fallen(&self, sim: usize) -> bool {
-        matches!(&self.probes[sim], Probe::Stand(r) if r.fell())
+        self.probes[sim].fallen()
     }
 
     fn diverge(&mut self, sim: usize, t: f64) {
-        match &mut self.probes[sim] {
-            Probe::Stand(r) => r.diverge(t),
-            Probe::Joint(j) => j.diverge(),
-        }
+        self.probes[sim].diverge(t);
     }
 }
 
@@ -494,10 +458,7 @@ impl ChunkPlan {
         let plan = schedule.plan(dt)?;
         let per_cell = cfg.sims_per_cell();
         let reps = &cfg.replicates;
-        let excited: Vec<Option<usize>> = match &cfg.response {
-            Some(e) => e.joints.iter().map(|&j| Some(j)).collect(),
-            None => vec![None],
-        };
+        let excited = cfg.experiment.plan().excited();
         let n = cells.len() * per_cell;
         let mut out = ChunkPlan {
             sims: Vec::with_capacity(n),
@@ -613,8 +574,14 @@ impl Stepping<'_> {
     /// Simulation `sim`'s target of actuator `a` at time `t`.
     fn target(&self, sim: usize, a: usize, t: f64) -> f64 {
         let base = self.targets[sim][a];
-        match (&self.cfg.response, self.plan.sims[sim].excited) {
-            (Some(e), Some(j)) if j == a => base + e.offset(t, self.cfg.schedule.duration),
+        match self.plan.sims[sim].excited {
+            Some(j) if j == a => {
+                base + self
+                    .cfg
+                    .experiment
+                    .plan()
+                    .target_offset(t, self.cfg.schedule.duration)
+            }
             _ => base,
         }
     }
@@ -656,21 +623,20 @@ fn run_chunk(
     let mut batch = physics.start(&plan.setups, cfg.mode, &schedule.initial, opts.threads)?;
     let layout = physics.layout().clone();
     let n = plan.len();
-    let probes: Vec<Probe> = (0..n)
-        .map(|sim| match (&cfg.response, plan.sims[sim].excited) {
-            (Some(e), Some(a)) => Probe::Joint(JointProbe::new(
-                a,
-                plan.sims[sim].replicate,
-                layout.act_qpos[a],
-                limits[sim][a],
-                e.hold,
-                dt,
-            )),
-            _ => Probe::Stand(Box::new(Recorder::new(
-                &plan.schedules[sim],
-                dt,
-                batch.stance(sim),
-            ))),
+    let probes: Vec<Box<dyn Probe>> = (0..n)
+        .map(|sim| {
+            probe(
+                cfg,
+                &Start {
+                    excited: plan.sims[sim].excited,
+                    replicate: plan.sims[sim].replicate,
+                    schedule: &plan.schedules[sim],
+                    dt,
+                    stance: batch.stance(sim),
+                    layout: &layout,
+                    limits: &limits[sim],
+                },
+            )
         })
         .collect();
     let targets: Vec<Vec<f64>> = (0..n).map(|s| batch.targets(s).to_vec()).collect();
@@ -707,7 +673,7 @@ fn run_chunk(
     let host_pd = cfg.mode == Mode::Torque && !batch.actuator_pd();
     // moving targets are the ctrl of every step: the servos' (servo mode)
     // or the actuator PD's (torque mode on warp)
-    let moving = cfg.response.is_some();
+    let moving = cfg.experiment.plan().moving_targets();
     let own_models = plan.setups.iter().any(|s| !s.nominal_masses());
     // the sensing changes as it steps; the rest of the plan stays
     let mut sensing = std::mem::take(&mut plan.sensing);
@@ -954,7 +920,6 @@ fn finish_chunk(
     plan: ChunkPlan,
     state: ChunkState<'_>,
 ) -> Result<Vec<CellResult>> {
-    let replicated = !cfg.replicates.is_plain();
     let mut out: Vec<CellResult> = Vec::with_capacity(cells.len());
     for ((((sim, probe), f), setup), steps) in plan
         .sims
@@ -977,39 +942,17 @@ fn finish_chunk(
         }
         let cell = &mut out[sim.cell];
         cell.steps += steps;
-        match probe {
-            Probe::Stand(r) => {
-                let (metrics, trace) = (*r).finish();
-                debug_assert!(metrics.status != Status::Diverged || metrics.event_time.is_finite());
-                if sim.replicate == 0 {
-                    cell.metrics = metrics.clone();
-                    cell.trace = trace;
-                    cell.frames = f.map(FrameRecorder::finish);
-                }
-                if replicated {
-                    cell.replicates.push(Replicate {
-                        drawn: sim.drawn,
-                        metrics,
-                    });
-                }
-            }
-            Probe::Joint(j) => {
-                if let Some(e) = &cfg.response {
-                    let a = j.actuator();
-                    let mut done = j.finish(e, cfg.schedule.duration, cfg.schedule.trace_every);
-                    done.metrics.stability_margin = explicit_pd_margin(
-                        e.inertia_of(a),
-                        setup.gain(a) * setup.kp(a),
-                        setup.gain(a) * setup.kd(a),
-                        dt,
-                    );
-                    cell.joints.push(done);
-                }
-                if sim.replicate == 0 && cell.frames.is_none() {
-                    cell.frames = f.map(FrameRecorder::finish);
-                }
-            }
-        }
+        probe.finish(
+            cell,
+            Finish {
+                cfg,
+                replicate: sim.replicate,
+                drawn: sim.drawn,
+                setup,
+                dt,
+                frames: f,
+            },
+        );
     }
     Ok(out)
 }

@@ -34,7 +34,7 @@ pub fn with_config_model<T>(
     cfg: &SweepConfig,
     f: impl for<'py> FnOnce(&LoadedModel<'py>) -> Result<T>,
 ) -> Result<T> {
-    let suspended = cfg.response.as_ref().is_some_and(|e| !e.standing);
+    let suspended = cfg.experiment.plan().suspended();
     Python::attach(|py| {
         let mj = Mujoco::import(py)?;
         let model = mj.load_on(&cfg.model, suspended)?.floating()?;

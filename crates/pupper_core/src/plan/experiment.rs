@@ -1,0 +1,130 @@
+//! What a run's simulations do: the experiment kinds, as one type. Each
+//! kind is a module per layer (the response's plan is `plan::excitation`,
+//! its probe `sim::response`, its tables `results::kinds::response`), and
+//! each layer dispatches on [`Experiment`] in one place, its registry: a
+//! new kind is a variant here and a module per layer.
+
+use serde::{Deserialize, Serialize};
+
+use crate::plan::excitation::Excitation;
+use crate::plan::kind::{KindPlan, Stand};
+
+/// The experiment of a run (the manifest's config keeps it).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(from = "Record", into = "Record")]
+pub enum Experiment {
+    /// The robot stands, is pushed (or shaken) and recovers: `pupper
+    /// sweep` and the lab.
+    #[default]
+    Stand,
+    /// Each joint excited alone, its target stepped, swept in a sine or a
+    /// chirp: `pupper response`.
+    Response(Excitation),
+}
+
+/// An experiment as a manifest's config writes it: the stand kind absent,
+/// every other kind under its own key, so the manifests of earlier runs
+/// read (and resume) as they were written.
+#[derive(Default, Serialize, Deserialize)]
+struct Record {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    response: Option<Excitation>,
+}
+
+impl From<Record> for Experiment {
+    fn from(r: Record) -> Experiment {
+        match r.response {
+            Some(e) => Experiment::Response(e),
+            None => Experiment::Stand,
+        }
+    }
+}
+
+impl From<Experiment> for Record {
+    fn from(e: Experiment) -> Record {
+        match e {
+            Experiment::Stand => Record::default(),
+            Experiment::Response(e) => Record { response: Some(e) },
+        }
+    }
+}
+
+impl Experiment {
+    /// The registry: the kind's plan.
+    pub fn plan(&self) -> &dyn KindPlan {
+        match self {
+            Experiment::Stand => &Stand,
+            Experiment::Response(e) => e,
+        }
+    }
+
+    pub fn name(&self) -> &'static str {
+        self.plan().name()
+    }
+
+    /// Simulations per replicate of a cell.
+    pub fn sims_per_replicate(&self) -> usize {
+        self.plan().excited().len().max(1)
+    }
+
+    /// The response's excitation, for the layers that finish its figures.
+    pub fn excitation(&self) -> Option<&Excitation> {
+        match self {
+            Experiment::Response(e) => Some(e),
+            Experiment::Stand => None,
+        }
+    }
+
+    /// The excitation, to resolve on a compiled model.
+    pub fn excitation_mut(&mut self) -> Option<&mut Excitation> {
+        match self {
+            Experiment::Response(e) => Some(e),
+            Experiment::Stand => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::excitation::Signal;
+
+    fn step() -> Excitation {
+        Excitation {
+            signal: Signal::Step { amplitude: 0.2 },
+            hold: 0.5,
+            select: vec![],
+            standing: false,
+            joints: vec![2, 5],
+            names: vec![],
+            groups: vec![],
+            inertia: vec![],
+        }
+    }
+
+    #[test]
+    fn a_stand_run_writes_no_key_and_a_response_its_own() {
+        let stand = serde_json::to_string(&Experiment::Stand).unwrap();
+        assert_eq!(stand, "{}");
+        let resp = serde_json::to_value(Experiment::Response(step())).unwrap();
+        assert_eq!(resp["response"]["hold"], 0.5);
+        let back: Experiment = serde_json::from_value(resp).unwrap();
+        assert_eq!(back, Experiment::Response(step()));
+        let old: Experiment = serde_json::from_str("{}").unwrap();
+        assert_eq!(old, Experiment::Stand);
+    }
+
+    #[test]
+    fn each_kind_answers_for_itself() {
+        let r = Experiment::Response(step());
+        assert_eq!((r.name(), r.sims_per_replicate()), ("response", 2));
+        let p = r.plan();
+        assert_eq!(p.excited(), vec![Some(2), Some(5)]);
+        assert!(!p.pushes() && p.suspended() && p.moving_targets());
+        let s = Experiment::Stand;
+        assert_eq!((s.name(), s.sims_per_replicate()), ("sweep", 1));
+        let p = s.plan();
+        assert!(p.pushes() && !p.suspended() && !p.moving_targets());
+        assert_eq!(p.target_offset(3.0, 4.0), 0.0);
+    }
+}

@@ -1,0 +1,42 @@
+//! What an experiment kind decides of its simulations before any physics
+//! ([`KindPlan`]), and the stand kind's plan. The kinds themselves are one
+//! type, `plan::experiment::Experiment`; each layer has a module per kind
+//! and dispatches on that type in one place, its registry.
+
+/// What a kind decides of its simulations, before any physics. The
+/// defaults are the stand kind's.
+pub trait KindPlan {
+    /// The kind's name, as a manifest and a report name it.
+    fn name(&self) -> &'static str;
+    /// What each simulation of a replicate excites: nothing (one
+    /// simulation), or one actuator each.
+    fn excited(&self) -> Vec<Option<usize>> {
+        vec![None]
+    }
+    /// Whether the schedule's push and its figures belong to the kind.
+    fn pushes(&self) -> bool {
+        true
+    }
+    /// Whether the robot runs hung in the air: base fixed, no contacts.
+    fn suspended(&self) -> bool {
+        false
+    }
+    /// Whether targets move on a schedule, so every step's ctrl is given.
+    fn moving_targets(&self) -> bool {
+        false
+    }
+    /// How far an excited joint's target is from its pose at time `t` of a
+    /// `duration` s run (rad).
+    fn target_offset(&self, _t: f64, _duration: f64) -> f64 {
+        0.0
+    }
+}
+
+/// The stand kind: nothing excited, the schedule's push acts.
+pub struct Stand;
+
+impl KindPlan for Stand {
+    fn name(&self) -> &'static str {
+        "sweep"
+    }
+}

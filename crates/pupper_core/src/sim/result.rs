@@ -1,0 +1,40 @@
+//! What a finished cell carries out of the runner: its metrics (or each
+//! replicate's), its trace and frames, a response's joints, its cost.
+
+use serde::{Deserialize, Serialize};
+
+use crate::plan::grid::Cell;
+use crate::sim::frames::Frames;
+use crate::sim::joints::JointResult;
+use crate::sim::metrics::Metrics;
+
+/// One replicate of a cell: its drawn values (in the order of
+/// [`crate::plan::randomize::Replicates::columns`]) and its metrics.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Replicate {
+    pub drawn: Vec<f64>,
+    pub metrics: Metrics,
+}
+
+/// One finished cell.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CellResult {
+    pub cell: Cell,
+    /// The cell's metrics (of replicate 0 in a replicated sweep).
+    pub metrics: Metrics,
+    /// Every replicate, in a replicated sweep; empty in a plain one.
+    #[serde(default)]
+    pub replicates: Vec<Replicate>,
+    /// Decimated (time, base z) samples when a trace was asked for (of
+    /// replicate 0 in a replicated sweep, as are the frames).
+    pub trace: Vec<(f64, f64)>,
+    /// States at the frame rate, when the runner's `RunOptions::frame_rate` is set.
+    pub frames: Option<Frames>,
+    /// A response run's excited joints (by joint, then replicate); empty
+    /// in a sweep.
+    #[serde(default)]
+    pub joints: Vec<JointResult>,
+    /// Steps its simulations took in all: the cell-steps it cost.
+    #[serde(default)]
+    pub steps: u64,
+}
