@@ -34,7 +34,7 @@ METRICS: list[str]
 
 ErrorCode = Literal[
     "grid", "config", "model", "model_not_found", "mujoco", "output", "run_not_found",
-    "run_exists", "resume_mismatch", "not_found", "permission", "disk_full", "io",
+    "run_exists", "resume_mismatch", "run_busy", "not_found", "permission", "disk_full", "io",
     "interrupted", "display", "cluster", "internal",
 ]
 

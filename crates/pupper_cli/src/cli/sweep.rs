@@ -213,7 +213,11 @@ pub(super) fn run_job(mut a: Job, stop: &'static AtomicBool) -> Result<u8> {
     }
     // the ranking rule is checked against the grid before anything runs
     if let Some(rule) = &a.rule {
-        best::best(&output::header_of(&sweep.config), &[], rule)?;
+        best::best(
+            &pupper_core::results::tables::header_of(&sweep.config),
+            &[],
+            rule,
+        )?;
     }
     let req = SweepRequest { sweep, command };
     let mut ui = Progress {

@@ -15,10 +15,12 @@ use crate::pyargs::PyArgs;
 
 #[derive(Args, Debug)]
 #[command(
-    after_help = "A trial whose robot fell or diverged is told a penalty of 1e6 (the worst
-value) and keeps its status in trials.csv. The sampler of generation g is seeded from (--seed, g)
-and sees only finished trials, so the same command gives the same trials in the same order at any
-thread count and after --resume (which re-runs the trials a kill left unfinished). Show the study:
+    after_help = "A trial whose robot fell, diverged or saturated is told a penalty of 1e6 (the
+worst value), keeps its status in trials.csv and is never a best. The sampler of generation g is
+seeded from (--seed, g) and sees only finished trials, so the same command gives the same trials in
+the same order at any thread count and after --resume, even after kill -9: each told generation is
+appended to DIR/journal.jsonl, a resume rebuilds the study from it and re-runs the generation a
+kill cut short. One pupper at a time writes DIR. Show the study:
 optuna-dashboard sqlite:///DIR/study.db. Needs the tune extra (make setup PUPPER_EXTRAS=tune).
 
 Examples:
@@ -56,7 +58,7 @@ pub(super) struct TuneArgs {
     aggregate: String,
     /// Successive halving over the replicates (an eta of 2 or more, with --replicates): each
     /// generation runs every trial on replicates/eta robots first and only its best 1/eta on
-    /// all of them; the others are told pruned with their first value.
+    /// all of them; the others are told pruned with their first value. 0 is none.
     #[arg(long, default_value_t = 0, value_name = "ETA")]
     halving: u64,
     #[command(flatten)]

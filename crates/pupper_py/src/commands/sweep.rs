@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use pupper_core::request::spec::SweepSpec;
-use pupper_core::results::{best, output};
+use pupper_core::results::best;
 use pupper_mujoco::api::{self, SweepRequest};
 
 use crate::convert::{grid_from, out_from, spec_from, to_dict};
@@ -65,7 +65,12 @@ pub(crate) fn run_spec(
 ) -> PyResult<SweepResult> {
     let sweep = spec.build().map_err(to_py)?;
     if let Some(rule) = rule {
-        best::best(&output::header_of(&sweep.config), &[], rule).map_err(to_py)?;
+        best::best(
+            &pupper_core::results::tables::header_of(&sweep.config),
+            &[],
+            rule,
+        )
+        .map_err(to_py)?;
     }
     let _active = Active::start()?;
     let req = SweepRequest {
