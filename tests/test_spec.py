@@ -22,7 +22,8 @@ NO_CLI_DEFAULT = {"out", "force", "resume", "trace", "stop_fallen", "sine", "pos
                   "ray",  # none: run here
                   "kp", "kd",  # none: each actuator's own (help says so)
                   "depth",  # none: scaled to the model's legs (help says so)
-                  "motor"}  # none: the ideal motor (help says so)
+                  "motor",  # none: the ideal motor (help says so)
+                  "integrator"}  # none: the model's own (help says so)
 #: Spec fields whose flag has another name on the command line.
 CLI_FLAG = {"push": "--no-push"}
 

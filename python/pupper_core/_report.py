@@ -21,8 +21,8 @@ from typing import Any
 
 __all__ = ["report"]
 
-STATUS_COLOUR = {"ok": "#d8f0d8", "saturated": "#fff0c0", "fell": "#f8d0d0", "diverged": "#e0c8f0",
-                 "pruned": "#e8e8e8"}
+STATUS_COLOUR = {"ok": "#d8f0d8", "saturated": "#fff0c0", "past_bound": "#ffd8a8", "fell": "#f8d0d0",
+                 "diverged": "#e0c8f0", "pruned": "#e8e8e8"}
 #: The steadiest-first colour ramp of the heatmaps (viridis, reversed: yellow is best).
 RAMP = ["#fde725", "#b5de2b", "#6ece58", "#35b779", "#1f9e89", "#26828e", "#31688e", "#3e4989",
         "#482878", "#440154"]
@@ -95,7 +95,7 @@ def _heatmap(rows: list[dict[str, str]], xa: str, ya: str, metric: str, best: st
     xs = sorted({_num(r[xa]) for r in rows})
     ys = sorted({_num(r[ya]) for r in rows})
     cells = {(_num(r[xa]), _num(r[ya])): r for r in rows}
-    vals = [_num(r.get(metric)) for r in rows if r.get("status") in ("ok", "saturated")]
+    vals = [_num(r.get(metric)) for r in rows if r.get("status") in ("ok", "saturated", "past_bound")]
     vals = [v for v in vals if not math.isnan(v)]
     lo, hi = (min(vals), max(vals)) if vals else (0.0, 1.0)
     w, h, left, top = 64, 34, 70, 30
@@ -107,7 +107,7 @@ def _heatmap(rows: list[dict[str, str]], xa: str, ya: str, metric: str, best: st
         for i, x in enumerate(xs):
             r = cells.get((x, y))
             v = _num(r.get(metric)) if r else math.nan
-            stood = r is not None and r.get("status") in ("ok", "saturated")
+            stood = r is not None and r.get("status") in ("ok", "saturated", "past_bound")
             fill = _colour(v, lo, hi, lo > 0 and hi / max(lo, 1e-300) > 20) if stood else "#f0c0c0"
             px, py = left + i * w, top + j * h
             mark = ' stroke="#000" stroke-width="3"' if r and best and r.get("id") == best else ' stroke="#fff"'
@@ -329,10 +329,14 @@ def report(run_dir: str | os.PathLike[str]) -> Path:
         counts: dict[str, int] = {}
         for r in rows:
             counts[r.get("status", "")] = counts.get(r.get("status", ""), 0) + 1
-        for s in ("fell", "diverged", "saturated"):
+        why = {"saturated": " (at the torque limit in 5 % or more of actuator-steps)",
+               "past_bound": (" the stability bound of the PD as the integrator computes it: their numbers "
+                              "describe the integrator, not a robot, so they are never ranked (a smaller "
+                              "timestep or --integrator implicitfast simulates such gains)")}
+        for s in ("fell", "diverged", "saturated", "past_bound"):
             if counts.get(s):
-                warnings.append(f"{counts[s]} of {len(rows)} cells {s}"
-                                + (" (at the torque limit in 5 % or more of actuator-steps)" if s == "saturated" else ""))
+                said = "lie past" if s == "past_bound" else s
+                warnings.append(f"{counts[s]} of {len(rows)} cells {said}" + why.get(s, ""))
         if not manifest.get("complete", True):
             warnings.append(f"the run is incomplete ({manifest.get('cells_done')} of {manifest.get('cells_total')} "
                             "cells): finish it with --resume")

@@ -83,7 +83,7 @@ class StandReport(TypedDict):
     """Base height at the end (m)."""
     last_1s_std_mm: float
     max_tilt_deg: float
-    status: Literal["ok", "saturated", "fell", "diverged"]
+    status: Literal["ok", "saturated", "past_bound", "fell", "diverged"]
     notes: NotRequired[list[str]]
     """What you should know, e.g. that the start fell back to the default pose."""
 
@@ -125,6 +125,9 @@ class SimOptions(TypedDict, total=False):
     """Torque mode's servo firmware and motor, as `--motor` takes it:
     "rate=1000,filter=100,counts=16384,delay=0.004,noload=30" (any subset);
     None: the ideal motor (the PD every physics step on the exact state)."""
+    integrator: Literal["euler", "implicitfast", "implicit", "rk4"] | None
+    """MuJoCo's integrator for every cell; None: the model's own. Cells past
+    the stability bound of the PD as it integrates are marked past_bound."""
 
 
 class RecordedSetup(TypedDict):
@@ -151,7 +154,7 @@ class Recording(TypedDict):
     values: dict[str, float | str]
     """The cell's grid values by axis name."""
     setup: RecordedSetup
-    status: Literal["ok", "saturated", "fell", "diverged"]
+    status: Literal["ok", "saturated", "past_bound", "fell", "diverged"]
     event_time: float
     model: Any
     """The compiled `mujoco.MjModel` the cell ran on (its body variant)."""

@@ -426,7 +426,7 @@ def base_z(
             colours = [tab(i) for i in range(n)]
         else:
             colours = [f"C{i}" for i in range(n)]
-        chatter = {k for k in ids if status is not None and status.get(k) == "saturated"}
+        chatter = {k for k in ids if status is not None and status.get(k) in ("saturated", "past_bound")}
         panels = [a for a in (ax, zax) if a is not None]
         for a in panels:
             for k, c in zip(ids, colours):
@@ -611,11 +611,12 @@ def heatmap(
                         rgba = cmap(norm(v))
                         lum = 0.299 * rgba[0] + 0.587 * rgba[1] + 0.114 * rgba[2]
                         colour = "black" if lum > 0.55 else "white"
-                        if stat[r, c] == "saturated":
-                            # stood, but on its torque limits: never ranked
+                        if stat[r, c] in ("saturated", "past_bound"):
+                            # stood, but on its torque limits or past the
+                            # integrator's stability bound: never ranked
                             a.add_patch(Rectangle((c - 0.5, r - 0.5), 1, 1, fill=False, hatch="///",
-                                                  ec="#bbbbbb", lw=0, zorder=2, gid="saturated"))
-                            txt += "\nsaturated"
+                                                  ec="#bbbbbb", lw=0, zorder=2, gid=str(stat[r, c])))
+                            txt += "\nsaturated" if stat[r, c] == "saturated" else "\npast bound"
                     a.text(c, r, txt, ha="center", va="center", color=colour, fontsize=fs, zorder=3)
             # best cell
             sel_rows = np.ones(len(vals), bool) if bcol is None else (bcol == pv)

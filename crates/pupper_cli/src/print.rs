@@ -316,7 +316,45 @@ fn steadiest(s: &mut String, o: &SweepOutcome) {
                     let _ = writeln!(s);
                 }
             }
+            edges(s, o, i);
         }
+    }
+}
+
+/// The axes on whose edge the picked row `best` lies: its value there is
+/// the largest or smallest searched, so the best may lie beyond.
+fn edges(s: &mut String, o: &SweepOutcome, best: usize) {
+    let end = o
+        .header
+        .iter()
+        .position(|h| h == "final_z")
+        .unwrap_or(o.header.len());
+    let mut said = Vec::new();
+    for c in 3..end {
+        let values: Vec<f64> = o.rows.iter().filter_map(|r| r[c].parse().ok()).collect();
+        let Ok(v) = o.rows[best][c].parse::<f64>() else {
+            continue;
+        };
+        let (lo, hi) = values
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        if lo == hi {
+            continue;
+        }
+        if v == hi {
+            said.push(format!("{} {}, the largest", o.header[c], o.rows[best][c]));
+        } else if v == lo {
+            said.push(format!("{} {}, the smallest", o.header[c], o.rows[best][c]));
+        }
+    }
+    if !said.is_empty() {
+        let _ = writeln!(
+            s,
+            "the steadiest cell lies on the edge of the searched range ({}): the best may lie beyond it; widen the grid there",
+            said.join("; ")
+        );
     }
 }
 
@@ -349,6 +387,17 @@ fn counts(s: &mut String, o: &SweepOutcome) {
             s,
             "{saturated} cell(s) saturated: at the torque limit in {}% or more of actuator-steps (sat %), so never the steadiest",
             pupper_core::sim::metrics::SATURATED * 100.0
+        );
+    }
+    let past = o
+        .rows
+        .iter()
+        .filter(|r| col("status").is_some_and(|i| r[i] == "past_bound"))
+        .count();
+    if past > 0 {
+        let _ = writeln!(
+            s,
+            "{past} cell(s) past_bound: past the stability bound of the PD at the timestep, so never the steadiest"
         );
     }
     if bad > 0 {

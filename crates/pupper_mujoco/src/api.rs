@@ -15,6 +15,7 @@ use pupper_core::plan::grid::Cell;
 use pupper_core::plan::mode::Mode;
 use pupper_core::plan::schedule::InitialState;
 use pupper_core::plan::setup::CellSetup;
+use pupper_core::plan::stability::{self, Damping};
 use pupper_core::request::spec::{GridInput, Sweep, SweepSpec};
 use pupper_core::results::best;
 use pupper_core::results::output::{self, Manifest, ModelRecord, ShardRecord};
@@ -204,7 +205,7 @@ pub fn stand(spec: &SweepSpec) -> Result<StandReport> {
     };
     let sweep = spec.build()?;
     let cfg = &sweep.config;
-    let (results, note, setup) = bridge::with_model(&cfg.model, true, |model| {
+    let (results, note, setup) = bridge::with_config_model(cfg, |model| {
         let note = check_start(model.info(), &cfg.schedule.initial, true)?;
         let cells = cfg.grid.cells();
         let physics = bridge::physics(model, &cfg.backend)?;
@@ -385,39 +386,82 @@ fn start_inertia(
     Ok(Some(model.joint_inertia(&q)?))
 }
 
-/// Cells whose gains lie past the explicit PD's stability bound on some
-/// joint (torque mode, or MuJoCo's Euler integrator, where the servo's
-/// damping is explicit too): a note naming how many and the worst.
-fn stability_note(cfg: &SweepConfig, info: &ModelInfo, inertia: &[f64]) -> Option<String> {
-    use pupper_core::math::response::explicit_pd_margin;
-    if cfg.mode == Mode::Servo && info.integrator != 0 {
-        return None;
+/// What marks a run's cells past the stability bound: the joints'
+/// inertias at the start pose and how the integrator takes the damping.
+struct Bound<'a> {
+    cfg: &'a SweepConfig,
+    info: &'a ModelInfo,
+    inertia: Vec<f64>,
+    damping: Damping,
+}
+
+impl<'a> Bound<'a> {
+    /// None where pupper states no bound (RK4, or no start pose to read the
+    /// inertias at).
+    fn new(
+        cfg: &'a SweepConfig,
+        model: &'a bridge::LoadedModel<'_>,
+        info: &'a ModelInfo,
+    ) -> Option<Bound<'a>> {
+        let damping = Damping::of(cfg.mode, info.integrator)?;
+        let inertia = start_inertia(model, &cfg.schedule.initial).ok().flatten()?;
+        Some(Bound {
+            cfg,
+            info,
+            inertia,
+            damping,
+        })
     }
-    let mut past = 0usize;
-    let mut worst: Option<(f64, String, String)> = None;
-    for cell in cfg.grid.cells() {
-        let s = cfg.setup(&cell, info);
-        let dt = s.timestep.unwrap_or(info.timestep);
-        let (m, a) = (0..info.nu)
-            .map(|a| (explicit_pd_margin(inertia[a], s.kp(a), s.kd(a), dt), a))
-            .fold((0.0, 0), |x, y| if y.0 > x.0 { y } else { x });
-        if m >= 1.0 {
-            past += 1;
-            if worst.as_ref().is_none_or(|w| m > w.0) {
-                worst = Some((m, cell.id.clone(), info.actuators[a].name.clone()));
+
+    fn margins(&self, cell: &Cell) -> Vec<f64> {
+        stability::cell_margins(self.cfg, self.info, &self.inertia, cell, self.damping)
+    }
+
+    fn mark(&self, r: &mut CellResult) {
+        let margins = self.margins(&r.cell);
+        r.mark_past_bound(&margins, self.damping == Damping::Explicit);
+    }
+
+    /// The note for cells past the bound: how many, the worst, why they are
+    /// not ranked, and how to simulate such gains honestly.
+    fn note(&self) -> Option<String> {
+        let mut past = 0usize;
+        let mut worst: Option<(f64, String, String)> = None;
+        for cell in self.cfg.grid.cells() {
+            let (m, a) = self
+                .margins(&cell)
+                .into_iter()
+                .enumerate()
+                .map(|(a, m)| (m, a))
+                .fold((0.0, 0), |x, y| if y.0 > x.0 { y } else { x });
+            if m >= 1.0 {
+                past += 1;
+                if worst.as_ref().is_none_or(|w| m > w.0) {
+                    worst = Some((m, cell.id.clone(), self.info.actuators[a].name.clone()));
+                }
             }
         }
+        let (m, id, joint) = worst?;
+        // an absurd gain's margin in two digits, not three hundred
+        let m = if m < 1e6 {
+            format!("{m:.2}")
+        } else {
+            format!("{m:.2e}")
+        };
+        let how = match (self.damping, self.cfg.mode) {
+            (Damping::Explicit, Mode::Servo) => {
+                "a smaller timestep (--grid timestep=...) or --integrator implicitfast simulates such gains honestly"
+            }
+            _ => "a smaller timestep (--grid timestep=...) simulates such gains honestly",
+        };
+        let integrated = match self.damping {
+            Damping::Explicit => "an explicitly integrated PD",
+            Damping::Implicit => "the PD with its damping integrated implicitly",
+        };
+        Some(format!(
+            "{past} cell(s) lie past the stability bound of {integrated} at the timestep (worst: {id} on {joint}, margin {m}): marked past_bound and never ranked, since their numbers describe the integrator, not a robot; {how}; `pupper gains --kp KP --kd KD` shows the bound per joint"
+        ))
     }
-    let (m, id, joint) = worst?;
-    // an absurd gain's margin in two digits, not three hundred
-    let m = if m < 1e6 {
-        format!("{m:.2}")
-    } else {
-        format!("{m:.2e}")
-    };
-    Some(format!(
-        "{past} cell(s) lie past the stability bound of an explicitly integrated PD at the timestep (worst: {id} on {joint}, margin {m}): they may chatter at the torque limit or diverge; `pupper gains --kp KP --kd KD` shows the bound per joint"
-    ))
 }
 
 /// `cfg` with a response run's excited joints resolved on `info` and its
@@ -497,6 +541,9 @@ struct WriterHooks<'a> {
     writer: &'a mut RunWriter,
     /// Cell-steps each cell run now took, by cell index.
     steps: std::collections::BTreeMap<usize, u64>,
+    /// Marks cells past the stability bound before they are written (here,
+    /// where a local run's cells and a cluster's meet).
+    bound: Option<&'a Bound<'a>>,
 }
 
 impl Hooks for WriterHooks<'_> {
@@ -507,6 +554,21 @@ impl Hooks for WriterHooks<'_> {
         self.ui.should_stop()
     }
     fn chunk_done(&mut self, results: &[CellResult]) -> Result<()> {
+        let marked: Vec<CellResult>;
+        let results = match self.bound {
+            Some(b) => {
+                marked = results
+                    .iter()
+                    .cloned()
+                    .map(|mut r| {
+                        b.mark(&mut r);
+                        r
+                    })
+                    .collect();
+                &marked[..]
+            }
+            None => results,
+        };
         self.writer.add(results)?;
         for r in results {
             self.steps.insert(r.cell.index, r.steps);
@@ -541,10 +603,8 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
         let info = model.info();
         // a response run's joints, named on this compiled model
         let cfg = &resolved(cfg, model)?;
-        let unstable = start_inertia(model, &cfg.schedule.initial)
-            .ok()
-            .flatten()
-            .and_then(|i| stability_note(cfg, info, &i));
+        let bound = Bound::new(cfg, model, info);
+        let unstable = bound.as_ref().and_then(Bound::note);
         // hung in the air, a response run needs no floor
         let standing = !cfg.experiment.plan().suspended();
         let note = check_start(info, &cfg.schedule.initial, standing)?;
@@ -655,6 +715,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                 ui: ui.hooks(),
                 writer: &mut writer,
                 steps: Default::default(),
+                bound: bound.as_ref(),
             };
             let r = match (&physics, &mut cluster) {
                 (Some(physics), _) => {

@@ -110,6 +110,12 @@ pub(super) struct SimArgs {
     /// [default: ideal, the PD every physics step on the exact state]
     #[arg(long, value_name = "SPEC")]
     pub(super) motor: Option<String>,
+    /// MuJoCo's integrator for every cell: euler, implicitfast (a servo's damping integrated
+    /// implicitly: stiff, well-damped gains run without chatter), implicit, rk4. Cells past the
+    /// stability bound of the PD as the integrator computes it are marked past_bound and never
+    /// ranked [default: the model's own; Pupper v3's: euler]
+    #[arg(long, value_name = "NAME")]
+    pub(super) integrator: Option<String>,
 }
 
 impl SimArgs {
@@ -130,6 +136,7 @@ impl SimArgs {
             pose: self.pose.as_deref().map(spec::parse_pose).transpose()?,
             depth: self.depth,
             motor: self.motor.clone(),
+            integrator: self.integrator.clone(),
             ..SweepSpec::default()
         })
     }

@@ -169,6 +169,7 @@ impl TuneArgs {
             ("ray", spec.ray.is_some()),
             ("keyframe", self.sim.keyframe.is_some()),
             ("pose", spec.pose.is_some()),
+            ("integrator", spec.integrator.is_some()),
         ];
         let Value::Object(mut all) =
             serde_json::to_value(&spec).map_err(|e| Error::Internal(format!("options: {e}")))?

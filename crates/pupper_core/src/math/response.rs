@@ -359,6 +359,18 @@ pub fn explicit_pd_margin(inertia: f64, kp: f64, kd: f64, timestep: f64) -> f64 
     ((a + 2.0 * b) / 4.0).max(b / 2.0)
 }
 
+/// The same margin when the integrator takes the damping implicitly
+/// (MuJoCo's `implicitfast` and `implicit` on a servo's velocity gain):
+/// `I (v' - v) / h = -kp q - kd v'`, `q' = q + h v'` has the characteristic
+/// polynomial `z^2 - (2 + b - a) z / (1 + b) + 1 / (1 + b)`, stable exactly
+/// when `a < 4 + 2b` (Jury's test). Returns `a / (4 + 2b)`: any damping is
+/// stable, and damping widens the stiffness bound.
+pub fn implicit_damping_pd_margin(inertia: f64, kp: f64, kd: f64, timestep: f64) -> f64 {
+    let a = timestep * timestep * kp / inertia;
+    let b = timestep * kd / inertia;
+    a / (4.0 + 2.0 * b)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -518,6 +530,38 @@ mod tests {
             (100.0, 1.0),
         ] {
             let m = explicit_pd_margin(1e-3, kp, kd, 0.002);
+            assert_eq!(grows(kp, kd), m >= 1.0, "kp {kp} kd {kd} margin {m}");
+        }
+    }
+
+    #[test]
+    fn the_pd_bound_with_implicit_damping() {
+        // undamped it is the explicit bound: h^2 kp / I < 4
+        assert!(implicit_damping_pd_margin(1.0, 3.9, 0.0, 1.0) < 1.0);
+        assert!(implicit_damping_pd_margin(1.0, 4.1, 0.0, 1.0) > 1.0);
+        // damping alone never diverges, and widens the stiffness bound
+        assert_eq!(implicit_damping_pd_margin(1.0, 0.0, 100.0, 1.0), 0.0);
+        assert!(implicit_damping_pd_margin(1.0, 5.0, 1.0, 1.0) < 1.0);
+        // iterate I (v' - v) / h = -kp x - kd v' on both sides of the bound
+        let grows = |kp: f64, kd: f64| {
+            let (h, i) = (0.002, 1e-3);
+            let (mut x, mut v) = (1.0f64, 0.0f64);
+            for _ in 0..2_000 {
+                v = (i * v - h * kp * x) / (i + h * kd);
+                x += h * v;
+            }
+            // a stable system stays near its start; past the bound it grows
+            x.is_nan() || x.abs() >= 10.0
+        };
+        for (kp, kd) in [
+            (950.0, 0.01),
+            (1070.0, 0.01),
+            (1900.0, 1.0),
+            (2100.0, 1.0),
+            (100.0, 5.0),
+            (120.0, 2.0),
+        ] {
+            let m = implicit_damping_pd_margin(1e-3, kp, kd, 0.002);
             assert_eq!(grows(kp, kd), m >= 1.0, "kp {kp} kd {kd} margin {m}");
         }
     }

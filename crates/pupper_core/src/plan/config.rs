@@ -12,6 +12,7 @@ use crate::plan::motor::Motor;
 use crate::plan::randomize::{Draws, Replicates};
 use crate::plan::schedule::Schedule;
 use crate::plan::setup::CellSetup;
+use crate::plan::stability::Integrator;
 use crate::robot::model::{ModelInfo, ModelSource};
 
 /// Values used for any axis the grid does not vary.
@@ -66,6 +67,10 @@ pub struct SweepConfig {
     /// manifest; a response writes its excitation under `response`).
     #[serde(flatten)]
     pub experiment: Experiment,
+    /// MuJoCo's integrator for every cell; None (the model's own) is left
+    /// out of the manifest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub integrator: Option<Integrator>,
     /// The servo firmware and motor of torque mode's PD; the ideal motor
     /// is left out of the manifest.
     #[serde(default, skip_serializing_if = "Motor::is_ideal")]
@@ -83,6 +88,7 @@ impl Default for SweepConfig {
             replicates: Replicates::default(),
             backend: Backend::Cpu,
             experiment: Experiment::Stand,
+            integrator: None,
             motor: Motor::default(),
         }
     }
@@ -133,6 +139,11 @@ impl SweepConfig {
                     "--motor needs the Rust PD of --backend cpu (the warp backend runs the PD inside MuJoCo's actuators): use --backend cpu".into(),
                 ));
             }
+        }
+        if self.integrator.is_some() && !self.backend.is_cpu() {
+            return Err(Error::Config(
+                "--integrator runs on --backend cpu (the warp backend keeps the model's own integrator): drop one of them".into(),
+            ));
         }
         self.backend.check(self.mode, &self.replicates)
     }

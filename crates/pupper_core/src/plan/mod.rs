@@ -13,3 +13,4 @@ pub mod randomize;
 pub mod schedule;
 pub mod setup;
 pub mod shard;
+pub mod stability;

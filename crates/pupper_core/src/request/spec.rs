@@ -20,6 +20,7 @@ use crate::plan::motor::Motor;
 use crate::plan::randomize::{Randomize, Replicates};
 use crate::plan::schedule::{InitialState, Push, Schedule, SineForce};
 use crate::plan::shard::Shard;
+use crate::plan::stability::Integrator;
 use crate::results::rundir::Existing;
 use crate::robot::model::ModelSource;
 use crate::robot::variant::variant;
@@ -136,6 +137,9 @@ pub struct SweepSpec {
     pub kind: Option<&'static str>,
     /// Torque mode's servo firmware and motor (`--motor`); None: ideal.
     pub motor: Option<String>,
+    /// MuJoCo's integrator for every cell (`--integrator`: euler,
+    /// implicitfast, implicit, rk4); None: the model's own.
+    pub integrator: Option<String>,
 }
 
 impl Default for SweepSpec {
@@ -175,6 +179,7 @@ impl Default for SweepSpec {
             stop_fallen: false,
             response: None,
             kind: None,
+            integrator: None,
             motor: None,
         }
     }
@@ -314,6 +319,11 @@ impl SweepSpec {
             },
             backend: Backend::parse(&self.backend, self.device.as_deref())?,
             experiment,
+            integrator: self
+                .integrator
+                .as_deref()
+                .map(Integrator::parse)
+                .transpose()?,
             motor: Motor::parse(self.motor.as_deref().unwrap_or(""))?,
         };
         config.validate()?;

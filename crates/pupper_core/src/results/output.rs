@@ -114,6 +114,12 @@ pub fn robust_row(cell: &Cell, runs: &[&Metrics]) -> Vec<String> {
     r.push(runs.len().to_string());
     let failed = (runs.len() - up.len()) as f64 / runs.len().max(1) as f64;
     r.push(fmt_f64(failed));
+    // the figures of robots past the stability bound describe the
+    // integrator: they are not aggregated (so the cell is never ranked)
+    let up: Vec<&Metrics> = up
+        .into_iter()
+        .filter(|m| m.status != crate::sim::metrics::Status::PastBound)
+        .collect();
     for name in aggregated() {
         let mut xs: Vec<f64> = up.iter().map(|m| m.get(name).unwrap_or(f64::NAN)).collect();
         if xs.is_empty() || xs.iter().any(|x| !x.is_finite()) {

@@ -14,6 +14,10 @@ pub enum Status {
     /// actuator-steps of at least [`SATURATED`] (a chattering PD): never
     /// ranked best at the default `--max-saturation`.
     Saturated,
+    /// Stood, with gains past the stability bound of the PD as the
+    /// integrator computes it at the timestep on some joint: its numbers
+    /// describe the integrator, not a robot, so it is never ranked.
+    PastBound,
     Fell,
     Diverged,
 }
@@ -27,14 +31,15 @@ impl Status {
         match self {
             Status::Ok => "ok",
             Status::Saturated => "saturated",
+            Status::PastBound => "past_bound",
             Status::Fell => "fell",
             Status::Diverged => "diverged",
         }
     }
 
-    /// True when the robot stayed up (ok or saturated).
+    /// True when the robot stayed up (ok, saturated or past the bound).
     pub fn stood(self) -> bool {
-        matches!(self, Status::Ok | Status::Saturated)
+        matches!(self, Status::Ok | Status::Saturated | Status::PastBound)
     }
 }
 

@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::plan::grid::Cell;
 use crate::sim::frames::Frames;
 use crate::sim::joints::JointResult;
-use crate::sim::metrics::Metrics;
+use crate::sim::metrics::{Metrics, Status};
 
 /// One replicate of a cell: its drawn values (in the order of
 /// [`crate::plan::randomize::Replicates::columns`]) and its metrics.
@@ -37,4 +37,34 @@ pub struct CellResult {
     /// Steps its simulations took in all: the cell-steps it cost.
     #[serde(default)]
     pub steps: u64,
+}
+
+impl CellResult {
+    /// Marks what lies past the stability bound (`margins`: each
+    /// actuator's, see `plan::stability`): a robot that stood becomes
+    /// `past_bound` (every replicate with it), and so does an excited joint
+    /// whose own margin is 1 or more (`explicit`: the probe's margin, with
+    /// each replicate's drawn gains, is the one to read).
+    pub fn mark_past_bound(&mut self, margins: &[f64], explicit: bool) {
+        let past = |s: &mut Status| {
+            if matches!(*s, Status::Ok | Status::Saturated) {
+                *s = Status::PastBound;
+            }
+        };
+        if margins.iter().any(|&m| m >= 1.0) {
+            past(&mut self.metrics.status);
+            for r in &mut self.replicates {
+                past(&mut r.metrics.status);
+            }
+        }
+        for j in &mut self.joints {
+            let m = match explicit {
+                true => j.metrics.stability_margin,
+                false => margins.get(j.actuator).copied().unwrap_or(0.0),
+            };
+            if m >= 1.0 {
+                past(&mut j.metrics.status);
+            }
+        }
+    }
 }

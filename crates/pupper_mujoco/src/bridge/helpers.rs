@@ -37,7 +37,10 @@ pub fn with_config_model<T>(
     let suspended = cfg.experiment.plan().suspended();
     Python::attach(|py| {
         let mj = Mujoco::import(py)?;
-        let model = mj.load_on(&cfg.model, suspended)?.floating()?;
+        let model = mj
+            .load_on(&cfg.model, suspended)?
+            .with_integrator(cfg.integrator.map(|i| i.mj()))?
+            .floating()?;
         f(&model)
     })
 }

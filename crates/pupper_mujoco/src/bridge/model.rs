@@ -68,6 +68,7 @@ impl<'py> Mujoco<'py> {
             info,
             layout: None,
             suspended,
+            integrator: None,
             variants: RefCell::new(Vec::new()),
         })
     }
@@ -149,6 +150,8 @@ pub struct LoadedModel<'py> {
     pub(crate) layout: Option<Layout>,
     /// Hung in the air: base fixed, no contacts.
     suspended: bool,
+    /// MuJoCo's integrator asked for instead of the model's (`mjtIntegrator`).
+    integrator: Option<i64>,
     /// Compiled body variants by (leg_scale, torso_mass_scale) bits.
     variants: RefCell<Vec<Variant<'py>>>,
 }
@@ -165,6 +168,20 @@ impl<'py> LoadedModel<'py> {
             false => Layout::floating(&self.info)?,
             true => Layout::suspended(&self.info)?,
         });
+        Ok(self)
+    }
+
+    /// The model run with MuJoCo's integrator `integrator`
+    /// (`mjtIntegrator`), its variants too; None keeps the model's own.
+    pub fn with_integrator(mut self, integrator: Option<i64>) -> Result<LoadedModel<'py>> {
+        if let Some(i) = integrator {
+            self.model
+                .getattr("opt")
+                .and_then(|o| o.setattr("integrator", i))
+                .internal()?;
+            self.info.integrator = i;
+            self.integrator = Some(i);
+        }
         Ok(self)
     }
 
@@ -308,6 +325,12 @@ impl<'py> LoadedModel<'py> {
         };
         scale_spec(&spec, base_name, leg_scale, &torso).internal()?;
         let model = self.mj.compile(&self.source, &spec)?;
+        if let Some(i) = self.integrator {
+            model
+                .getattr("opt")
+                .and_then(|o| o.setattr("integrator", i))
+                .internal()?;
+        }
         self.variants.borrow_mut().push((key, model.clone()));
         Ok(model)
     }

@@ -190,11 +190,12 @@ fn response_header(config: &SweepConfig) -> Vec<String> {
     h
 }
 
-/// The worst status of a set: diverged, then saturated, then ok.
+/// The worst status of a set: diverged, fell, past the bound, saturated, ok.
 fn worst(statuses: impl Iterator<Item = Status>) -> Status {
     let rank = |s: Status| match s {
-        Status::Diverged => 3,
-        Status::Fell => 2,
+        Status::Diverged => 4,
+        Status::Fell => 3,
+        Status::PastBound => 2,
         Status::Saturated => 1,
         Status::Ok => 0,
     };

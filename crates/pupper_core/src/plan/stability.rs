@@ -1,0 +1,140 @@
+//! Whether a cell's gains lie past the stability bound of the PD as the
+//! integrator computes it at the cell's timestep. Past it a cell's numbers
+//! describe the integrator (chatter at the torque limit, or divergence),
+//! not a robot: such a cell is marked `past_bound` and never ranked.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::math::response::{explicit_pd_margin, implicit_damping_pd_margin};
+use crate::plan::config::SweepConfig;
+use crate::plan::grid::Cell;
+use crate::plan::mode::Mode;
+use crate::robot::model::ModelInfo;
+
+/// MuJoCo's integrators, by their names in MJCF (`<option integrator=>`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Integrator {
+    Euler,
+    Rk4,
+    Implicit,
+    Implicitfast,
+}
+
+impl Integrator {
+    const NAMES: [(&str, Integrator); 4] = [
+        ("euler", Integrator::Euler),
+        ("rk4", Integrator::Rk4),
+        ("implicit", Integrator::Implicit),
+        ("implicitfast", Integrator::Implicitfast),
+    ];
+
+    pub fn parse(name: &str) -> Result<Integrator> {
+        let n = name.trim().to_ascii_lowercase();
+        Integrator::NAMES
+            .iter()
+            .find(|(k, _)| *k == n)
+            .map(|(_, i)| *i)
+            .ok_or_else(|| {
+                Error::Config(format!(
+                    "--integrator {name} is unknown: use euler, implicitfast, implicit or rk4"
+                ))
+            })
+    }
+
+    /// MuJoCo's `mjtIntegrator` value.
+    pub fn mj(self) -> i64 {
+        match self {
+            Integrator::Euler => 0,
+            Integrator::Rk4 => 1,
+            Integrator::Implicit => 2,
+            Integrator::Implicitfast => 3,
+        }
+    }
+}
+
+/// How the integrator takes the PD's damping term.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Damping {
+    /// From the state at the start of the step: MuJoCo's Euler on a
+    /// servo's velocity gain, and torque mode's PD (computed in Rust).
+    Explicit,
+    /// Implicitly (MuJoCo's `implicit` and `implicitfast` on a servo).
+    Implicit,
+}
+
+impl Damping {
+    /// How a run in `mode` on a model whose integrator is `integrator`
+    /// (MuJoCo's `mjtIntegrator`: 0 Euler, 1 RK4, 2 implicit, 3
+    /// implicitfast) takes the damping; None for RK4, for which pupper
+    /// states no bound.
+    pub fn of(mode: Mode, integrator: i64) -> Option<Damping> {
+        match (mode, integrator) {
+            (Mode::Torque, _) | (Mode::Servo, 0) => Some(Damping::Explicit),
+            (Mode::Servo, 2 | 3) => Some(Damping::Implicit),
+            _ => None,
+        }
+    }
+
+    /// The margin of one joint of inertia `inertia` (kg·m²): 1 or more is
+    /// past the bound.
+    pub fn margin(self, inertia: f64, kp: f64, kd: f64, timestep: f64) -> f64 {
+        match self {
+            Damping::Explicit => explicit_pd_margin(inertia, kp, kd, timestep),
+            Damping::Implicit => implicit_damping_pd_margin(inertia, kp, kd, timestep),
+        }
+    }
+}
+
+/// Each actuator's margin in `cell` at its nominal gains and timestep, from
+/// the joints' reflected inertias at the start pose (`inertia`, ctrl order).
+pub fn cell_margins(
+    cfg: &SweepConfig,
+    info: &ModelInfo,
+    inertia: &[f64],
+    cell: &Cell,
+    damping: Damping,
+) -> Vec<f64> {
+    let s = cfg.setup(cell, info);
+    let dt = s.timestep.unwrap_or(info.timestep);
+    (0..info.nu.min(inertia.len()))
+        .map(|a| damping.margin(inertia[a], s.kp(a), s.kd(a), dt))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn integrators_by_their_mjcf_names() {
+        assert_eq!(Integrator::parse("implicitfast").unwrap().mj(), 3);
+        assert_eq!(Integrator::parse(" Euler ").unwrap().mj(), 0);
+        assert_eq!(Integrator::parse("rk4").unwrap().mj(), 1);
+        let e = Integrator::parse("leapfrog").unwrap_err().to_string();
+        assert!(
+            e.contains("leapfrog is unknown") && e.contains("implicitfast"),
+            "{e}"
+        );
+        assert_eq!(
+            serde_json::to_string(&Integrator::Implicitfast).unwrap(),
+            "\"implicitfast\""
+        );
+    }
+
+    #[test]
+    fn the_integrator_decides_how_damping_is_taken() {
+        assert_eq!(Damping::of(Mode::Servo, 0), Some(Damping::Explicit));
+        assert_eq!(Damping::of(Mode::Servo, 3), Some(Damping::Implicit));
+        assert_eq!(Damping::of(Mode::Servo, 2), Some(Damping::Implicit));
+        // the Rust PD is explicit whatever MuJoCo integrates
+        assert_eq!(Damping::of(Mode::Torque, 3), Some(Damping::Explicit));
+        assert_eq!(Damping::of(Mode::Servo, 1), None);
+        // Pupper's knee (I = 1.816e-3) at kp 120 / kd 2, h = 2 ms: past the
+        // bound explicitly (b = 2.2), well inside it with implicit damping
+        let (i, h) = (1.816e-3, 0.002);
+        assert!(Damping::Explicit.margin(i, 120.0, 2.0, h) > 1.0);
+        assert!(Damping::Implicit.margin(i, 120.0, 2.0, h) < 0.05);
+    }
+}
