@@ -15,6 +15,10 @@ from conftest import read_csv
 pc = pytest.importorskip("pupper_core")
 
 
+def _rows(res) -> list[dict]:
+    return [res.row(i) for i in range(len(res))]
+
+
 def _past(kp: float, kd: float, model: str = "pupper_v3") -> bool:
     """Past the explicit PD's bound on some joint, by `pupper gains`."""
     return max(j["stability_margin"] for j in pc.gains(model, kp=kp, kd=kd)["joints"]) >= 1.0
@@ -41,10 +45,10 @@ def test_cells_past_the_bound_are_marked_and_never_picked(run, tmp_path: Path) -
 def test_implicit_damping_runs_stiff_damped_gains_as_a_finer_step_does(tmp_path: Path) -> None:
     grid = {"kp": [30, 120], "kd": [2, 5]}
     euler = pc.sweep(grid, seconds=4, progress=False)
-    assert {r["status"] for r in euler.rows} == {"past_bound"}
+    assert {r["status"] for r in _rows(euler)} == {"past_bound"}
     fast = pc.sweep(grid, seconds=4, integrator="implicitfast", progress=False)
     fine = pc.sweep({**grid, "timestep": [0.0002]}, seconds=4, progress=False)
-    for f, g in zip(fast.rows, fine.rows):
+    for f, g in zip(_rows(fast), _rows(fine)):
         # no chatter: off the torque limit, and ranked
         assert f["status"] == "ok" and f["saturation_frac"] < 0.005, f
         # Euler at a tenth of the step agrees to a tenth of a millimetre of
@@ -58,7 +62,7 @@ def test_implicit_damping_runs_stiff_damped_gains_as_a_finer_step_does(tmp_path:
     import json
 
     assert json.loads((out / "manifest.json").read_text())["config"]["integrator"] == "implicitfast"
-    assert pc.load_run(out).rows[0]["status"] == "ok"
+    assert pc.load_run(out).row(0)["status"] == "ok"
 
 
 def test_a_bad_integrator_is_one_line(run, tmp_path: Path) -> None:
@@ -69,7 +73,7 @@ def test_a_bad_integrator_is_one_line(run, tmp_path: Path) -> None:
 
 def test_a_response_marks_the_joints_past_the_bound(tmp_path: Path) -> None:
     res = pc.response({"kp": [5], "kd": [0.1, 2]}, seconds=1, joints="kfe", progress=False)
-    joints = res.tables["response"]
+    joints = _rows(res.tables["response"])
     for r in joints:
         assert (r["status"] == "past_bound") == (float(r["stability_margin"]) >= 1.0), r
     assert {r["status"] for r in joints if float(r["kd"]) == 2} == {"past_bound"}

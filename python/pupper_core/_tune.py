@@ -1021,8 +1021,8 @@ def _unranked(res: TuneResult) -> str:
     counts = Counter(str(r["status"]) for r in res.trials)
     by_status = ", ".join(f"{n} {said(s)}" for s, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
     return (f"no trial could be ranked: {by_status}; each was told the penalty, so none is a best and "
-            "best.json is empty: search where the robot stands (a trial that fell, diverged or saturated is "
-            f"never ranked), with a schedule that measures {'/'.join(res.objectives)}")
+            "best.json is empty: search where the robot stands, off the torque limits and inside the "
+            f"stability bound (a trial that fell, diverged, saturated or lay past the bound is never ranked), with a schedule that measures {'/'.join(res.objectives)}")
 
 
 def _resume_args(a: dict[str, Any]) -> dict[str, Any]:

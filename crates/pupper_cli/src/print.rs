@@ -329,6 +329,17 @@ fn edges(s: &mut String, o: &SweepOutcome, best: usize) {
         .iter()
         .position(|h| h == "final_z")
         .unwrap_or(o.header.len());
+    // only a product grid has edges: named cells one by one (a preset)
+    // are no range
+    let distinct = |c: usize| {
+        let mut v: Vec<&str> = o.rows.iter().map(|r| r[c].as_str()).collect();
+        v.sort_unstable();
+        v.dedup();
+        v.len()
+    };
+    if (3..end).map(distinct).product::<usize>() != o.rows.len() {
+        return;
+    }
     let mut said = Vec::new();
     for c in 3..end {
         let values: Vec<f64> = o.rows.iter().filter_map(|r| r[c].parse().ok()).collect();
@@ -557,7 +568,7 @@ pub fn best(
             _ => {
                 let _ = writeln!(
                     s,
-                    "  {key:<24} no eligible cell: all {} fell, diverged, saturated or have no {}",
+                    "  {key:<24} no eligible cell: all {} fell, diverged, saturated, lie past the stability bound or have no {}",
                     g.cells, rule.metric
                 );
             }
@@ -638,7 +649,7 @@ pub fn lab(
             None => {
                 let _ = writeln!(
                     s,
-                    "{body:<9} no gains kept it standing (all {} cells fell, diverged or saturated)",
+                    "{body:<9} no gains kept it standing (all {} cells fell, diverged, saturated or lie past the stability bound)",
                     g.cells
                 );
             }

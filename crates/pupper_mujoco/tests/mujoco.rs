@@ -76,6 +76,7 @@ fn stand_needs_a_floating_base() {
 
 fn small_sweep(mode: Mode, threads: usize, chunk_cells: usize) -> Vec<CellResult> {
     let cfg = SweepConfig {
+        integrator: None,
         model: builtin("pupper_v3"),
         grid: Grid::parse(&["kp=10,60", "kd=0.5,2"]).unwrap(),
         // 4 s: the push at 2 s and the 1.5 s after it fit
@@ -158,6 +159,7 @@ fn body_variants_change_the_stance() {
     init();
     // leg_scale and torso_mass_scale give per-cell models (set_models)
     let cfg = SweepConfig {
+        integrator: None,
         model: builtin("pupper_v3"),
         grid: Grid::parse(&["leg_scale=1,1.5", "torso_mass_scale=1,2"]).unwrap(),
         schedule: Schedule {
@@ -191,6 +193,7 @@ fn a_cluster_task_gives_the_local_numbers_or_refuses() {
     use pupper_core::sim::cluster::{self, Job, Outcome, Task};
     init();
     let cfg = SweepConfig {
+        integrator: None,
         model: builtin("pupper_v3"),
         grid: Grid::parse(&["kp=10,60", "kd=0.5,2"]).unwrap(),
         schedule: Schedule {

@@ -144,7 +144,7 @@ pub(crate) fn pythonic(msg: &str) -> String {
         ("trace", "trace=True"),
         ("no-push", "push=False"),
     ];
-    const NAMED: [&str; 3] = ["model", "preset", "keyframe"];
+    const NAMED: [&str; 4] = ["model", "preset", "keyframe", "integrator"];
     let words: Vec<&str> = msg.split(' ').collect();
     let mut out: Vec<String> = Vec::with_capacity(words.len());
     let mut quoted = false;

@@ -7,12 +7,12 @@ use crate::error::{Error, Result};
 use crate::plan::backend::Backend;
 use crate::plan::experiment::Experiment;
 use crate::plan::grid::{Axis, Cell, Grid};
+use crate::plan::integrator::Integrator;
 use crate::plan::mode::Mode;
 use crate::plan::motor::Motor;
 use crate::plan::randomize::{Draws, Replicates};
 use crate::plan::schedule::Schedule;
 use crate::plan::setup::CellSetup;
-use crate::plan::stability::Integrator;
 use crate::robot::model::{ModelInfo, ModelSource};
 
 /// Values used for any axis the grid does not vary.

@@ -3,56 +3,11 @@
 //! describe the integrator (chatter at the torque limit, or divergence),
 //! not a robot: such a cell is marked `past_bound` and never ranked.
 
-use serde::{Deserialize, Serialize};
-
-use crate::error::{Error, Result};
 use crate::math::response::{explicit_pd_margin, implicit_damping_pd_margin};
 use crate::plan::config::SweepConfig;
 use crate::plan::grid::Cell;
 use crate::plan::mode::Mode;
 use crate::robot::model::ModelInfo;
-
-/// MuJoCo's integrators, by their names in MJCF (`<option integrator=>`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Integrator {
-    Euler,
-    Rk4,
-    Implicit,
-    Implicitfast,
-}
-
-impl Integrator {
-    const NAMES: [(&str, Integrator); 4] = [
-        ("euler", Integrator::Euler),
-        ("rk4", Integrator::Rk4),
-        ("implicit", Integrator::Implicit),
-        ("implicitfast", Integrator::Implicitfast),
-    ];
-
-    pub fn parse(name: &str) -> Result<Integrator> {
-        let n = name.trim().to_ascii_lowercase();
-        Integrator::NAMES
-            .iter()
-            .find(|(k, _)| *k == n)
-            .map(|(_, i)| *i)
-            .ok_or_else(|| {
-                Error::Config(format!(
-                    "--integrator {name} is unknown: use euler, implicitfast, implicit or rk4"
-                ))
-            })
-    }
-
-    /// MuJoCo's `mjtIntegrator` value.
-    pub fn mj(self) -> i64 {
-        match self {
-            Integrator::Euler => 0,
-            Integrator::Rk4 => 1,
-            Integrator::Implicit => 2,
-            Integrator::Implicitfast => 3,
-        }
-    }
-}
 
 /// How the integrator takes the PD's damping term.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -106,22 +61,6 @@ pub fn cell_margins(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn integrators_by_their_mjcf_names() {
-        assert_eq!(Integrator::parse("implicitfast").unwrap().mj(), 3);
-        assert_eq!(Integrator::parse(" Euler ").unwrap().mj(), 0);
-        assert_eq!(Integrator::parse("rk4").unwrap().mj(), 1);
-        let e = Integrator::parse("leapfrog").unwrap_err().to_string();
-        assert!(
-            e.contains("leapfrog is unknown") && e.contains("implicitfast"),
-            "{e}"
-        );
-        assert_eq!(
-            serde_json::to_string(&Integrator::Implicitfast).unwrap(),
-            "\"implicitfast\""
-        );
-    }
 
     #[test]
     fn the_integrator_decides_how_damping_is_taken() {
