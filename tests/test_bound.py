@@ -83,9 +83,13 @@ def test_the_lab_and_tune_never_pick_past_the_bound(tmp_path: Path) -> None:
     lab = pc.lab(seconds=3, progress=False)
     picks = [r for r in lab.best(by=["variant"]) if r is not None]
     assert picks, "the lab picked nothing"
-    # torque mode: the Rust PD is explicit, whatever the integrator
+    # each body is checked on its own inertias (long legs weigh more on
+    # their joints): the original's against `pupper gains` on the model
+    # (torque mode: the Rust PD is explicit), every pick inside its bound
     for r in picks:
-        assert not _past(float(r["kp"]), float(r["kd"])), r
+        assert r["status"] == "ok", r
+        if r["variant"] == "original":
+            assert not _past(float(r["kp"]), float(r["kd"])), r
     pytest.importorskip("optuna")
     t = pc.tune(["kp=5:120:log", "kd=0.05:2:log"], trials=16, batch=8, seconds=3, progress=False)
     best = t.best[0]["params"]

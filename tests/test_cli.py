@@ -168,7 +168,8 @@ def test_lab_grid_run_directory(run, tmp_path):
         (kp, kd) for kp in (10, 30, 60, 120) for kd in (0.5, 1, 2, 5)
     ]
     # every cell stands; Kd 5 chatters at the torque limit
-    assert all(r["status"] == ("saturated" if r["kd"] == "5" else "ok") for r in rows), rows
+    # Kd 2 and 5 lie past the explicit PD's bound at the 2 ms step on every body
+    assert all(r["status"] == ("past_bound" if r["kd"] in ("2", "5") else "ok") for r in rows), rows
     assert all(math.isfinite(float(r["final_z"])) for r in rows)
     m = json.loads((out / "manifest.json").read_text())
     assert m["complete"] is True

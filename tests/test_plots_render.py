@@ -473,15 +473,17 @@ def test_the_heatmap_marks_what_the_cli_names_and_says_what_is_not_ranked(chapte
     table, _, _ = plots.read_run(chapter_grid)
     fig = plots.heatmap(table, "last_1s_std_mm")
     # the star is on the cell `pupper sweep` printed as steadiest (the tie
-    # within 1 um goes to the smaller dip: Kp 120, Kd 2)
-    assert fig.pupper_best == [{"panel": None, "kp": 120.0, "kd": 2.0,
-                                "last_1s_std_mm": pytest.approx(float(table["last_1s_std_mm"][14]))}]
+    # within 1 um goes to the smaller dip among the cells inside the
+    # stability bound: Kp 120, Kd 1)
+    assert fig.pupper_best == [{"panel": None, "kp": 120.0, "kd": 1.0,
+                                "last_1s_std_mm": pytest.approx(float(table["last_1s_std_mm"][13]))}]
     ax = fig.axes[0]
-    # the four chattering Kd 5 cells are hatched and say so
-    hatched = [p for p in ax.patches if isinstance(p, Rectangle) and p.get_gid() == "saturated"]
-    assert len(hatched) == 4
+    # the eight Kd 2 and 5 cells, past the stability bound, are hatched and
+    # say so
+    hatched = [p for p in ax.patches if isinstance(p, Rectangle) and p.get_gid() == "past_bound"]
+    assert len(hatched) == 8
     texts = [t.get_text() for t in ax.texts]
-    assert sum("saturated" in t for t in texts) == 4
+    assert sum("past bound" in t for t in texts) == 8
     # one number format: micrometres, "<0.001" below; never 9.42e-06
     assert not any("e-" in t for t in texts), texts
     assert "<0.001" in texts
@@ -505,9 +507,10 @@ def test_base_z_tells_cells_apart_and_shows_the_dip(chapter_grid: Path) -> None:
     lo, hi = whole.get_ylim()
     assert hi < 140 and hi - lo < 15, (lo, hi)
     assert "off the top" in whole.get_title()
-    # chattering cells are dashed and set no range
+    # cells past the stability bound (the chattering Kd 5 ones among them)
+    # are dashed and set no range
     dashed = [line for line in lines if line.get_linestyle() == "--"]
-    assert len(dashed) == 4
+    assert len(dashed) == 8
 
 
 def test_lab_figures_name_the_disturbance_number_the_cells_and_hint_at_the_edge(run, tmp_path: Path) -> None:

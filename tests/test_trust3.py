@@ -32,6 +32,13 @@ def test_paths_that_are_not_utf8_reach_excite_and_tune_intact(run, tmp_path: Pat
     _no_panic(p)
     assert p.returncode == 0, p.stderr
     assert os.path.isfile(os.fsencode(log))
+    pytest.importorskip("scipy")  # the fit extra
+    fit = _odd(tmp_path, b"fit\xfd")
+    # what it prints names the log by its bytes
+    p = run("fit", log, "--params", "armature", "--max-iters", "2", "-o", fit, errors="replace")
+    _no_panic(p)
+    assert p.returncode == 0, p.stderr
+    assert os.path.isfile(os.fsencode(fit) + b"/fit.csv") and os.path.isfile(os.fsencode(fit) + b"/report.html")
     out = _odd(tmp_path, b"tune\xfe")
     p = run("tune", "--space", "kp=5:50", "--trials", "2", "--batch", "2", "--seconds", "1", "--no-push",
             "-q", "-o", out)

@@ -1112,27 +1112,35 @@ def _whitening(residual_fn: Any, opt: Any, nu: int, sensors: list[int]) -> np.nd
 
 def _write_run(out: Path, res: FitResult, pb: _Problem, sol: _Solution, model: Any, names: list[str], per: str,
                force: bool, plot: bool) -> None:
-    """The run directory; a run stopped or failing while it writes leaves
-    none of its files (nor the directory, if it made it)."""
+    """The run directory, written beside it first and moved in at the end:
+    a run stopped or failing while it writes leaves the directory as it was
+    (a --force run's earlier files too), or none if it made it."""
     made = not out.exists()
-    wrote: list[Path] = []
+    stage = out.parent / f".{out.name}.partial{os.getpid()}"
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        _write(out, res, pb, sol.x, model, names, per)
+        shutil.rmtree(stage, ignore_errors=True)
+        stage.mkdir(parents=True)
+        _write(stage, res, pb, sol.x, model, names, per)
         if plot:
-            wrote += _plot(out, pb, sol)
+            _plot(stage, pb, sol)
+        out.mkdir(parents=True, exist_ok=True)
+        for f in sorted(stage.rglob("*")):
+            if f.is_file():
+                dest = out / f.relative_to(stage)
+                dest.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(f, dest)
         from pupper_core import _report
 
         _report.report(out)
     except BaseException as e:
-        for f in [out / n for n in RUN_FILES] + wrote + [out / "plots" / f"fit_{lg.path.stem}.png" for lg in pb.logs]:
-            f.unlink(missing_ok=True)
         if made:
             shutil.rmtree(out, ignore_errors=True)
         if isinstance(e, OSError):
             raise FitError(f"cannot write the run directory {out} ({e.strerror or e}): check the path, its "
                            "permissions and the free space") from None
         raise
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
 
 
 def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, names: list[str], per: str) -> None:
@@ -1143,7 +1151,7 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
     robot, logs = pb.robot, pb.logs
 
     def table(tmp: Path) -> None:
-        with tmp.open("w", newline="") as f:
+        with tmp.open("w", newline="", errors="surrogateescape") as f:
             w = csv.writer(f, lineterminator="\n")
             w.writerow(["parameter", "actuators", "nominal", "fitted", "low95", "high95", "unit"])
             for r in res.table:
@@ -1153,7 +1161,7 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
     atomic_write(out / "fit.csv", table)
 
     def residuals(tmp: Path) -> None:
-        with tmp.open("w", newline="") as f:
+        with tmp.open("w", newline="", errors="surrogateescape") as f:
             w = csv.writer(f, lineterminator="\n")
             w.writerow(["log", "actuator", "rms_before_rad", "rms_after_rad"])
             for lg in logs:
@@ -1181,7 +1189,8 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
 
 
 def _write_text(path: Path, text: str) -> None:
-    path.write_text(text)
+    # a log's name that is not UTF-8 keeps its bytes
+    path.write_text(text, errors="surrogateescape")
 
 
 def _write_warnings(out: Path, res: FitResult) -> None:
@@ -1196,7 +1205,7 @@ def _write_warnings(out: Path, res: FitResult) -> None:
     names = sorted((r["parameter"] for r in res.table), key=len, reverse=True)
 
     def write(tmp: Path) -> None:
-        with tmp.open("w", newline="") as f:
+        with tmp.open("w", newline="", errors="surrogateescape") as f:
             w = csv.writer(f, lineterminator="\n")
             w.writerow(["parameter", "warning"])
             for text in res.warnings:

@@ -63,7 +63,8 @@ svg text { font-family: system-ui, sans-serif; }
 def _read(path: Path) -> tuple[list[str], list[dict[str, str]]]:
     if not path.is_file():
         return [], []
-    with path.open(newline="") as f:
+    # a log's name that is not UTF-8 stands in a fit's tables as its bytes
+    with path.open(newline="", errors="surrogateescape") as f:
         r = csv.DictReader(f)
         return list(r.fieldnames or []), list(r)
 

@@ -496,6 +496,10 @@ def tune(
         _check_fresh(out_dir, force)
     made = not out_dir.exists()
     with _locked(out_dir):
+        if not resume:
+            # again under the lock: a tune that ended between the first
+            # check and the lock has left a study here
+            _check_fresh(out_dir, force)
         study = _resumed(optuna, out_dir, plan) if resume else _started(optuna, out_dir, plan, force)
         try:
             spent = _search(optuna, study, plan, out_dir, say)
@@ -530,7 +534,8 @@ def _result(study: Any, plan: _Plan, out_dir: Path | None, spent: int) -> TuneRe
 
 def _is_ours_to_ignore(name: str) -> bool:
     """The lock, and the temporary files a killed writer left: not a study."""
-    return name == LOCK or name.startswith(".") and name.endswith(".tmp")
+    # atomic_write's temporary files are `.NAME.tmpPID`
+    return name == LOCK or name.startswith(".") and ".tmp" in name
 
 
 def _check_fresh(out_dir: Path, force: bool) -> None:
@@ -623,7 +628,7 @@ def _discard(out_dir: Path, made: bool) -> None:
 
 def _started(optuna: Any, out_dir: Path, plan: _Plan, force: bool) -> Any:
     if force:
-        for name in STUDY_FILES:
+        for name in (*STUDY_FILES, "report.html"):
             (out_dir / name).unlink(missing_ok=True)
     # the manifest first: a kill before it leaves no file but the lock, and
     # the same command starts again; a kill at any later moment leaves a

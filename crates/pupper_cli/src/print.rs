@@ -390,7 +390,7 @@ fn counts(s: &mut String, o: &SweepOutcome) {
     if shaky > 0 {
         let _ = writeln!(
             s,
-            "{shaky} cell(s) had replicates that fell or diverged: see failure_fraction, and replicates.csv"
+            "{shaky} cell(s) had replicates that fell, diverged or lay past the stability bound: see failure_fraction, and replicates.csv"
         );
     }
     if saturated > 0 {

@@ -13,6 +13,7 @@ use pupper_core::plan::backend::Backend;
 use pupper_core::plan::config::SweepConfig;
 use pupper_core::plan::grid::Cell;
 use pupper_core::plan::mode::Mode;
+use pupper_core::plan::randomize::Quantity;
 use pupper_core::plan::schedule::InitialState;
 use pupper_core::plan::setup::CellSetup;
 use pupper_core::plan::stability::{self, Damping};
@@ -366,6 +367,15 @@ fn start_inertia(
     model: &bridge::LoadedModel<'_>,
     initial: &InitialState,
 ) -> Result<Option<Vec<f64>>> {
+    match start_qpos(model, initial)? {
+        Some(q) => Ok(Some(model.joint_inertia(&q)?)),
+        None => Ok(None),
+    }
+}
+
+/// The qpos of the cells' start pose on the nominal body: the keyframe (or
+/// the model's default) with the start targets in the joints.
+fn start_qpos(model: &bridge::LoadedModel<'_>, initial: &InitialState) -> Result<Option<Vec<f64>>> {
     let info = model.info();
     let Some(layout) = model.layout() else {
         return Ok(None);
@@ -383,38 +393,77 @@ fn start_inertia(
     for (a, &t) in targets.iter().enumerate() {
         q[layout.act_qpos[a]] = t;
     }
-    Ok(Some(model.joint_inertia(&q)?))
+    Ok(Some(q))
 }
 
-/// What marks a run's cells past the stability bound: the joints'
+/// What marks a run's cells past the stability bound: each body's joint
 /// inertias at the start pose and how the integrator takes the damping.
-struct Bound<'a> {
+struct Bound<'a, 'py> {
     cfg: &'a SweepConfig,
-    info: &'a ModelInfo,
-    inertia: Vec<f64>,
+    model: &'a bridge::LoadedModel<'py>,
+    /// The start pose's qpos, where every body's inertias are read.
+    qpos: Vec<f64>,
     damping: Damping,
+    /// Inertias by body (leg_scale, torso_mass_scale bits), as computed.
+    bodies: std::cell::RefCell<Vec<((u64, u64), Vec<f64>)>>,
 }
 
-impl<'a> Bound<'a> {
-    /// None where pupper states no bound (RK4, or no start pose to read the
-    /// inertias at).
-    fn new(
-        cfg: &'a SweepConfig,
-        model: &'a bridge::LoadedModel<'_>,
-        info: &'a ModelInfo,
-    ) -> Option<Bound<'a>> {
+impl<'a, 'py> Bound<'a, 'py> {
+    /// None where pupper states no bound: RK4, no start pose to read the
+    /// inertias at, or torque mode's firmware closing another loop than the
+    /// PD at the physics step (a filtered derivative, a slower update).
+    fn new(cfg: &'a SweepConfig, model: &'a bridge::LoadedModel<'py>) -> Option<Bound<'a, 'py>> {
+        let info = model.info();
         let damping = Damping::of(cfg.mode, info.integrator)?;
-        let inertia = start_inertia(model, &cfg.schedule.initial).ok().flatten()?;
+        let firmware = cfg.mode == Mode::Torque
+            && (cfg.motor.filter.is_some()
+                || cfg
+                    .motor
+                    .rate
+                    .is_some_and(|r| r * info.timestep < 1.0 - 1e-9)
+                || cfg
+                    .replicates
+                    .randomize
+                    .iter()
+                    .any(|r| r.quantity == Quantity::MotorFilter));
+        if firmware {
+            return None;
+        }
+        let qpos = start_qpos(model, &cfg.schedule.initial).ok().flatten()?;
         Some(Bound {
             cfg,
-            info,
-            inertia,
+            model,
+            qpos,
             damping,
+            bodies: Default::default(),
         })
     }
 
+    /// Each actuator's margin in `cell`, on the cell's own body (a lab's
+    /// long legs have other inertias than the original's).
     fn margins(&self, cell: &Cell) -> Vec<f64> {
-        stability::cell_margins(self.cfg, self.info, &self.inertia, cell, self.damping)
+        let info = self.model.info();
+        let s = self.cfg.setup(cell, info);
+        let key = (s.leg_scale.to_bits(), s.torso_mass_scale.to_bits());
+        let known = self
+            .bodies
+            .borrow()
+            .iter()
+            .find(|(k, _)| *k == key)
+            .map(|(_, i)| i.clone());
+        let inertia = match known {
+            Some(i) => i,
+            None => {
+                let i = self
+                    .model
+                    .variant(s.leg_scale, s.torso_mass_scale)
+                    .and_then(|body| self.model.body_joint_inertia(&body, &self.qpos))
+                    .unwrap_or_default();
+                self.bodies.borrow_mut().push((key, i.clone()));
+                i
+            }
+        };
+        stability::cell_margins(self.cfg, info, &inertia, cell, self.damping)
     }
 
     fn mark(&self, r: &mut CellResult) {
@@ -437,7 +486,11 @@ impl<'a> Bound<'a> {
             if m >= 1.0 {
                 past += 1;
                 if worst.as_ref().is_none_or(|w| m > w.0) {
-                    worst = Some((m, cell.id.clone(), self.info.actuators[a].name.clone()));
+                    worst = Some((
+                        m,
+                        cell.id.clone(),
+                        self.model.info().actuators[a].name.clone(),
+                    ));
                 }
             }
         }
@@ -543,7 +596,7 @@ struct WriterHooks<'a> {
     steps: std::collections::BTreeMap<usize, u64>,
     /// Marks cells past the stability bound before they are written (here,
     /// where a local run's cells and a cluster's meet).
-    bound: Option<&'a Bound<'a>>,
+    bound: Option<&'a dyn Fn(&mut CellResult)>,
 }
 
 impl Hooks for WriterHooks<'_> {
@@ -561,7 +614,7 @@ impl Hooks for WriterHooks<'_> {
                     .iter()
                     .cloned()
                     .map(|mut r| {
-                        b.mark(&mut r);
+                        b(&mut r);
                         r
                     })
                     .collect();
@@ -603,8 +656,9 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
         let info = model.info();
         // a response run's joints, named on this compiled model
         let cfg = &resolved(cfg, model)?;
-        let bound = Bound::new(cfg, model, info);
+        let bound = Bound::new(cfg, model);
         let unstable = bound.as_ref().and_then(Bound::note);
+        let mark = bound.as_ref().map(|b| move |r: &mut CellResult| b.mark(r));
         // hung in the air, a response run needs no floor
         let standing = !cfg.experiment.plan().suspended();
         let note = check_start(info, &cfg.schedule.initial, standing)?;
@@ -715,7 +769,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                 ui: ui.hooks(),
                 writer: &mut writer,
                 steps: Default::default(),
-                bound: bound.as_ref(),
+                bound: mark.as_ref().map(|m| m as &dyn Fn(&mut CellResult)),
             };
             let r = match (&physics, &mut cluster) {
                 (Some(physics), _) => {

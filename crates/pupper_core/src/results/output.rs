@@ -110,16 +110,17 @@ pub fn replicate_row(cell: &Cell, replicate: usize, drawn: &[f64], m: &Metrics) 
 pub fn robust_row(cell: &Cell, runs: &[&Metrics]) -> Vec<String> {
     let mut r = vec![cell.index.to_string(), cell.id.clone(), cell.name.clone()];
     r.extend(cell.values.iter().map(|(a, v)| a.text(*v)));
-    let up: Vec<&Metrics> = runs.iter().copied().filter(|m| m.status.stood()).collect();
+    // a robot past the stability bound counts as failed: its figures
+    // describe the integrator, so they are not aggregated and the cell is
+    // never ranked (no robot was past it before the bound was marked)
+    let up: Vec<&Metrics> = runs
+        .iter()
+        .copied()
+        .filter(|m| m.status.stood() && m.status != crate::sim::metrics::Status::PastBound)
+        .collect();
     r.push(runs.len().to_string());
     let failed = (runs.len() - up.len()) as f64 / runs.len().max(1) as f64;
     r.push(fmt_f64(failed));
-    // the figures of robots past the stability bound describe the
-    // integrator: they are not aggregated (so the cell is never ranked)
-    let up: Vec<&Metrics> = up
-        .into_iter()
-        .filter(|m| m.status != crate::sim::metrics::Status::PastBound)
-        .collect();
     for name in aggregated() {
         let mut xs: Vec<f64> = up.iter().map(|m| m.get(name).unwrap_or(f64::NAN)).collect();
         if xs.is_empty() || xs.iter().any(|x| !x.is_finite()) {

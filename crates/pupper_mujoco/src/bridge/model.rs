@@ -277,6 +277,11 @@ impl<'py> LoadedModel<'py> {
     /// Each actuated joint's reflected inertia at `qpos`: the joint-space
     /// inertia matrix's diagonal (armature included), in ctrl order.
     pub fn joint_inertia(&self, qpos: &[f64]) -> Result<Vec<f64>> {
+        self.body_joint_inertia(&self.model, qpos)
+    }
+
+    /// [`LoadedModel::joint_inertia`] on one of its bodies (a [`LoadedModel::variant`]).
+    pub fn body_joint_inertia(&self, body: &Bound<'py, PyAny>, qpos: &[f64]) -> Result<Vec<f64>> {
         let layout = self
             .layout
             .as_ref()
@@ -284,16 +289,16 @@ impl<'py> LoadedModel<'py> {
         let nv = self.info.nv;
         let diag = (|| -> PyResult<Vec<f64>> {
             let m = &self.mj.module;
-            let data = m.getattr("MjData")?.call1((&self.model,))?;
+            let data = m.getattr("MjData")?.call1((body,))?;
             let q = data.getattr("qpos")?;
             for (i, v) in qpos.iter().enumerate() {
                 q.set_item(i, *v)?;
             }
-            m.getattr("mj_forward")?.call1((&self.model, &data))?;
+            m.getattr("mj_forward")?.call1((body, &data))?;
             let np = PyModule::import(self.mj.py, "numpy")?;
             let dense = np.getattr("zeros")?.call1(((nv, nv),))?;
             // mujoco 4: mj_fullM(m, d, dst) reads d's sparse inertia itself
-            m.getattr("mj_fullM")?.call1((&self.model, &data, &dense))?;
+            m.getattr("mj_fullM")?.call1((body, &data, &dense))?;
             np.getattr("diag")?
                 .call1((dense,))?
                 .call_method0("tolist")?
