@@ -396,6 +396,9 @@ fn start_qpos(model: &bridge::LoadedModel<'_>, initial: &InitialState) -> Result
     Ok(Some(q))
 }
 
+/// A body by the bits of its (leg_scale, torso_mass_scale).
+type BodyKey = (u64, u64);
+
 /// What marks a run's cells past the stability bound: each body's joint
 /// inertias at the start pose and how the integrator takes the damping.
 struct Bound<'a, 'py> {
@@ -404,8 +407,8 @@ struct Bound<'a, 'py> {
     /// The start pose's qpos, where every body's inertias are read.
     qpos: Vec<f64>,
     damping: Damping,
-    /// Inertias by body (leg_scale, torso_mass_scale bits), as computed.
-    bodies: std::cell::RefCell<Vec<((u64, u64), Vec<f64>)>>,
+    /// Inertias by body, as computed.
+    bodies: std::cell::RefCell<Vec<(BodyKey, Vec<f64>)>>,
 }
 
 impl<'a, 'py> Bound<'a, 'py> {
