@@ -98,3 +98,20 @@ def test_the_lab_and_tune_never_pick_past_the_bound(tmp_path: Path) -> None:
     for row in t.trials:
         if _past(row["kp"], row["kd"]):
             assert row["status"] == "past_bound" and row[t.objectives[0]] >= 1e6, row
+
+
+def test_gains_states_the_bound_of_the_integrator_asked_for(run) -> None:
+    explicit = pc.gains(kp=120, kd=2)
+    implicit = pc.gains(kp=120, kd=2, integrator="implicitfast")
+    assert "implicit_damping" not in explicit and implicit["implicit_damping"] is True
+    for e, i in zip(explicit["joints"], implicit["joints"]):
+        h, inertia = 0.002, e["inertia"]
+        a, b = h * h * 120 / inertia, h * 2 / inertia
+        assert i["stability_margin"] == pytest.approx(a / (4 + 2 * b), rel=1e-12)
+        assert e["stability_margin"] == pytest.approx(max((a + 2 * b) / 4, b / 2), rel=1e-12)
+    assert max(j["stability_margin"] for j in implicit["joints"]) < 1 <= max(
+        j["stability_margin"] for j in explicit["joints"])
+    p = run("gains", "--kp", "120", "--kd", "2", "--integrator", "implicitfast", check=0)
+    assert "damping integrated implicitly" in p.stdout and "PAST" not in p.stdout
+    p = run("gains", "--kp", "120", "--kd", "2", "--integrator", "nope")
+    assert p.returncode == 2 and "--integrator nope is unknown" in p.stderr

@@ -189,3 +189,21 @@ def test_a_model_without_a_floor_is_said(run, tmp_path: Path) -> None:
     p = run("response", "--model", bare, "--seconds", "1", "--joints", "kfe", "-q", "-o", tmp_path / "t",
             check=0)
     assert "ground" not in p.stderr, p.stderr
+
+
+def test_every_run_directory_names_its_kind(run, tmp_path: Path) -> None:
+    import json
+
+    run("sweep", "--seconds", "0.5", "-q", "-o", tmp_path / "s", check=0)
+    run("response", "--seconds", "1", "--joints", "kfe", "-q", "-o", tmp_path / "r", check=0)
+    run("lab", "--grid", "kp=30", "--grid", "kd=0.5", "--variants", "original", "--seconds", "1.5", "-q",
+        "-o", tmp_path / "l", check=0)
+    for d, kind in (("s", "sweep"), ("r", "response"), ("l", "lab")):
+        manifest = json.loads((tmp_path / d / "manifest.json").read_text())
+        assert manifest["kind"] == kind, (d, manifest.get("kind"))
+        from pupper_core import _report
+
+        assert _report._kind(manifest) == kind
+    # a run read back knows how long it took (the manifest says)
+    assert pc.load_run(tmp_path / "s").wall_seconds == json.loads(
+        (tmp_path / "s" / "manifest.json").read_text())["wall_seconds"]

@@ -314,16 +314,18 @@ def response(
 
 def gains(model: str | os.PathLike[str] = "pupper_v3", *, kp: float | None = None, kd: float | None = None,
           bandwidth: float | None = None, damping: float = 0.7,
-          pose: Sequence[float] | None = None) -> dict[str, Any]:
+          pose: Sequence[float] | None = None, integrator: str | None = None) -> dict[str, Any]:
     """Servo gains for a ``bandwidth`` (Hz) and ``damping`` ratio per joint,
     or the natural frequency, damping ratio and stability margin of given
     ``kp`` and ``kd``, from each joint's inertia at ``pose`` (default: the
     stand pose), as `pupper gains --json` prints them. A stability margin
-    of 1 or more is past the bound of an explicitly integrated PD at the
-    model's timestep: the joint chatters or diverges there."""
+    of 1 or more is past the bound of the PD at the model's timestep as
+    ``integrator`` (default: the model's own) takes its damping: the joint
+    chatters or diverges there."""
     return cast("dict[str, Any]", _native.gains(os.fspath(model), kp=kp, kd=kd, bandwidth=bandwidth,
                                                  damping=damping,
-                                                 pose=None if pose is None else [float(q) for q in pose]))
+                                                 pose=None if pose is None else [float(q) for q in pose],
+                                                 integrator=integrator))
 
 
 def pose(model: str | os.PathLike[str] = "pupper_v3", variant: Variant = "original",

@@ -1174,6 +1174,7 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
     xml = _calibrated_xml(robot, pb.labels, x)
     atomic_write(out / "calibrated.xml", lambda tmp: _write_text(tmp, xml))
     manifest = {
+        "kind": "fit",
         "command": "fit",
         "inputs": {"model": str(model), "logs": [{"path": str(lg.path), "sha256": lg.sha256} for lg in logs],
                    "params": names, "per": per},

@@ -93,7 +93,7 @@ class SweepResult:
     complete: bool
     """False when the sweep was interrupted before every cell ran."""
     wall_seconds: float
-    """Seconds the sweep took (NaN for a run read back from disk)."""
+    """Seconds the sweep took (for a run read back from disk, as its manifest says)."""
     config: dict[str, Any]
     """The inputs that decide the numbers, as stored in manifest.json."""
     cell_steps: list[int | None]
@@ -161,7 +161,7 @@ def pose(model: str = ..., variant: str = ..., depth: float | None = ...) -> dic
     """What `pupper pose --json` prints, as a dict."""
 
 def gains(model: str = ..., *, kp: float | None = ..., kd: float | None = ..., bandwidth: float | None = ...,
-          damping: float = ..., pose: list[float] | None = ...) -> dict[str, Any]:
+          damping: float = ..., pose: list[float] | None = ..., integrator: str | None = ...) -> dict[str, Any]:
     """What `pupper gains --json` prints, as a dict."""
 
 def sweep(

@@ -204,7 +204,16 @@ def _table(header: list[str], rows: list[dict[str, str]], best: str | None, key:
     return "".join(out)
 
 
+#: The kinds a manifest names (sweep, lab and response by the Rust core;
+#: tune and fit by their Python drivers).
+KINDS = ("sweep", "lab", "response", "tune", "fit")
+
+
 def _kind(manifest: dict[str, Any]) -> str:
+    kind = manifest.get("kind")
+    if kind in KINDS:
+        return str(kind)
+    # a manifest written before runs named their kind
     if manifest.get("command") == "fit":
         return "fit"
     if "space" in manifest.get("inputs", {}) or manifest.get("kind") == "tune":

@@ -763,8 +763,14 @@ pub fn gains(r: &pupper_core::robot::gains::GainsReport) -> String {
         _ => {
             let _ = writeln!(
                 s,
-                "{}: what the gains give (timestep {} s)",
-                r.model, r.timestep
+                "{}: what the gains give (timestep {} s{})",
+                r.model,
+                r.timestep,
+                if r.implicit_damping {
+                    ", damping integrated implicitly"
+                } else {
+                    ""
+                }
             );
         }
     }

@@ -126,7 +126,11 @@ pub fn gains(
     source: &ModelSource,
     pose: Option<Vec<f64>>,
     ask: pupper_core::robot::gains::Ask,
+    integrator: Option<&str>,
 ) -> Result<pupper_core::robot::gains::GainsReport> {
+    let integrator = integrator
+        .map(pupper_core::plan::integrator::Integrator::parse)
+        .transpose()?;
     use pupper_core::robot::gains::Ask;
     let bad = |what: String| Err(Error::Config(what));
     match ask {
@@ -159,11 +163,16 @@ pub fn gains(
             q[layout.act_qpos[a]] = t;
         }
         let inertia = model.joint_inertia(&q)?;
+        // a servo's damping as the integrator takes it (the model's own, or
+        // the one asked for); torque mode's Rust PD is always explicit
+        let mj_integrator = integrator.map_or(info.integrator, |i| i.mj());
+        let implicit = Damping::of(Mode::Servo, mj_integrator) == Some(Damping::Implicit);
         Ok(pupper_core::robot::gains::report(
             info,
             &inertia,
             info.timestep,
             ask,
+            implicit,
         ))
     })
 }

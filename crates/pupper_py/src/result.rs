@@ -53,7 +53,8 @@ pub struct SweepResult {
     /// False when the sweep was interrupted before every cell ran.
     #[pyo3(get)]
     complete: bool,
-    /// Seconds the sweep took (NaN for a run read back from disk).
+    /// Seconds the sweep took (for a run read back from disk, as its
+    /// manifest says).
     #[pyo3(get)]
     wall_seconds: f64,
     /// The inputs that decide the numbers, as stored in manifest.json.

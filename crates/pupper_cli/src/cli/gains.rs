@@ -16,7 +16,9 @@ force computed from the state at the start of each step, then steps velocity and
 semi-implicitly. With a = h^2 kp / I and b = h kd / I (h the timestep, I the joint's inertia) that
 discrete system is stable exactly when a + 2b < 4 and b < 2 (Jury's test on its characteristic
 polynomial z^2 - (2 - a - b) z + (1 - b)). stability_margin = max((a + 2b)/4, b/2): 1 or more is
-past the bound, where the joint chatters or diverges.
+past the bound, where the joint chatters or diverges. With --integrator implicitfast (or implicit)
+a servo's damping is integrated implicitly: stable exactly when a < 4 + 2b, stability_margin =
+a / (4 + 2b). A sweep marks cells past the bound past_bound and never ranks them.
 
 Examples:
   pupper gains --bandwidth 8 --damping 0.7
@@ -44,6 +46,10 @@ pub(super) struct GainsArgs {
     /// The pose the inertias are read at, one angle per actuator [default: the stand pose].
     #[arg(long, value_name = "Q1,Q2,...", allow_hyphen_values = true)]
     pose: Option<String>,
+    /// MuJoCo's integrator the bound is for: euler, implicitfast, implicit [default: the
+    /// model's own]. Torque mode's PD is explicit whatever the integrator.
+    #[arg(long, value_name = "NAME")]
+    integrator: Option<String>,
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
@@ -68,7 +74,7 @@ impl GainsArgs {
             Some(spec::PoseInput::Angles(p)) => Some(p),
             _ => None,
         };
-        let r = api::gains(&self.model.source()?, pose, ask)?;
+        let r = api::gains(&self.model.source()?, pose, ask, self.integrator.as_deref())?;
         if self.json {
             outln!("{}", print::json(&r)?);
         } else {

@@ -359,6 +359,16 @@ pub fn explicit_pd_margin(inertia: f64, kp: f64, kd: f64, timestep: f64) -> f64 
     ((a + 2.0 * b) / 4.0).max(b / 2.0)
 }
 
+/// [`explicit_pd_margin`], or with `implicit_damping`
+/// [`implicit_damping_pd_margin`].
+pub fn pd_margin(inertia: f64, kp: f64, kd: f64, timestep: f64, implicit_damping: bool) -> f64 {
+    if implicit_damping {
+        implicit_damping_pd_margin(inertia, kp, kd, timestep)
+    } else {
+        explicit_pd_margin(inertia, kp, kd, timestep)
+    }
+}
+
 /// The same margin when the integrator takes the damping implicitly
 /// (MuJoCo's `implicitfast` and `implicit` on a servo's velocity gain):
 /// `I (v' - v) / h = -kp q - kd v'`, `q' = q + h v'` has the characteristic

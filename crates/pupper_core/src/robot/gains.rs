@@ -1,10 +1,11 @@
 //! PD gains from a joint's reflected inertia: what a bandwidth and damping
-//! ratio ask for, what given gains give, and whether an explicitly
-//! integrated PD at the model's timestep is stable.
+//! ratio ask for, what given gains give, and whether the PD at the model's
+//! timestep is stable as the integrator takes its damping (explicitly, or
+//! implicitly as `implicitfast` does for a servo).
 
 use serde::Serialize;
 
-use crate::math::response::{explicit_pd_margin, gains_for, natural};
+use crate::math::response::{gains_for, natural, pd_margin};
 use crate::robot::model::ModelInfo;
 
 /// One actuated joint's figures.
@@ -19,7 +20,8 @@ pub struct JointGains {
     /// The natural frequency (Hz) and damping ratio these gains give.
     pub natural_hz: f64,
     pub damping_ratio: f64,
-    /// [`explicit_pd_margin`] at the timestep: 1 or more is past the bound.
+    /// The stability margin at the timestep ([`pd_margin`]): 1 or more is
+    /// past the bound.
     pub stability_margin: f64,
 }
 
@@ -44,6 +46,9 @@ pub struct GainsReport {
     /// The bandwidth (Hz) and damping ratio asked for, if any.
     pub bandwidth_hz: Option<f64>,
     pub damping: Option<f64>,
+    /// True when the margins take the damping implicitly.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub implicit_damping: bool,
     pub groups: Vec<GroupGains>,
     pub joints: Vec<JointGains>,
 }
@@ -55,8 +60,15 @@ pub enum Ask {
     Gains { kp: f64, kd: f64 },
 }
 
-/// The report for `inertia` (one per actuator, in ctrl order) on `info`.
-pub fn report(info: &ModelInfo, inertia: &[f64], timestep: f64, ask: Ask) -> GainsReport {
+/// The report for `inertia` (one per actuator, in ctrl order) on `info`;
+/// `implicit` when the integrator takes the damping implicitly.
+pub fn report(
+    info: &ModelInfo,
+    inertia: &[f64],
+    timestep: f64,
+    ask: Ask,
+    implicit: bool,
+) -> GainsReport {
     let group = |a: usize| info.actuator_group(a).unwrap_or("other").to_string();
     let gains_of = |i: f64| match ask {
         Ask::Bandwidth { hz, zeta } => gains_for(i, hz, zeta),
@@ -89,7 +101,7 @@ pub fn report(info: &ModelInfo, inertia: &[f64], timestep: f64, ask: Ask) -> Gai
             // lightest is the first past the bound
             let margin = members
                 .iter()
-                .map(|&m| explicit_pd_margin(m, kp, kd, timestep))
+                .map(|&m| pd_margin(m, kp, kd, timestep, implicit))
                 .fold(0.0, f64::max);
             GroupGains {
                 group: g.clone(),
@@ -123,7 +135,7 @@ pub fn report(info: &ModelInfo, inertia: &[f64], timestep: f64, ask: Ask) -> Gai
                 kd,
                 natural_hz,
                 damping_ratio,
-                stability_margin: explicit_pd_margin(inertia[a], kp, kd, timestep),
+                stability_margin: pd_margin(inertia[a], kp, kd, timestep, implicit),
             }
         })
         .collect();
@@ -136,6 +148,7 @@ pub fn report(info: &ModelInfo, inertia: &[f64], timestep: f64, ask: Ask) -> Gai
         timestep,
         bandwidth_hz,
         damping,
+        implicit_damping: implicit,
         groups,
         joints,
     }

@@ -43,7 +43,7 @@ pub(crate) fn pose<'py>(
 /// Gains for a bandwidth, or given gains' margins per joint (what `pupper
 /// gains --json` prints), as a dict.
 #[pyfunction]
-#[pyo3(signature = (model=PathBuf::from("pupper_v3"), *, kp=None, kd=None, bandwidth=None, damping=0.7, pose=None))]
+#[pyo3(signature = (model=PathBuf::from("pupper_v3"), *, kp=None, kd=None, bandwidth=None, damping=0.7, pose=None, integrator=None))]
 pub(crate) fn gains<'py>(
     py: Python<'py>,
     model: PathBuf,
@@ -52,6 +52,7 @@ pub(crate) fn gains<'py>(
     bandwidth: Option<f64>,
     damping: f64,
     pose: Option<Vec<f64>>,
+    integrator: Option<String>,
 ) -> PyResult<Bound<'py, PyAny>> {
     use pupper_core::robot::gains::Ask;
     let ask = match (bandwidth, kp, kd) {
@@ -65,7 +66,10 @@ pub(crate) fn gains<'py>(
         }
     };
     let source = ModelSource::parse(&model.to_string_lossy()).map_err(to_py)?;
-    to_dict(py, &api::gains(&source, pose, ask).map_err(to_py)?)
+    to_dict(
+        py,
+        &api::gains(&source, pose, ask, integrator.as_deref()).map_err(to_py)?,
+    )
 }
 
 /// Stand report (what `pupper stand --json` prints), as a dict. Keyword

@@ -42,7 +42,8 @@ pub(crate) fn load_run(py: Python<'_>, run_dir: PathBuf) -> PyResult<SweepResult
             traces: &run.traces,
             out: Some(&run_dir),
             complete: run.manifest.complete,
-            wall_seconds: f64::NAN,
+            // what the manifest knows (a resumed run's last part)
+            wall_seconds: run.manifest.wall_seconds,
             config: &run.manifest.config,
             cell_steps,
             tables: run.details,
