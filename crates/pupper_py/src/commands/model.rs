@@ -44,6 +44,8 @@ pub(crate) fn pose<'py>(
 /// gains --json` prints), as a dict.
 #[pyfunction]
 #[pyo3(signature = (model=PathBuf::from("pupper_v3"), *, kp=None, kd=None, bandwidth=None, damping=0.7, pose=None, integrator=None))]
+// a keyword per option, as Python calls it
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn gains<'py>(
     py: Python<'py>,
     model: PathBuf,
