@@ -1,7 +1,9 @@
 //! Layer 3, running it: the physics seam, the runner that steps chunks of
 //! cells, what is measured and recorded, and cells sent to a cluster.
 
+pub mod chunk;
 pub mod cluster;
+pub mod firmware;
 pub mod frames;
 pub mod joints;
 pub mod metrics;

@@ -4,18 +4,14 @@
 use std::cell::RefCell;
 
 use crate::error::{Error, Result};
-use crate::math::motor;
 use crate::math::pd;
 use crate::plan::config::SweepConfig;
 use crate::plan::experiment::Experiment;
 use crate::plan::grid::Cell;
 use crate::plan::mode::Mode;
-use crate::plan::motor::Motor;
-use crate::plan::randomize::{Draws, Noise};
-use crate::plan::schedule::Schedule;
-use crate::plan::setup::CellSetup;
 use crate::robot::layout::Layout;
-use crate::robot::model::ModelInfo;
+use crate::sim::chunk::{ChunkPlan, lanes};
+use crate::sim::firmware::Sensing;
 use crate::sim::frames::{FrameRecorder, frame_count};
 use crate::sim::metrics::{Metrics, Recorder};
 use crate::sim::physics::SimBatch;
@@ -257,286 +253,6 @@ impl ChunkState<'_> {
     }
 }
 
-/// Torque-mode simulations stepped together per thread (see `run_chunk`):
-/// measured on a 2-core EPYC (1 MB L2 per core): 32 per thread when
-/// simulations share models, half that when each has its own.
-const TORQUE_LANE_PER_THREAD: usize = 32;
-
-/// What the controller of one simulation worked out for its step: the
-/// largest delivered force, how many actuators were at their limit, and
-/// (servo mode) each actuator's force.
-struct TorqueScratch {
-    peak: f64,
-    nsat: usize,
-    forces: Vec<f64>,
-}
-
-/// What the torque-mode PD of one simulation reads: its joint angles and
-/// velocities `delay` control steps late (the start state until then), the
-/// angles with Gaussian noise.
-struct Sensing {
-    delay: usize,
-    noise: Option<Noise>,
-    /// The last `delay + 1` (angles, velocities) of the actuated joints,
-    /// oldest first.
-    history: std::collections::VecDeque<(Vec<f64>, Vec<f64>)>,
-    /// The servo firmware between the PD and the joint; None: the ideal
-    /// motor (the PD every step on what is read, clipped at the limit).
-    firmware: Option<Firmware>,
-}
-
-/// The firmware of a torque-mode simulation: `--motor`, or a calibrated
-/// model's command delay; None for the ideal motor.
-fn firmware(cfg: &SweepConfig, info: &ModelInfo, dt: f64, d: &Draws) -> Option<Firmware> {
-    // a replicate's draws over --motor
-    let mut motor = cfg.motor.clone();
-    motor.delay = d.motor_delay.unwrap_or(motor.delay);
-    motor.filter = d.motor_filter.or(motor.filter);
-    motor.noload = d.motor_noload.or(motor.noload);
-    let delayed = info.actuators.iter().any(|a| a.delay > 0.0);
-    if motor.is_ideal() && !(delayed && cfg.mode == Mode::Torque) {
-        return None;
-    }
-    let mut f = Firmware::new(&motor, info.nu, dt);
-    if motor.delay == 0.0 && d.motor_delay.is_none() {
-        f.delays = info.actuators.iter().map(|a| a.delay).collect();
-    }
-    Some(f)
-}
-
-/// One simulation's servo firmware ([`Motor`]): the PD updated at its own
-/// rate on the encoder's angle and a filtered derivative, towards the
-/// target of `delay` ago, its torque held between updates and delivered
-/// within the motor's torque–speed band.
-struct Firmware {
-    motor: Motor,
-    /// The update period (s).
-    period: f64,
-    /// The derivative filter's weight of a new sample.
-    alpha: Option<f64>,
-    updates: u64,
-    /// Per actuator: the torque held since the last update, the filtered
-    /// derivative and the last encoder angle (NaN before the first update).
-    held: Vec<f64>,
-    filtered: Vec<f64>,
-    last_angle: Vec<f64>,
-    /// Each actuator's command delay (s).
-    delays: Vec<f64>,
-}
-
-impl Firmware {
-    fn new(motor: &Motor, nu: usize, dt: f64) -> Firmware {
-        let period = motor.period(dt);
-        Firmware {
-            motor: motor.clone(),
-            period,
-            alpha: motor.filter.map(|f| motor::lowpass_alpha(f, period)),
-            updates: 0,
-            held: vec![0.0; nu],
-            filtered: vec![f64::NAN; nu],
-            last_angle: vec![f64::NAN; nu],
-            delays: vec![motor.delay; nu],
-        }
-    }
-
-    /// True when the PD updates on the step starting at time `t`.
-    fn due(&mut self, t: f64) -> bool {
-        let due = match self.motor.rate {
-            None => true,
-            // the k-th update falls at k / rate (a step's start time may
-            // sit a rounding error below it)
-            Some(r) => t * r + 1e-6 >= self.updates as f64,
-        };
-        self.updates += due as u64;
-        due
-    }
-
-    /// A PD update of actuator `a` from the angle and velocity it reads.
-    fn update(&mut self, a: usize, kp: f64, kd: f64, target: f64, q: f64, v: f64) {
-        let (q, v) = match self.motor.counts {
-            Some(c) => {
-                let q = motor::quantize(q, c);
-                let last = self.last_angle[a];
-                self.last_angle[a] = q;
-                // the encoder's difference; the sensor's velocity at first
-                (
-                    q,
-                    if last.is_nan() {
-                        v
-                    } else {
-                        (q - last) / self.period
-                    },
-                )
-            }
-            None => (q, v),
-        };
-        let v = match self.alpha {
-            Some(alpha) => {
-                let f = &mut self.filtered[a];
-                *f = if f.is_nan() { v } else { *f + alpha * (v - *f) };
-                *f
-            }
-            None => v,
-        };
-        self.held[a] = pd::law(kp, kd, target, q, v);
-    }
-
-    /// The torque actuator `a` delivers at joint speed `speed`, and whether
-    /// the limit (`peak` at stall) cut it.
-    fn deliver(&self, a: usize, peak: f64, speed: f64) -> (f64, bool) {
-        let band = match self.motor.noload {
-            Some(w) => motor::speed_band(peak, w, speed),
-            None => (-peak, peak),
-        };
-        motor::clip(self.held[a], band)
-    }
-}
-
-impl Sensing {
-    fn exact(&self) -> bool {
-        self.delay == 0 && self.noise.is_none()
-    }
-
-    /// Records the state just read and returns what the PD sees of
-    /// actuator `a` through `read(a) -> (angle, velocity)`.
-    fn remember(&mut self, layout: &Layout, qpos: &[f64], qvel: &[f64]) {
-        if self.exact() {
-            return;
-        }
-        // the oldest entry's buffers take the newest state
-        let (mut q, mut v) = if self.history.len() > self.delay {
-            self.history.pop_front().unwrap_or_default()
-        } else {
-            Default::default()
-        };
-        q.clear();
-        q.extend(layout.act_qpos.iter().map(|&i| qpos[i]));
-        v.clear();
-        v.extend(layout.act_dof.iter().map(|&i| qvel[i]));
-        self.history.push_back((q, v));
-    }
-
-    /// Actuator `a`'s angle and velocity as the PD reads them.
-    fn read(&mut self, layout: &Layout, a: usize, qpos: &[f64], qvel: &[f64]) -> (f64, f64) {
-        let exact = self.exact();
-        let (q, v) = match self.history.front() {
-            Some((q, v)) if !exact => (q[a], v[a]),
-            _ => (qpos[layout.act_qpos[a]], qvel[layout.act_dof[a]]),
-        };
-        match &mut self.noise {
-            Some(noise) => (q + noise.sample(), v),
-            None => (q, v),
-        }
-    }
-}
-
-/// One simulation of a chunk: a replicate of a cell (of one excited joint,
-/// in a response run).
-struct SimPlan {
-    /// Position of its cell in the chunk.
-    cell: usize,
-    replicate: usize,
-    drawn: Vec<f64>,
-    /// Steps during which it is pushed.
-    push: std::ops::Range<usize>,
-    /// The actuator whose target follows the excitation.
-    excited: Option<usize>,
-}
-
-/// Every simulation of a chunk, cell by cell (then excited joint, then
-/// replicate): its plan, physical setting, schedule and sensing.
-struct ChunkPlan {
-    sims: Vec<SimPlan>,
-    setups: Vec<CellSetup>,
-    schedules: Vec<Schedule>,
-    sensing: Vec<Sensing>,
-}
-
-impl ChunkPlan {
-    fn new(cfg: &SweepConfig, cells: &[&Cell], dt: f64, info: &ModelInfo) -> Result<ChunkPlan> {
-        let schedule = &cfg.schedule;
-        let plan = schedule.plan(dt)?;
-        let per_cell = cfg.sims_per_cell();
-        let reps = &cfg.replicates;
-        let excited = cfg.experiment.plan().excited();
-        let n = cells.len() * per_cell;
-        let mut out = ChunkPlan {
-            sims: Vec::with_capacity(n),
-            setups: Vec::with_capacity(n),
-            schedules: Vec::with_capacity(n),
-            sensing: Vec::with_capacity(n),
-        };
-        for (ci, c) in cells.iter().enumerate() {
-            for &joint in &excited {
-                for r in 0..cfg.replicate_count() {
-                    let d = reps.draws(&c.id, r as u32, info.nu);
-                    let setup = cfg.setup_replicate(c, &d, info);
-                    // a replicate's own push start moves its push window;
-                    // only replicate 0 keeps a trace
-                    let mut own = schedule.clone();
-                    if let (Some(at), Some(p)) = (setup.push_at, own.push.as_mut()) {
-                        p.start = at;
-                    }
-                    if r > 0 {
-                        own.trace_every = 0;
-                    }
-                    let push = match setup.push_at {
-                        Some(_) => own.plan(dt)?.push,
-                        None => plan.push.clone(),
-                    };
-                    out.schedules.push(own);
-                    out.sensing.push(Sensing {
-                        delay: d.delay,
-                        noise: reps.noise(&c.id, r as u32),
-                        history: Default::default(),
-                        firmware: firmware(cfg, info, dt, &d),
-                    });
-                    out.setups.push(setup);
-                    out.sims.push(SimPlan {
-                        cell: ci,
-                        replicate: r,
-                        drawn: d.values,
-                        push,
-                        excited: joint,
-                    });
-                }
-            }
-        }
-        Ok(out)
-    }
-
-    fn len(&self) -> usize {
-        self.sims.len()
-    }
-}
-
-/// Lanes of simulations stepped one after another. Torque mode steps once
-/// per control step; stepping every simulation of a large batch in turn
-/// keeps none of their states in cache (measured: 512 simulations cost
-/// 1.23x the physics of 32), so lanes of a few simulations per thread run
-/// the whole schedule one after another. Simulations are independent, so
-/// the numbers do not depend on it.
-fn lanes(n: usize, per_step: bool, own_models: bool, threads: usize) -> Vec<Vec<usize>> {
-    if !per_step {
-        return vec![(0..n).collect()];
-    }
-    let threads = match threads {
-        0 => std::thread::available_parallelism().map_or(1, |t| t.get()),
-        t => t,
-    };
-    // a simulation with its own model (drawn masses) brings that model
-    // into cache too: half as many fit
-    let per_thread = TORQUE_LANE_PER_THREAD / if own_models { 2 } else { 1 };
-    // lanes of equal size (48 simulations: 24 + 24, not 32 + 16)
-    let most = (per_thread * threads).max(1);
-    let width = n.div_ceil(n.div_ceil(most).max(1)).max(1);
-    (0..n)
-        .collect::<Vec<usize>>()
-        .chunks(width)
-        .map(<[usize]>::to_vec)
-        .collect()
-}
-
 /// The peak |force| of `act` and how many are at their `limits`.
 fn peak_and_saturated(act: &[f64], limits: &[f64]) -> (f64, usize) {
     let (mut peak, mut nsat) = (0.0f64, 0usize);
@@ -640,26 +356,12 @@ fn run_chunk(
         })
         .collect();
     let targets: Vec<Vec<f64>> = (0..n).map(|s| batch.targets(s).to_vec()).collect();
-    let per_cell = cfg.sims_per_cell();
     let mut state = ChunkState {
         layout: &layout,
         targets: &targets,
         probes,
         steps: vec![0; n],
-        frames: match opts.frame_rate {
-            Some(fps) => {
-                let count = frame_count(schedule.duration, fps)?;
-                (0..n)
-                    .map(|sim| {
-                        if sim % per_cell != 0 {
-                            return Ok(None);
-                        }
-                        Ok(Some(FrameRecorder::new(fps, count, &batch.qpos(sim)?)))
-                    })
-                    .collect::<Result<_>>()?
-            }
-            None => (0..n).map(|_| None).collect(),
-        },
+        frames: frame_recorders(cfg, batch.as_ref(), n, opts.frame_rate)?,
     };
     let mut bounds: Vec<usize> = plan
         .sims
@@ -705,6 +407,29 @@ fn run_chunk(
     finish_chunk(cfg, cells, dt, plan, state)
 }
 
+/// The frame recorders of a chunk's `n` simulations at `fps` (None: no
+/// frames): replicate 0 of each cell records, the others draw nothing.
+fn frame_recorders(
+    cfg: &SweepConfig,
+    batch: &dyn SimBatch,
+    n: usize,
+    fps: Option<f64>,
+) -> Result<Vec<Option<FrameRecorder>>> {
+    let Some(fps) = fps else {
+        return Ok((0..n).map(|_| None).collect());
+    };
+    let count = frame_count(cfg.schedule.duration, fps)?;
+    let per_cell = cfg.sims_per_cell();
+    (0..n)
+        .map(|sim| {
+            if sim % per_cell != 0 {
+                return Ok(None);
+            }
+            Ok(Some(FrameRecorder::new(fps, count, &batch.qpos(sim)?)))
+        })
+        .collect()
+}
+
 /// Steps one lane of simulations through the whole schedule.
 fn step_lane(
     st: &Stepping<'_>,
@@ -722,7 +447,6 @@ fn step_lane(
     let mut t_before = 0.0f64;
     // Time before each step of a call: the clock the schedule is written in.
     let mut step_time = Vec::new();
-    let sine = st.cfg.schedule.sine.is_some();
     while k < st.nsteps && !alive.is_empty() {
         let mut end = (k + st.chunk_steps.max(1)).min(st.nsteps);
         if st.per_step {
@@ -756,48 +480,7 @@ fn step_lane(
             )?;
             d.into_iter().map(|p| (p, 0)).collect()
         } else {
-            let forces: Vec<[f64; 3]>;
-            let force = if sine {
-                forces = alive
-                    .iter()
-                    .flat_map(|&s| (0..nstep).map(move |j| (s, j)))
-                    .map(|(s, j)| st.force(s, pushing(s), step_time[j]))
-                    .collect();
-                Force::PerStep(&forces)
-            } else {
-                forces = alive
-                    .iter()
-                    .map(|&s| st.force(s, pushing(s), step_time[0]))
-                    .collect();
-                Force::Constant(&forces)
-            };
-            let mut observe = |pos: usize, step: usize, qpos: &[f64], act: &[f64]| {
-                let sim = alive[pos];
-                let (peak, nsat) = peak_and_saturated(act, &st.limits[sim]);
-                state.sample(
-                    sim,
-                    step_time[step] + dt,
-                    pushing(sim),
-                    qpos,
-                    act,
-                    peak,
-                    nsat,
-                );
-            };
-            match st.moving {
-                false => batch.advance(&alive, nstep, force, &mut observe)?,
-                true => {
-                    // the servos' targets of every step, known in advance
-                    let nu = st.layout.nu;
-                    let mut ctrl = Vec::with_capacity(alive.len() * nstep * nu);
-                    for &sim in &alive {
-                        for &t in &step_time {
-                            ctrl.extend((0..nu).map(|a| st.target(sim, a, t)));
-                        }
-                    }
-                    batch.advance_driven(&alive, nstep, force, &ctrl, &mut observe)?
-                }
-            }
+            advance_open_loop(st, batch, state, &alive, &step_time, &pushing)?
         };
         // Diverged cells leave the batch; their clock is set to the event.
         let mut dead: Vec<usize> = Vec::new();
@@ -824,6 +507,74 @@ fn step_lane(
         }
     }
     Ok(())
+}
+
+/// One open-loop call over the steps starting at `step_time`: the
+/// actuators hold the PD (servo mode, or torque mode's actuator PD), so the
+/// batch advances without the runner; moving targets are handed over as
+/// every step's ctrl. Returns the diverged (position in `alive`, step).
+fn advance_open_loop(
+    st: &Stepping<'_>,
+    batch: &mut dyn SimBatch,
+    state: &mut ChunkState<'_>,
+    alive: &[usize],
+    step_time: &[f64],
+    pushing: &dyn Fn(usize) -> bool,
+) -> Result<Vec<(usize, usize)>> {
+    let dt = st.dt;
+    let nstep = step_time.len();
+    let sine = st.cfg.schedule.sine.is_some();
+    let forces: Vec<[f64; 3]>;
+    let force = if sine {
+        forces = alive
+            .iter()
+            .flat_map(|&s| (0..nstep).map(move |j| (s, j)))
+            .map(|(s, j)| st.force(s, pushing(s), step_time[j]))
+            .collect();
+        Force::PerStep(&forces)
+    } else {
+        forces = alive
+            .iter()
+            .map(|&s| st.force(s, pushing(s), step_time[0]))
+            .collect();
+        Force::Constant(&forces)
+    };
+    let mut observe = |pos: usize, step: usize, qpos: &[f64], act: &[f64]| {
+        let sim = alive[pos];
+        let (peak, nsat) = peak_and_saturated(act, &st.limits[sim]);
+        state.sample(
+            sim,
+            step_time[step] + dt,
+            pushing(sim),
+            qpos,
+            act,
+            peak,
+            nsat,
+        );
+    };
+    Ok(match st.moving {
+        false => batch.advance(alive, nstep, force, &mut observe)?,
+        true => {
+            // the servos' targets of every step, known in advance
+            let nu = st.layout.nu;
+            let mut ctrl = Vec::with_capacity(alive.len() * nstep * nu);
+            for &sim in alive {
+                for &t in step_time {
+                    ctrl.extend((0..nu).map(|a| st.target(sim, a, t)));
+                }
+            }
+            batch.advance_driven(alive, nstep, force, &ctrl, &mut observe)?
+        }
+    })
+}
+
+/// What the controller of one simulation worked out for its step: the
+/// largest delivered force, how many actuators were at their limit, and
+/// (servo mode) each actuator's force.
+struct TorqueScratch {
+    peak: f64,
+    nsat: usize,
+    forces: Vec<f64>,
 }
 
 /// One controlled step of the simulations `alive` at time `t`: torque

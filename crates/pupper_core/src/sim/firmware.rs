@@ -1,0 +1,192 @@
+//! The servo firmware and sensing of a torque-mode simulation: what its
+//! PD reads (late, noisy) and how the motor turns the PD into torque.
+
+use crate::math::motor;
+use crate::math::pd;
+use crate::plan::config::SweepConfig;
+use crate::plan::mode::Mode;
+use crate::plan::motor::Motor;
+use crate::plan::randomize::{Draws, Noise};
+use crate::robot::layout::Layout;
+use crate::robot::model::ModelInfo;
+
+/// What the torque-mode PD of one simulation reads: its joint angles and
+/// velocities `delay` control steps late (the start state until then), the
+/// angles with Gaussian noise.
+pub(crate) struct Sensing {
+    delay: usize,
+    noise: Option<Noise>,
+    /// The last `delay + 1` (angles, velocities) of the actuated joints,
+    /// oldest first.
+    history: std::collections::VecDeque<(Vec<f64>, Vec<f64>)>,
+    /// The servo firmware between the PD and the joint; None: the ideal
+    /// motor (the PD every step on what is read, clipped at the limit).
+    pub(crate) firmware: Option<Firmware>,
+}
+
+/// The firmware of a torque-mode simulation: `--motor`, or a calibrated
+/// model's command delay; None for the ideal motor.
+pub(crate) fn firmware(
+    cfg: &SweepConfig,
+    info: &ModelInfo,
+    dt: f64,
+    d: &Draws,
+) -> Option<Firmware> {
+    // a replicate's draws over --motor
+    let mut motor = cfg.motor.clone();
+    motor.delay = d.motor_delay.unwrap_or(motor.delay);
+    motor.filter = d.motor_filter.or(motor.filter);
+    motor.noload = d.motor_noload.or(motor.noload);
+    let delayed = info.actuators.iter().any(|a| a.delay > 0.0);
+    if motor.is_ideal() && !(delayed && cfg.mode == Mode::Torque) {
+        return None;
+    }
+    let mut f = Firmware::new(&motor, info.nu, dt);
+    if motor.delay == 0.0 && d.motor_delay.is_none() {
+        f.delays = info.actuators.iter().map(|a| a.delay).collect();
+    }
+    Some(f)
+}
+
+/// One simulation's servo firmware ([`Motor`]): the PD updated at its own
+/// rate on the encoder's angle and a filtered derivative, towards the
+/// target of `delay` ago, its torque held between updates and delivered
+/// within the motor's torque–speed band.
+pub(crate) struct Firmware {
+    motor: Motor,
+    /// The update period (s).
+    period: f64,
+    /// The derivative filter's weight of a new sample.
+    alpha: Option<f64>,
+    updates: u64,
+    /// Per actuator: the torque held since the last update, the filtered
+    /// derivative and the last encoder angle (NaN before the first update).
+    held: Vec<f64>,
+    filtered: Vec<f64>,
+    last_angle: Vec<f64>,
+    /// Each actuator's command delay (s).
+    pub(crate) delays: Vec<f64>,
+}
+
+impl Firmware {
+    fn new(motor: &Motor, nu: usize, dt: f64) -> Firmware {
+        let period = motor.period(dt);
+        Firmware {
+            motor: motor.clone(),
+            period,
+            alpha: motor.filter.map(|f| motor::lowpass_alpha(f, period)),
+            updates: 0,
+            held: vec![0.0; nu],
+            filtered: vec![f64::NAN; nu],
+            last_angle: vec![f64::NAN; nu],
+            delays: vec![motor.delay; nu],
+        }
+    }
+
+    /// True when the PD updates on the step starting at time `t`.
+    pub(crate) fn due(&mut self, t: f64) -> bool {
+        let due = match self.motor.rate {
+            None => true,
+            // the k-th update falls at k / rate (a step's start time may
+            // sit a rounding error below it)
+            Some(r) => t * r + 1e-6 >= self.updates as f64,
+        };
+        self.updates += due as u64;
+        due
+    }
+
+    /// A PD update of actuator `a` from the angle and velocity it reads.
+    pub(crate) fn update(&mut self, a: usize, kp: f64, kd: f64, target: f64, q: f64, v: f64) {
+        let (q, v) = match self.motor.counts {
+            Some(c) => {
+                let q = motor::quantize(q, c);
+                let last = self.last_angle[a];
+                self.last_angle[a] = q;
+                // the encoder's difference; the sensor's velocity at first
+                (
+                    q,
+                    if last.is_nan() {
+                        v
+                    } else {
+                        (q - last) / self.period
+                    },
+                )
+            }
+            None => (q, v),
+        };
+        let v = match self.alpha {
+            Some(alpha) => {
+                let f = &mut self.filtered[a];
+                *f = if f.is_nan() { v } else { *f + alpha * (v - *f) };
+                *f
+            }
+            None => v,
+        };
+        self.held[a] = pd::law(kp, kd, target, q, v);
+    }
+
+    /// The torque actuator `a` delivers at joint speed `speed`, and whether
+    /// the limit (`peak` at stall) cut it.
+    pub(crate) fn deliver(&self, a: usize, peak: f64, speed: f64) -> (f64, bool) {
+        let band = match self.motor.noload {
+            Some(w) => motor::speed_band(peak, w, speed),
+            None => (-peak, peak),
+        };
+        motor::clip(self.held[a], band)
+    }
+}
+
+impl Sensing {
+    /// Reads `delay` control steps late, with `noise` on the angles,
+    /// through `firmware` (None: the ideal motor).
+    pub(crate) fn new(delay: usize, noise: Option<Noise>, firmware: Option<Firmware>) -> Sensing {
+        Sensing {
+            delay,
+            noise,
+            history: Default::default(),
+            firmware,
+        }
+    }
+
+    fn exact(&self) -> bool {
+        self.delay == 0 && self.noise.is_none()
+    }
+
+    /// Records the state just read, for the sensing delay; what the PD sees
+    /// of an actuator is then `read`'s.
+    pub(crate) fn remember(&mut self, layout: &Layout, qpos: &[f64], qvel: &[f64]) {
+        if self.exact() {
+            return;
+        }
+        // the oldest entry's buffers take the newest state
+        let (mut q, mut v) = if self.history.len() > self.delay {
+            self.history.pop_front().unwrap_or_default()
+        } else {
+            Default::default()
+        };
+        q.clear();
+        q.extend(layout.act_qpos.iter().map(|&i| qpos[i]));
+        v.clear();
+        v.extend(layout.act_dof.iter().map(|&i| qvel[i]));
+        self.history.push_back((q, v));
+    }
+
+    /// Actuator `a`'s angle and velocity as the PD reads them.
+    pub(crate) fn read(
+        &mut self,
+        layout: &Layout,
+        a: usize,
+        qpos: &[f64],
+        qvel: &[f64],
+    ) -> (f64, f64) {
+        let exact = self.exact();
+        let (q, v) = match self.history.front() {
+            Some((q, v)) if !exact => (q[a], v[a]),
+            _ => (qpos[layout.act_qpos[a]], qvel[layout.act_dof[a]]),
+        };
+        match &mut self.noise {
+            Some(noise) => (q + noise.sample(), v),
+            None => (q, v),
+        }
+    }
+}
