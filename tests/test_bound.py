@@ -77,6 +77,15 @@ def test_a_response_marks_the_joints_past_the_bound(tmp_path: Path) -> None:
     for r in joints:
         assert (r["status"] == "past_bound") == (float(r["stability_margin"]) >= 1.0), r
     assert {r["status"] for r in joints if float(r["kd"]) == 2} == {"past_bound"}
+    # with the servo's damping integrated implicitly, the same joints are
+    # inside the bound, and response.csv's margin is that integrator's
+    fast = pc.response({"kp": [5], "kd": [2]}, seconds=1, joints="kfe", integrator="implicitfast",
+                       progress=False)
+    by_joint = {j["actuator"]: j for j in pc.gains(kp=5, kd=2, integrator="implicitfast")["joints"]}
+    for r in _rows(fast.tables["response"]):
+        assert r["status"] == "ok", r
+        assert float(r["stability_margin"]) == pytest.approx(by_joint[r["joint"]]["stability_margin"],
+                                                             rel=1e-6), r
 
 
 def test_the_lab_and_tune_never_pick_past_the_bound(tmp_path: Path) -> None:

@@ -44,7 +44,8 @@ impl CellResult {
     /// actuator's, see `plan::stability`): a robot that stood becomes
     /// `past_bound` (every replicate with it), and so does an excited joint
     /// whose own margin is 1 or more (`explicit`: the probe's margin, with
-    /// each replicate's drawn gains, is the one to read).
+    /// each replicate's drawn gains, is the one to read; otherwise the
+    /// joint's margin becomes `margins`' own).
     pub fn mark_past_bound(&mut self, margins: &[f64], explicit: bool) {
         let past = |s: &mut Status| {
             if matches!(*s, Status::Ok | Status::Saturated) {
@@ -58,11 +59,11 @@ impl CellResult {
             }
         }
         for j in &mut self.joints {
-            let m = match explicit {
-                true => j.metrics.stability_margin,
-                false => margins.get(j.actuator).copied().unwrap_or(0.0),
-            };
-            if m >= 1.0 {
+            if !explicit {
+                // the probe wrote the explicit margin: the joint's is this one
+                j.metrics.stability_margin = margins.get(j.actuator).copied().unwrap_or(0.0);
+            }
+            if j.metrics.stability_margin >= 1.0 {
                 past(&mut j.metrics.status);
             }
         }

@@ -200,11 +200,7 @@ impl<'py> Mujoco<'py> {
             |n: &str| -> PyResult<Bound<'py, PyAny>> { model.getattr(n)?.call_method0("tolist") };
         let parent: Vec<usize> = get("body_parentid")?.extract()?;
         let jnum: Vec<i64> = get("body_jntnum")?.extract()?;
-        let (gbody, ctype, caff): (Vec<usize>, Vec<i64>, Vec<i64>) = (
-            get("geom_bodyid")?.extract()?,
-            get("geom_contype")?.extract()?,
-            get("geom_conaffinity")?.extract()?,
-        );
+        let (gbody, ctype, caff) = geom_contacts(model)?;
         let welded = |mut b: usize| {
             while b != 0 {
                 if jnum[b] != 0 {
@@ -261,11 +257,7 @@ impl<'py> Mujoco<'py> {
             |n: &str| -> PyResult<Bound<'py, PyAny>> { model.getattr(n)?.call_method0("tolist") };
         let parent: Vec<usize> = get("body_parentid")?.extract()?;
         let jbody: Vec<usize> = get("jnt_bodyid")?.extract()?;
-        let (gbody, ctype, caff): (Vec<usize>, Vec<i64>, Vec<i64>) = (
-            get("geom_bodyid")?.extract()?,
-            get("geom_contype")?.extract()?,
-            get("geom_conaffinity")?.extract()?,
-        );
+        let (gbody, ctype, caff) = geom_contacts(model)?;
         let data = self.module.getattr("MjData")?.call1((model,))?;
         self.module
             .getattr("mj_kinematics")?
@@ -341,4 +333,16 @@ impl<'py> Mujoco<'py> {
         }
         Ok(legs)
     }
+}
+
+/// Each geom's body, contype and conaffinity (MuJoCo's contact filter).
+type GeomContacts = (Vec<usize>, Vec<i64>, Vec<i64>);
+
+fn geom_contacts(model: &Bound<'_, PyAny>) -> PyResult<GeomContacts> {
+    let get = |n: &str| model.getattr(n)?.call_method0("tolist");
+    Ok((
+        get("geom_bodyid")?.extract()?,
+        get("geom_contype")?.extract()?,
+        get("geom_conaffinity")?.extract()?,
+    ))
 }
