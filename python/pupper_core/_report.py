@@ -96,11 +96,13 @@ def _heatmap(rows: list[dict[str, str]], xa: str, ya: str, metric: str, best: st
     xs = sorted({_num(r[xa]) for r in rows})
     ys = sorted({_num(r[ya]) for r in rows})
     cells = {(_num(r[xa]), _num(r[ya])): r for r in rows}
-    vals = [_num(r.get(metric)) for r in rows if r.get("status") in ("ok", "saturated", "past_bound")]
+    # the ramp spans the cells whose numbers describe a robot: a cell past
+    # the stability bound is drawn grey, never as a colour to pick
+    vals = [_num(r.get(metric)) for r in rows if r.get("status") in ("ok", "saturated")]
     vals = [v for v in vals if not math.isnan(v)]
     lo, hi = (min(vals), max(vals)) if vals else (0.0, 1.0)
     w, h, left, top = 64, 34, 70, 30
-    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{max(left + w * len(xs) + 20, 560)}" '
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{max(left + w * len(xs) + 20, 760)}" '
            f'height="{top + h * len(ys) + 50}" role="img" aria-label="{html.escape(metric)} heatmap">']
     for j, y in enumerate(reversed(ys)):
         out.append(f'<text x="{left - 6}" y="{top + j * h + h / 2 + 4}" text-anchor="end" font-size="11">'
@@ -108,13 +110,17 @@ def _heatmap(rows: list[dict[str, str]], xa: str, ya: str, metric: str, best: st
         for i, x in enumerate(xs):
             r = cells.get((x, y))
             v = _num(r.get(metric)) if r else math.nan
-            stood = r is not None and r.get("status") in ("ok", "saturated", "past_bound")
-            fill = _colour(v, lo, hi, lo > 0 and hi / max(lo, 1e-300) > 20) if stood else "#f0c0c0"
+            past = r is not None and r.get("status") == "past_bound"
+            stood = r is not None and r.get("status") in ("ok", "saturated")
+            fill = (_colour(v, lo, hi, lo > 0 and hi / max(lo, 1e-300) > 20) if stood
+                    else "#d0d0d0" if past else "#f0c0c0")
             px, py = left + i * w, top + j * h
             mark = ' stroke="#000" stroke-width="3"' if r and best and r.get("id") == best else ' stroke="#fff"'
-            label = (f"{v:.3g}" if stood and not math.isnan(v) else (r.get("status", "") if r else ""))
+            label = (f"{v:.3g}" if stood and not math.isnan(v) else "past bound" if past
+                     else (r.get("status", "") if r else ""))
+            shown = f"{label} ({v:.3g}: the integrator's number)" if past and not math.isnan(v) else label
             out.append(f'<rect x="{px}" y="{py}" width="{w}" height="{h}" fill="{fill}"{mark}>'
-                       f'<title>{html.escape(xa)} {x:g}, {html.escape(ya)} {y:g}: {html.escape(label)}</title></rect>')
+                       f'<title>{html.escape(xa)} {x:g}, {html.escape(ya)} {y:g}: {html.escape(shown)}</title></rect>')
             out.append(f'<text x="{px + w / 2}" y="{py + h / 2 + 4}" text-anchor="middle" font-size="10">'
                        f'{html.escape(label)}{" ★" if r and best and r.get("id") == best else ""}</text>')
     for i, x in enumerate(xs):
@@ -125,7 +131,7 @@ def _heatmap(rows: list[dict[str, str]], xa: str, ya: str, metric: str, best: st
     out.append(f'<text x="12" y="{top + h * len(ys) / 2}" font-size="12" transform="rotate(-90 12 '
                f'{top + h * len(ys) / 2})" text-anchor="middle">{html.escape(ya)}</text>')
     out.append(f'<text x="{left}" y="18" font-size="12">{html.escape(metric)} (yellow is lower; red: fell or '
-               'diverged; ★ the pick)</text></svg>')
+               'diverged; grey: past the stability bound; ★ the pick)</text></svg>')
     return "".join(out)
 
 
@@ -283,9 +289,9 @@ def _best(run_dir: Path) -> tuple[str | None, str]:
         return None, ""
     if not b:
         return None, "no cell is eligible (none stood, or the run is too short to measure)"
-    rule = ("the lowest last_1s_std_mm (with replicates: p95 over them) among cells that stood (status ok or "
-            "saturated, saturation_frac under 5 %); cells within 0.001 mm are tied and the smaller push dip "
-            "decides, then grid order")
+    rule = ("the lowest last_1s_std_mm (with replicates: p95 over them) among cells that stood inside the "
+            "stability bound (status ok or saturated, saturation_frac under 5 %); cells within 0.001 mm are tied "
+            "and the smaller push dip decides, then grid order")
     return str(b["id"]), rule
 
 
