@@ -3,7 +3,7 @@
 //! describe the integrator (chatter at the torque limit, or divergence),
 //! not a robot: such a cell is marked `past_bound` and never ranked.
 
-use crate::math::response::{explicit_pd_margin, implicit_damping_pd_margin};
+use crate::math::response::pd_margin;
 use crate::plan::config::SweepConfig;
 use crate::plan::grid::Cell;
 use crate::plan::mode::Mode;
@@ -35,10 +35,7 @@ impl Damping {
     /// The margin of one joint of inertia `inertia` (kg·m²): 1 or more is
     /// past the bound.
     pub fn margin(self, inertia: f64, kp: f64, kd: f64, timestep: f64) -> f64 {
-        match self {
-            Damping::Explicit => explicit_pd_margin(inertia, kp, kd, timestep),
-            Damping::Implicit => implicit_damping_pd_margin(inertia, kp, kd, timestep),
-        }
+        pd_margin(inertia, kp, kd, timestep, self == Damping::Implicit)
     }
 }
 
