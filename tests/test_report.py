@@ -86,12 +86,22 @@ def best_cell_shown(run_dir: Path, dom: str) -> None:
     assert best is not None
     header, rows = read_csv(run_dir / "summary.csv")
     row = next(r for r in rows if r["id"] == best["id"])
-    para = re.search(r"<h2>Best cell</h2><p><b>([^<]+)</b>: ([^<]+)</p>", dom)
+    para = re.search(r"<h2>Best cell</h2><p><b>([^<]+)</b>: (.+?)</p>", dom)
     assert para and para.group(1) == best["id"], dom[:2000]
     for h in header:
         if h not in ("index", "name") and row[h] != "":
-            # every digit, as summary.csv has it
-            assert f"{h} {row[h]}" in para.group(2), (h, row[h])
+            # every digit in the tooltip, as summary.csv has it; shown rounded
+            m = re.search(rf'{re.escape(h)} <span title="{re.escape(row[h])}">([^<]+)</span>', para.group(2))
+            assert m, (h, row[h], para.group(2)[:500])
+            try:
+                assert float(m.group(1)) == pytest.approx(float(row[h]), rel=1e-3, abs=1e-12)
+            except ValueError:
+                assert m.group(1) == row[h]  # text (a status)
+    # no number with more than 6 significant digits outside the tooltips
+    text = re.sub(r'title="[^"]*"', "", para.group(2))
+    for number in re.findall(r"\d[\d.]*(?:e-?\d+)?", text):
+        digits = number.split("e")[0].replace(".", "").lstrip("0")
+        assert len(digits) <= 6, number
 
 
 def test_a_sweeps_report(run, tmp_path, baseline):

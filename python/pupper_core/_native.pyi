@@ -133,12 +133,19 @@ class SweepResult:
              max_saturation: float = 0.05) -> list[dict[str, Any]]:
         """The best cell, by pupper's rule: among cells whose status is ok,
         whose metric is a number and whose saturation_frac is under
-        `max_saturation`, the lowest metric (highest with `minimize=False`);
-        ties go to the first cell in grid order. With `by`, the best of each
-        group of those axes' values (with `cells` and `eligible` counts).
-        metric defaults to "last_1s_std_mm", or for a replicated sweep
-        "p95:last_1s_std_mm" (statistics are "mean:M" and "p95:M"; eligible:
-        no replicate fell or diverged, p95:saturation_frac under the bound)."""
+        `max_saturation`, the lowest metric (highest with `minimize=False`).
+        Ties: on a millimetre metric (`*_mm`) cells within 0.001 mm of the
+        best are tied, on others only equal values; the smallest push dip
+        among the tied wins, then the first in grid order. A cell past the
+        stability bound (status past_bound) is never eligible. `metric` is
+        any numeric column the table carries (a response's
+        "settling_time_s.kfe" is judged by that group's status). With `by`,
+        the best of each group of those axes' values (with `cells` and
+        `eligible` counts). metric defaults to the kind's own:
+        "last_1s_std_mm" (a hold: "compliance_mm_per_n"), or for a
+        replicated sweep "p95:last_1s_std_mm" (statistics are "mean:M" and
+        "p95:M"; eligible: no replicate fell or diverged,
+        p95:saturation_frac under the bound)."""
     def __contains__(self, column: str) -> bool:
         """Whether the table has that column."""
     def __iter__(self) -> Iterator[dict[str, Any]]:
@@ -189,6 +196,19 @@ def response(
     hold: float = ...,
     joints: Sequence[str] = ...,
     standing: bool = ...,
+    **options: Any,
+) -> SweepResult: ...
+
+def hold(
+    grid: Any = ...,
+    *,
+    out: str | PathLike[str] | None = ...,
+    progress: Callable[[int, int], None] | None = ...,
+    load: float = ...,
+    ramp: float = ...,
+    shove: float = ...,
+    shove_at: float | None = ...,
+    shove_duration: float = ...,
     **options: Any,
 ) -> SweepResult: ...
 

@@ -17,7 +17,7 @@ import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 __all__ = ["report"]
 
@@ -212,7 +212,7 @@ def _table(header: list[str], rows: list[dict[str, str]], best: str | None, key:
 
 #: The kinds a manifest names (sweep, lab and response by the Rust core;
 #: tune and fit by their Python drivers).
-KINDS = ("sweep", "lab", "response", "tune", "fit")
+KINDS = ("sweep", "lab", "response", "hold", "tune", "fit")
 
 
 def _kind(manifest: dict[str, Any]) -> str:
@@ -278,8 +278,9 @@ def _inputs(manifest: dict[str, Any], kind: str) -> str:
     return "<dl>" + "".join(f"<dt>{html.escape(k)}</dt><dd>{html.escape(v)}</dd>" for k, v in items) + "</dl>"
 
 
-def _best(run_dir: Path) -> tuple[str | None, str]:
-    """The cell pupper's rule picks, and the rule in words."""
+def _best(run_dir: Path, kind: str = "sweep") -> tuple[str | None, str]:
+    """The cell pupper's rule picks (by the kind's own metric), and the rule
+    in words."""
     try:
         import pupper_core as pc
 
@@ -289,21 +290,28 @@ def _best(run_dir: Path) -> tuple[str | None, str]:
         return None, ""
     if not b:
         return None, "no cell is eligible (none stood, or the run is too short to measure)"
-    rule = ("the lowest last_1s_std_mm (with replicates: p95 over them) among cells that stood inside the "
-            "stability bound (status ok or saturated, saturation_frac under 5 %); cells within 0.001 mm are tied "
-            "and the smaller push dip decides, then grid order")
+    if kind == "hold":
+        rule = ("the lowest compliance_mm_per_n (sag per newton of load) among cells that stood inside the "
+                "stability bound (status ok or saturated, saturation_frac under 5 %); equal values go to the "
+                "smaller push dip, then grid order")
+    else:
+        rule = ("the lowest last_1s_std_mm (with replicates: p95 over them) among cells that stood inside the "
+                "stability bound (status ok or saturated, saturation_frac under 5 %); cells within 0.001 mm are "
+                "tied and the smaller push dip decides, then grid order")
     return str(b["id"]), rule
 
 
 def response_pick(header: list[str], rows: list[dict[str, str]], group: str) -> dict[str, str] | None:
-    """The response cell that settles soonest on a joint group: the lowest
-    settling_time_s.GROUP among cells whose status on it is ok, the first in
-    grid order on a tie."""
-    col, status = f"settling_time_s.{group}", f"status.{group}"
+    """The response cell that settles soonest on a joint group: pupper's
+    ranking rule (the Rust core's `best`) on settling_time_s.GROUP, judged
+    by that group's status; the first in grid order on a tie."""
+    from pupper_core import _native
+
+    col = f"settling_time_s.{group}"
     if col not in header:
         return None
-    ok = [r for r in rows if r.get(status) == "ok" and not math.isnan(_num(r.get(col)))]
-    return min(ok, key=lambda r: _num(r[col])) if ok else None
+    (i,) = _native.best_rows(header, [[r.get(h, "") for h in header] for r in rows], col)
+    return None if i is None else rows[i]
 
 
 def _response_best(header: list[str], rows: list[dict[str, str]]) -> str:
@@ -323,6 +331,145 @@ def _response_best(header: list[str], rows: list[dict[str, str]]) -> str:
     return "".join(out)
 
 
+Sections = Callable[[Path, dict[str, Any], str, list[str], list[dict[str, str]], list[str]], list[str]]
+
+
+def _grid_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[str],
+                   rows: list[dict[str, str]], warnings: list[str]) -> list[str]:
+    """A run of the sweep runner (sweep, lab, response, hold): the pick, the
+    plots of its kind, the table."""
+    parts: list[str] = []
+    best, rule = _best(d, kind) if kind in ("sweep", "lab", "hold") and rows else (None, "")
+    if kind == "response" and rows:
+        parts.append("<h2>Best cells</h2>" + _response_best(header, rows))
+    if not rows:
+        return parts
+    counts: dict[str, int] = {}
+    for r in rows:
+        counts[r.get("status", "")] = counts.get(r.get("status", ""), 0) + 1
+    why = {"saturated": " (at the torque limit in 5 % or more of actuator-steps)",
+           "past_bound": (" the stability bound of the PD as the integrator computes it: their numbers "
+                          "describe the integrator, not a robot, so they are never ranked (a smaller "
+                          "timestep or --integrator implicitfast simulates such gains)")}
+    for s in ("fell", "diverged", "saturated", "past_bound"):
+        if counts.get(s):
+            said = "lie past" if s == "past_bound" else s
+            warnings.append(f"{counts[s]} of {len(rows)} cells {said}" + why.get(s, ""))
+    if not manifest.get("complete", True):
+        warnings.append(f"the run is incomplete ({manifest.get('cells_done')} of {manifest.get('cells_total')} "
+                        "cells): finish it with --resume")
+    if best:
+        row = next(r for r in rows if r.get("id") == best)
+        # rounded to what a reader uses; every digit in the tooltip
+        shown = ", ".join(f'{html.escape(h)} <span title="{html.escape(row[h])}">{_fmt(row[h])}</span>'
+                          for h in header if h not in ("index", "name") and row.get(h, "") != "")
+        parts.append(f"<h2>Best cell</h2><p><b>{html.escape(best)}</b>: {shown}</p>"
+                     f"<p class='note'>Rule: {html.escape(rule)}.</p>")
+    elif rule:
+        parts.append(f"<h2>Best cell</h2><p>{html.escape(rule)}</p>")
+    axes = [a.get("axis") for a in manifest.get("config", {}).get("grid", {}).get("axes", [])]
+    metric = "compliance_mm_per_n" if kind == "hold" else (
+        "last_1s_std_mm" if "last_1s_std_mm" in header else (
+            "p95:last_1s_std_mm" if "p95:last_1s_std_mm" in header else None))
+    parts.append("<h2>Plots</h2>")
+    if kind == "response":
+        for m in ("rise_time_s", "overshoot_pct"):
+            for g in ("haa", "hfe", "kfe"):
+                col = f"{m}.{g}"
+                if col in header:
+                    parts.append(_bars([r["id"] for r in rows], [_num(r[col]) for r in rows], f"{col} per cell"))
+        _, jrows = _read(d / "response.csv")
+        bad = [r for r in jrows if _num(r.get("stability_margin")) >= 1]
+        if bad:
+            warnings.append(f"{len(bad)} (cell, joint) pairs lie past the explicit PD's stability bound "
+                            "(stability_margin >= 1): they may chatter at the torque limit")
+    elif metric and len(axes) >= 2 and {"kp", "kd"} <= set(header):
+        # one Kp x Kd map per body (the lab's, or a variant axis)
+        _, picks = _read(d / "best.csv")
+        starred = {r.get("id") for r in picks} | {best}
+        bodies = sorted({r.get("variant", "") for r in rows}, key=[r.get("variant", "") for r in rows].index)
+        for body in bodies:
+            sub = [r for r in rows if r.get("variant", "") == body]
+            pick = next((r["id"] for r in sub if r.get("id") in starred), None)
+            if body:
+                parts.append(f"<h3>{html.escape(body)}</h3>")
+            parts.append(_heatmap(sub, "kp", "kd", metric, pick))
+    elif metric:
+        bi = next((i for i, r in enumerate(rows) if r.get("id") == best), None)
+        parts.append(_bars([r["id"] for r in rows], [_num(r.get(metric)) for r in rows],
+                           f"{metric} per cell (orange: the pick)", bi))
+    _, trows = _read(d / "traces.csv")
+    if trows and "z" in trows[0]:
+        series: dict[str, tuple[list[float], list[float]]] = {}
+        for r in trows:
+            t = _num(r.get("t"))
+            if t < 1.0:  # the drop and landing would set the scale
+                continue
+            xs, ys = series.setdefault(r.get("id", r.get("cell", "")), ([], []))
+            xs.append(t)
+            ys.append(_num(r.get("z")))
+        keep = dict(list(series.items())[:12])
+        more = f" (the first 12 of {len(series)} cells)" if len(series) > 12 else ""
+        parts.append(_lines(keep, f"base height after the landing (traces.csv){more}", "time (s)",
+                            "base z (m)"))
+    parts.append("<h2>Table (summary.csv; click a column to sort)</h2>" + _table(header, rows, best))
+    return parts
+
+
+def _tune_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[str],
+                   rows: list[dict[str, str]], warnings: list[str]) -> list[str]:
+    """A tune: the best objective against cell-steps, the best trial, the trials."""
+    parts: list[str] = []
+    th, trials = _read(d / "trials.csv")
+    objs = [o for o in manifest.get("inputs", {}).get("objectives", []) if o in th]
+    if trials and objs and "cell_steps" in th:
+        spent, best_so_far, acc, cur = [], [], 0.0, math.inf
+        for r in trials:
+            acc += _num(r["cell_steps"])
+            v = _num(r[objs[0]])
+            if not math.isnan(v) and r.get("status", "ok") not in ("fell", "diverged", "pruned"):
+                cur = min(cur, v)
+            spent.append(acc)
+            best_so_far.append(cur if math.isfinite(cur) else math.nan)
+        parts.append("<h2>Plots</h2>" + _lines({"best so far": (spent, best_so_far)},
+                                               "best objective against cell-steps spent", "cell-steps", objs[0]))
+    bj = d / "best.json"
+    if bj.is_file():
+        parts.append("<h2>Best trial</h2><pre>" + html.escape(bj.read_text()) + "</pre>")
+    if trials:
+        parts.append("<h2>Trials (trials.csv)</h2>" + _table(th, trials, None))
+    return parts
+
+
+def _fit_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[str],
+                  rows: list[dict[str, str]], warnings: list[str]) -> list[str]:
+    """A fit: the fitted parameters, the error before and after, its warnings."""
+    parts: list[str] = []
+    fh, frows = _read(d / "fit.csv")
+    parts.append("<h2>Fitted parameters (fit.csv)</h2>" + _table(fh, frows, None, key="parameter"))
+    rh, rrows = _read(d / "residuals.csv")
+    if rrows:
+        labels = [f"{r['log']} {r['actuator']}" for r in rrows]
+        parts.append("<h2>Plots</h2>"
+                     + _bars(labels, [_num(r["rms_before_rad"]) * 1e3 for r in rrows], "RMS angle error before (mrad)")
+                     + _bars(labels, [_num(r["rms_after_rad"]) * 1e3 for r in rrows], "RMS angle error after (mrad)"))
+    for w in manifest.get("warnings", []):
+        warnings.append(w)
+    return parts
+
+
+#: The registry: each kind's sections of the page, between its warnings and
+#: its inputs.
+SECTIONS: dict[str, Sections] = {
+    "sweep": _grid_sections,
+    "lab": _grid_sections,
+    "response": _grid_sections,
+    "hold": _grid_sections,
+    "tune": _tune_sections,
+    "fit": _fit_sections,
+}
+
+
 def report(run_dir: str | os.PathLike[str]) -> Path:
     """Writes ``run_dir/report.html`` from the files in it; returns its path."""
     from pupper_core._files import atomic_write
@@ -335,109 +482,9 @@ def report(run_dir: str | os.PathLike[str]) -> Path:
         raise OutputError(f"{d} holds no pupper run (no manifest.json): give a run directory")
     manifest = json.loads(mpath.read_text())
     kind = _kind(manifest)
-    parts: list[str] = []
     warnings: list[str] = []
     header, rows = _read(d / "summary.csv")
-    best, rule = _best(d) if kind in ("sweep", "lab") and rows else (None, "")
-    if kind == "response" and rows:
-        parts.append("<h2>Best cells</h2>" + _response_best(header, rows))
-    if kind in ("sweep", "lab", "response") and rows:
-        counts: dict[str, int] = {}
-        for r in rows:
-            counts[r.get("status", "")] = counts.get(r.get("status", ""), 0) + 1
-        why = {"saturated": " (at the torque limit in 5 % or more of actuator-steps)",
-               "past_bound": (" the stability bound of the PD as the integrator computes it: their numbers "
-                              "describe the integrator, not a robot, so they are never ranked (a smaller "
-                              "timestep or --integrator implicitfast simulates such gains)")}
-        for s in ("fell", "diverged", "saturated", "past_bound"):
-            if counts.get(s):
-                said = "lie past" if s == "past_bound" else s
-                warnings.append(f"{counts[s]} of {len(rows)} cells {said}" + why.get(s, ""))
-        if not manifest.get("complete", True):
-            warnings.append(f"the run is incomplete ({manifest.get('cells_done')} of {manifest.get('cells_total')} "
-                            "cells): finish it with --resume")
-        if best:
-            row = next(r for r in rows if r.get("id") == best)
-            shown = ", ".join(f"{h} {row[h]}" for h in header if h not in ("index", "name") and row.get(h, "") != "")
-            parts.append(f"<h2>Best cell</h2><p><b>{html.escape(best)}</b>: {html.escape(shown)}</p>"
-                         f"<p class='note'>Rule: {html.escape(rule)}.</p>")
-        elif rule:
-            parts.append(f"<h2>Best cell</h2><p>{html.escape(rule)}</p>")
-        axes = [a.get("axis") for a in manifest.get("config", {}).get("grid", {}).get("axes", [])]
-        metric = "last_1s_std_mm" if "last_1s_std_mm" in header else (
-            "p95:last_1s_std_mm" if "p95:last_1s_std_mm" in header else None)
-        parts.append("<h2>Plots</h2>")
-        if kind == "response":
-            for m in ("rise_time_s", "overshoot_pct"):
-                for g in ("haa", "hfe", "kfe"):
-                    col = f"{m}.{g}"
-                    if col in header:
-                        parts.append(_bars([r["id"] for r in rows], [_num(r[col]) for r in rows], f"{col} per cell"))
-            _, jrows = _read(d / "response.csv")
-            bad = [r for r in jrows if _num(r.get("stability_margin")) >= 1]
-            if bad:
-                warnings.append(f"{len(bad)} (cell, joint) pairs lie past the explicit PD's stability bound "
-                                "(stability_margin >= 1): they may chatter at the torque limit")
-        elif metric and len(axes) >= 2 and {"kp", "kd"} <= set(header):
-            # one Kp x Kd map per body (the lab's, or a variant axis)
-            _, picks = _read(d / "best.csv")
-            starred = {r.get("id") for r in picks} | {best}
-            bodies = sorted({r.get("variant", "") for r in rows}, key=[r.get("variant", "") for r in rows].index)
-            for body in bodies:
-                sub = [r for r in rows if r.get("variant", "") == body]
-                pick = next((r["id"] for r in sub if r.get("id") in starred), None)
-                if body:
-                    parts.append(f"<h3>{html.escape(body)}</h3>")
-                parts.append(_heatmap(sub, "kp", "kd", metric, pick))
-        elif metric:
-            bi = next((i for i, r in enumerate(rows) if r.get("id") == best), None)
-            parts.append(_bars([r["id"] for r in rows], [_num(r.get(metric)) for r in rows],
-                               f"{metric} per cell (orange: the pick)", bi))
-        _, trows = _read(d / "traces.csv")
-        if trows and "z" in trows[0]:
-            series: dict[str, tuple[list[float], list[float]]] = {}
-            for r in trows:
-                t = _num(r.get("t"))
-                if t < 1.0:  # the drop and landing would set the scale
-                    continue
-                xs, ys = series.setdefault(r.get("id", r.get("cell", "")), ([], []))
-                xs.append(t)
-                ys.append(_num(r.get("z")))
-            keep = dict(list(series.items())[:12])
-            more = f" (the first 12 of {len(series)} cells)" if len(series) > 12 else ""
-            parts.append(_lines(keep, f"base height after the landing (traces.csv){more}", "time (s)",
-                                "base z (m)"))
-        parts.append("<h2>Table (summary.csv; click a column to sort)</h2>" + _table(header, rows, best))
-    elif kind == "tune":
-        th, trials = _read(d / "trials.csv")
-        objs = [o for o in manifest.get("inputs", {}).get("objectives", []) if o in th]
-        if trials and objs and "cell_steps" in th:
-            spent, best_so_far, acc, cur = [], [], 0.0, math.inf
-            for r in trials:
-                acc += _num(r["cell_steps"])
-                v = _num(r[objs[0]])
-                if not math.isnan(v) and r.get("status", "ok") not in ("fell", "diverged", "pruned"):
-                    cur = min(cur, v)
-                spent.append(acc)
-                best_so_far.append(cur if math.isfinite(cur) else math.nan)
-            parts.append("<h2>Plots</h2>" + _lines({"best so far": (spent, best_so_far)},
-                                                   "best objective against cell-steps spent", "cell-steps", objs[0]))
-        bj = d / "best.json"
-        if bj.is_file():
-            parts.append("<h2>Best trial</h2><pre>" + html.escape(bj.read_text()) + "</pre>")
-        if trials:
-            parts.append("<h2>Trials (trials.csv)</h2>" + _table(th, trials, None))
-    elif kind == "fit":
-        fh, frows = _read(d / "fit.csv")
-        parts.append("<h2>Fitted parameters (fit.csv)</h2>" + _table(fh, frows, None, key="parameter"))
-        rh, rrows = _read(d / "residuals.csv")
-        if rrows:
-            labels = [f"{r['log']} {r['actuator']}" for r in rrows]
-            parts.append("<h2>Plots</h2>"
-                         + _bars(labels, [_num(r["rms_before_rad"]) * 1e3 for r in rrows], "RMS angle error before (mrad)")
-                         + _bars(labels, [_num(r["rms_after_rad"]) * 1e3 for r in rrows], "RMS angle error after (mrad)"))
-        for w in manifest.get("warnings", []):
-            warnings.append(w)
+    parts = SECTIONS[kind](d, manifest, kind, header, rows, warnings)
     files = sorted(p.relative_to(d).as_posix() for p in d.rglob("*")
                    if p.is_file() and not p.name.startswith(".") and p.name != "report.html")
     links = "".join(f'<li><a href="{html.escape(f)}">{html.escape(f)}</a></li>' for f in files)

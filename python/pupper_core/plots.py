@@ -34,7 +34,7 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["base_z", "heatmap", "metric_vs_axis", "bars", "read_run", "write_run_plots",
            "grid_axes", "describe", "label_of", "read_replicates", "replicate_spread",
            "response_steps", "response_bode", "write_response_plots",
-           "lab_heatmaps", "write_lab_plots"]
+           "lab_heatmaps", "write_lab_plots", "write_hold_plots", "write_plots"]
 
 
 def __dir__() -> list[str]:
@@ -71,6 +71,11 @@ LABELS: dict[str, str] = {
     "saturation_frac": "fraction of torque samples saturated",
     "tracking_rms": "joint tracking RMS error (rad)",
     "event_time": "fall / divergence time (s)",
+    "sag_mm": "sag under the load (mm)",
+    "compliance_mm_per_n": "sag per newton of load (mm/N)",
+    "sway_mm": "sideways sway after the shove (mm)",
+    "recovery_s": "recovery after the shove (s)",
+    "copper_w": "copper loss (W)",
 }
 SHORT: dict[str, str] = {
     "kp": "Kp",
@@ -326,9 +331,12 @@ def _row_label(table: Table, i: int, axes: Sequence[str] | None = None, label: s
     return name or vals or (str(table["id"][i]) if "id" in table else str(i))
 
 
-def _key_line(best_word: str, status: np.ndarray) -> str:
-    """'★ = lowest …' plus the colours used for fallen / diverged cells."""
-    parts = [f"★ = {best_word} among cells that stood below 5 % saturation (ties within 0.001 mm: the smaller dip)"
+def _key_line(best_word: str, status: np.ndarray, metric: str = "last_1s_std_mm") -> str:
+    """'★ = lowest …' plus the colours used for fallen / diverged cells; the
+    tie rule as the Rust core applies it to ``metric`` (0.001 mm on a
+    millimetre column, exact equality on others)."""
+    tie = "ties within 0.001 mm" if metric.split(":")[-1].endswith("_mm") else "equal values"
+    parts = [f"★ = {best_word} among cells that stood below 5 % saturation ({tie}: the smaller dip)"
              if best_word == "lowest" else f"★ = {best_word} among cells that stood"]
     if (status == "fell").any():
         parts.append("pink = fell")
@@ -351,7 +359,10 @@ def _wrap_parts(text: str, width_in: float, fontsize: float = 11.0) -> str:
             cur = cand
     if cur:
         lines.append(cur)
-    return "\n".join(lines)
+    # a part longer than the line breaks between words
+    import textwrap
+
+    return "\n".join(w for line in lines for w in (textwrap.wrap(line, limit) or [line]))
 
 
 def _push_tuple(push: Any) -> tuple[float, float, float | None] | None:
@@ -359,7 +370,8 @@ def _push_tuple(push: Any) -> tuple[float, float, float | None] | None:
         return None
     if isinstance(push, Mapping):
         f = push.get("force")
-        fz = float(f[2]) if f is not None and len(f) > 2 else None
+        # the push's own direction: z for the chapter's, sideways for a hold's shove
+        fz = max((float(v) for v in f), key=abs) if f is not None and len(f) > 2 else None
         return float(push["start"]), float(push["duration"]), fz
     seq = list(push)
     fz = None
@@ -641,10 +653,10 @@ def heatmap(
             cb = fig.colorbar(im, ax=axs, shrink=0.9 if len(yv) > 3 else 1.0)
             cb.set_label(label_of(metric))
         best_word = "lowest" if minimize else "highest"
-        sub = _key_line(best_word, status)
+        sub = _key_line(best_word, status, metric)
         head = title if title is not None else label_of(metric)
         if ax is None:
-            fig.suptitle(f"{head}\n{sub}", fontsize=12)
+            fig.suptitle(f"{head}\n{_wrap_parts(sub, fig.get_figwidth(), 12)}", fontsize=12)
         else:
             ax.set_title(f"{head}\n{sub}", fontsize=11)
         fig.pupper_best = best_marks  # type: ignore[attr-defined]
@@ -910,7 +922,25 @@ def _is_product(table: Table, varying: Sequence[str], manifest: Mapping[str, Any
     return len(combos) == n == math.prod(len(_distinct(_num(table, a))) for a in varying)
 
 
-def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
+def write_plots(run_dir: str | os.PathLike) -> list[Path]:
+    """Writes the plots of a run's kind (its manifest names it) into
+    ``<run_dir>/plots/``; returns their paths. The registry of the kinds'
+    plot writers."""
+    manifest = json.loads((Path(run_dir) / "manifest.json").read_text())
+    writers = {"lab": write_lab_plots, "response": write_response_plots, "hold": write_hold_plots}
+    return writers.get(str(manifest.get("kind")), write_run_plots)(run_dir)
+
+
+def write_hold_plots(run_dir: str | os.PathLike) -> list[Path]:
+    """A hold's plots in ``<run_dir>/plots/``: ``base_z.png`` (the height
+    sagging as the load ramps on, the shove shaded), and the sag per newton
+    and the sway per cell (a heatmap for a Kp × Kd grid), as
+    `write_run_plots` draws a sweep's."""
+    return write_run_plots(run_dir, metrics=("compliance_mm_per_n", "sway_mm"), during="the hold")
+
+
+def write_run_plots(run_dir: str | os.PathLike, metrics: Sequence[str] | None = None,
+                    during: str = "the sweep") -> list[Path]:
     """Writes the standard plots of a run into ``<run_dir>/plots/``; returns their paths.
 
     ``base_z.png`` when traces exist; for a Kp × Kd product grid
@@ -953,7 +983,7 @@ def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
                   if "id" in table and "status" in table else None)
         fig = base_z(traces, push=push, labels=labels, status=status,
                      landing=float(sched.get("landing", 1.0)))
-        finish(fig, "base_z.png", "Base height during the sweep" + (
+        finish(fig, "base_z.png", f"Base height during {during}" + (
             "\nreplicate 0 of each cell (every replicate's metrics: spread_last_1s_std_mm.png)"
             if "failure_fraction" in table else ""))
 
@@ -963,7 +993,7 @@ def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
                   else ("last_1s_std_mm", "push_dip_mm"))
     metrics = [
         m
-        for m in candidates
+        for m in (metrics or candidates)
         if m in table and np.isfinite(np.asarray(table[m], dtype=float)).any()
     ]
     if replicated:
@@ -987,12 +1017,12 @@ def write_run_plots(run_dir: str | os.PathLike) -> list[Path]:
                 t2[metric] = table[metric]
                 t2["status"] = ["ok"] * n
             fig = heatmap(t2, metric, "kp", "kd", by=by, mark_best=metric != "failure_fraction")
-            key = _key_line("lowest", _status(t2))
+            key = _key_line("lowest", _status(t2), metric)
             if replicated:
                 key = key.replace("pink = fell", "pink = some replicates fell or diverged")
             if metric == "failure_fraction":
                 key = "0 = every replicate stayed up"
-            fig.suptitle(f"{label_of(metric)}\n{key}", fontsize=12)
+            fig.suptitle(f"{label_of(metric)}\n{_wrap_parts(key, fig.get_figwidth(), 12)}", fontsize=12)
             setting(fig)
             written.append(_save(fig, out / f"heatmap_{metric.replace(':', '_')}.png"))
         elif product and len(varying) in (1, 2):

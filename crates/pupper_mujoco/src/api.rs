@@ -529,11 +529,13 @@ impl<'a, 'py> Bound<'a, 'py> {
     }
 }
 
-/// `cfg` with a response run's excited joints resolved on `info` and its
-/// signal checked against every timestep of its grid.
+/// `cfg` with what its kind takes from the model resolved on `info` (a
+/// hold's weight; a response run's excited joints, its signal checked
+/// against every timestep of its grid).
 fn resolved(cfg: &SweepConfig, model: &bridge::LoadedModel<'_>) -> Result<SweepConfig> {
     let info = model.info();
     let mut c = cfg.clone();
+    c.experiment.resolve(info, &mut c.schedule)?;
     if let Some(e) = c.experiment.excitation_mut() {
         if e.joints.is_empty() {
             e.resolve(info)?;

@@ -17,7 +17,7 @@ mod result;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use commands::{cli, lab, model, record, response, runs, sweep};
+use commands::{cli, hold, lab, model, record, response, runs, sweep};
 use error::{
     ClusterError, ConfigError, DisplayError, GridError, InternalError, ModelError, MujocoError,
     OutputError, PupperError,
@@ -58,6 +58,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(runs::merge, m)?)?;
     m.add_function(wrap_pyfunction!(lab::lab, m)?)?;
     m.add_function(wrap_pyfunction!(response::response, m)?)?;
+    m.add_function(wrap_pyfunction!(hold::hold, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::check_axes, m)?)?;
     m.add_class::<result::SweepResult>()?;
     m.add_function(wrap_pyfunction!(record::record, m)?)?;

@@ -71,6 +71,8 @@ pub struct SweepResult {
     tables: Py<PyDict>,
     /// The tables as text, for pickling: file name, header, rows.
     detail_text: Vec<(String, Vec<String>, Vec<Vec<String>>)>,
+    /// The experiment kind's metric, what `best()` ranks by unless told.
+    metric: &'static str,
     /// Cell-steps each row's cell took when it ran in this call (None for
     /// a row read back or kept by a resume).
     #[pyo3(get)]
@@ -172,6 +174,7 @@ impl SweepResult {
             out,
             complete: p.complete,
             wall_seconds: p.wall_seconds,
+            metric: p.config.experiment.plan().default_metric(),
             config,
         })
     }
@@ -369,8 +372,15 @@ impl SweepResult {
 
     /// The best cell, by pupper's rule: among cells whose status is ok,
     /// whose metric is a number and whose saturation_frac is under
-    /// `max_saturation`, the lowest metric (highest with `minimize=False`);
-    /// ties go to the first cell in grid order. With `by` (axis names), the
+    /// `max_saturation`, the lowest metric (highest with `minimize=False`).
+    /// Ties: on a millimetre metric (`*_mm`) cells within 0.001 mm of the
+    /// best are tied, on others only equal values; the smallest push dip
+    /// among the tied wins, then the first in grid order. A cell past the
+    /// stability bound (status past_bound) is never eligible. `metric` is
+    /// any numeric column the table carries (a hold's sag, a response's
+    /// `settling_time_s.kfe`, judged by that group's status); by default
+    /// the kind's own (last_1s_std_mm; a hold's compliance_mm_per_n).
+    /// With `by` (axis names), the
     /// best of each group of those axes' values, as a list of dicts that
     /// also hold `cells` and `eligible` (a group with no eligible cell has
     /// only its axis values, `cells`, `eligible` and `id` None).
@@ -393,11 +403,8 @@ impl SweepResult {
         max_saturation: f64,
     ) -> PyResult<Bound<'py, PyAny>> {
         let replicated = self.header.iter().any(|h| h == "failure_fraction");
-        let metric = metric.unwrap_or(if replicated {
-            "p95:last_1s_std_mm"
-        } else {
-            "last_1s_std_mm"
-        });
+        let robust = format!("p95:{}", self.metric);
+        let metric = metric.unwrap_or(if replicated { &robust } else { self.metric });
         let grouped = by.is_some();
         let rule = best::Rule {
             minimize,

@@ -18,6 +18,7 @@ const AFTER: &str = "Examples:
   pupper sweep --preset chapter-4.6 --plot      the chapter's four servo cases, with plots
   pupper sweep --resume runs/20261122-120000-kp-kd   finish an interrupted sweep
   pupper response --grid kp=5,20,60 --grid kd=0.1,0.5   how each joint follows a step
+  pupper hold --grid kp=5,10,20,40 --grid kd=0.25,0.5,1   sag under a load, sway after a shove
   pupper gains --bandwidth 8 --damping 0.7      gains per joint group from the reflected inertia
   pupper tune --space kp=5:200:log --space kd=0.05:10:log --trials 64   search instead of a grid
   pupper excite -o ex.csv; pupper fit robot.csv -o runs/fit   calibrate the model to joint logs
@@ -55,6 +56,7 @@ macro_rules! outln {
 mod args;
 mod fit;
 mod gains;
+mod hold;
 mod lab;
 mod merge;
 mod model;
@@ -67,6 +69,7 @@ mod tune;
 use args::ModelArg;
 use fit::{ExciteArgs, FitArgs};
 use gains::GainsArgs;
+use hold::HoldArgs;
 use lab::LabArgs;
 use merge::MergeArgs;
 use model::{BodyArgs, PoseArgs, StandArgs};
@@ -107,6 +110,11 @@ enum Command {
     /// Writes response.csv (a row per cell and joint), summary.csv (per joint group) and, for
     /// sine and chirp, bode.csv.
     Response(Box<ResponseArgs>),
+    /// How firmly the gains hold the robot up: it stands, a vertical load ramps onto its base
+    /// up to its own weight (or --load times it) and is held, then a sideways shove follows;
+    /// per gain cell the sag per newton, the sway and recovery, and the torque each joint
+    /// group spends holding the load (and the copper loss, where the model declares its motors).
+    Hold(Box<HoldArgs>),
     /// PD gains from each joint's reflected inertia (the joint-space inertia diagonal with
     /// armature, on the robot hung in the air at its stand pose): the gains per joint group
     /// that give --bandwidth HZ at --damping ZETA (kp = I wn^2, kd = 2 zeta I wn), or what
@@ -133,7 +141,7 @@ enum Command {
     /// table (sortable, status coloured), the plots of its kind, the best cells and the rule that
     /// picked them, warnings, and links to the files beside it. Every run writes one when it ends.
     Report {
-        /// A run directory (sweep, lab, response, tune or fit).
+        /// A run directory (sweep, lab, response, hold, tune or fit).
         #[arg(value_name = "DIR")]
         dir: PathBuf,
     },
@@ -165,6 +173,7 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
         Command::Sweep(a) => sweep::run(*a, stop),
         Command::Lab(a) => lab::run(*a, stop),
         Command::Response(a) => response::run(*a, stop),
+        Command::Hold(a) => hold::run(*a, stop),
         Command::Tune(a) => a.run(),
         Command::Excite(a) => a.run(),
         Command::Report { dir } => {

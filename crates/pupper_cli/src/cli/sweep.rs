@@ -323,10 +323,8 @@ fn say_interrupted(a: &Job, outcome: &SweepOutcome, dir: &Path) {
         dir.display(),
         if a.lab {
             "lab"
-        } else if a.spec.response.is_some() {
-            "response"
         } else {
-            "sweep"
+            a.spec.experiment.name()
         },
         dir.display(),
         a.spec
@@ -341,10 +339,7 @@ fn say_interrupted(a: &Job, outcome: &SweepOutcome, dir: &Path) {
 /// best cells, or all of it as JSON.
 fn show(a: &Job, outcome: &SweepOutcome, dir: &Path) -> Result<()> {
     if !a.json && !a.lab {
-        match a.spec.response.is_some() {
-            true => outp!("{}", print::response(outcome)),
-            false => outp!("{}", print::sweep(outcome)),
-        }
+        outp!("{}", print::run_table(outcome, &a.spec.experiment));
     }
     let mut best = None;
     if let Some(rule) = &a.rule {
@@ -373,16 +368,10 @@ fn show(a: &Job, outcome: &SweepOutcome, dir: &Path) -> Result<()> {
 fn write_after(a: &Job, dir: &Path) -> Result<()> {
     let dir_s = dir.display().to_string();
     if a.plot {
-        let helper = if a.lab {
-            "write_lab_plots"
-        } else if a.spec.response.is_some() {
-            "write_response_plots"
-        } else {
-            "write_run_plots"
-        };
+        // the plots of the run's kind, as its manifest names it
         for p in bridge::call_helper(
             "pupper_core.plots",
-            helper,
+            "write_plots",
             std::slice::from_ref(&dir_s),
             &serde_json::json!({}),
         )? {

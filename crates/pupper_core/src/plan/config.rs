@@ -97,6 +97,9 @@ impl Default for SweepConfig {
 impl SweepConfig {
     pub fn validate(&self) -> Result<()> {
         self.schedule.validate()?;
+        self.experiment
+            .plan()
+            .check(&self.schedule, &self.grid, !self.replicates.is_plain())?;
         let d = &self.defaults;
         for (flag, v) in [("kp", d.kp), ("kd", d.kd)] {
             let Some(v) = v else { continue };

@@ -6,8 +6,12 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::error::Result;
 use crate::plan::excitation::Excitation;
+use crate::plan::hold::Load;
 use crate::plan::kind::{KindPlan, Stand};
+use crate::plan::schedule::Schedule;
+use crate::robot::model::ModelInfo;
 
 /// The experiment of a run (the manifest's config keeps it).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
@@ -20,6 +24,9 @@ pub enum Experiment {
     /// Each joint excited alone, its target stepped, swept in a sine or a
     /// chirp: `pupper response`.
     Response(Excitation),
+    /// The robot stands under a load ramped onto its base, then is shoved
+    /// sideways: `pupper hold`.
+    Hold(Load),
 }
 
 /// An experiment as a manifest's config writes it: the stand kind absent,
@@ -29,13 +36,16 @@ pub enum Experiment {
 struct Record {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     response: Option<Excitation>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    hold: Option<Load>,
 }
 
 impl From<Record> for Experiment {
     fn from(r: Record) -> Experiment {
-        match r.response {
-            Some(e) => Experiment::Response(e),
-            None => Experiment::Stand,
+        match (r.response, r.hold) {
+            (Some(e), _) => Experiment::Response(e),
+            (None, Some(l)) => Experiment::Hold(l),
+            (None, None) => Experiment::Stand,
         }
     }
 }
@@ -44,7 +54,14 @@ impl From<Experiment> for Record {
     fn from(e: Experiment) -> Record {
         match e {
             Experiment::Stand => Record::default(),
-            Experiment::Response(e) => Record { response: Some(e) },
+            Experiment::Response(e) => Record {
+                response: Some(e),
+                ..Record::default()
+            },
+            Experiment::Hold(l) => Record {
+                hold: Some(l),
+                ..Record::default()
+            },
         }
     }
 }
@@ -55,6 +72,17 @@ impl Experiment {
         match self {
             Experiment::Stand => &Stand,
             Experiment::Response(e) => e,
+            Experiment::Hold(l) => l,
+        }
+    }
+
+    /// What a kind takes from the compiled model before it runs (a hold's
+    /// weight, groups and windings). A response's joints need the model's
+    /// data too and are resolved beside it, in the adapter.
+    pub fn resolve(&mut self, info: &ModelInfo, schedule: &mut Schedule) -> Result<()> {
+        match self {
+            Experiment::Hold(l) => l.resolve(info, schedule),
+            Experiment::Stand | Experiment::Response(_) => Ok(()),
         }
     }
 
@@ -71,7 +99,7 @@ impl Experiment {
     pub fn excitation(&self) -> Option<&Excitation> {
         match self {
             Experiment::Response(e) => Some(e),
-            Experiment::Stand => None,
+            Experiment::Stand | Experiment::Hold(_) => None,
         }
     }
 
@@ -79,7 +107,7 @@ impl Experiment {
     pub fn excitation_mut(&mut self) -> Option<&mut Excitation> {
         match self {
             Experiment::Response(e) => Some(e),
-            Experiment::Stand => None,
+            Experiment::Stand | Experiment::Hold(_) => None,
         }
     }
 }

@@ -30,6 +30,30 @@ pub trait KindPlan {
     fn target_offset(&self, _t: f64, _duration: f64) -> f64 {
         0.0
     }
+    /// The kind's own force on the base at time `t` (N, world frame),
+    /// beside the schedule's push and sine.
+    fn base_force(&self, _t: f64) -> [f64; 3] {
+        [0.0; 3]
+    }
+    /// Whether [`KindPlan::base_force`] changes from step to step.
+    fn varying_force(&self) -> bool {
+        false
+    }
+    /// The summary column its best cell is the lowest of, unless a rule
+    /// names another.
+    fn default_metric(&self) -> &'static str {
+        "last_1s_std_mm"
+    }
+    /// Refuses a run the kind cannot measure, in one line: its schedule,
+    /// its grid, and whether it has replicates.
+    fn check(
+        &self,
+        _schedule: &crate::plan::schedule::Schedule,
+        _grid: &crate::plan::grid::Grid,
+        _replicated: bool,
+    ) -> crate::error::Result<()> {
+        Ok(())
+    }
 }
 
 /// The stand kind: nothing excited, the schedule's push acts.

@@ -6,6 +6,7 @@ pub mod config;
 pub mod excitation;
 pub mod experiment;
 pub mod grid;
+pub mod hold;
 pub mod integrator;
 pub mod kind;
 pub mod mode;

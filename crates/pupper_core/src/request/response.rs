@@ -81,7 +81,7 @@ pub fn spec(
     Ok(SweepSpec {
         push: false,
         pose,
-        response: Some(excitation),
+        experiment: crate::plan::experiment::Experiment::Response(excitation),
         ..base
     })
 }

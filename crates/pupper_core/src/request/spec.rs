@@ -12,7 +12,6 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::plan::backend::Backend;
 use crate::plan::config::{Defaults, SweepConfig};
-use crate::plan::excitation::Excitation;
 use crate::plan::experiment::Experiment;
 use crate::plan::grid::{Axis, AxisValues, DEFAULT_MAX_CELLS, Grid, parse_values};
 use crate::plan::integrator::Integrator;
@@ -128,9 +127,10 @@ pub struct SweepSpec {
     /// Stop stepping a robot once it has fallen (see
     /// [`crate::plan::schedule::Schedule::stop_fallen`]).
     pub stop_fallen: bool,
-    /// The response experiment (`pupper response`); None: a sweep.
+    /// What the run's simulations do (`pupper response`, `pupper hold`);
+    /// the default, a stand: a sweep.
     #[serde(skip)]
-    pub response: Option<Excitation>,
+    pub experiment: Experiment,
     /// The name a request gives its run in the manifest when it is not the
     /// experiment's own (`lab`); None: the experiment's.
     #[serde(skip)]
@@ -177,7 +177,7 @@ impl Default for SweepSpec {
             shard: None,
             ray: None,
             stop_fallen: false,
-            response: None,
+            experiment: Experiment::Stand,
             kind: None,
             integrator: None,
             motor: None,
@@ -267,10 +267,7 @@ impl SweepSpec {
                 self.max_cells
             )));
         }
-        let experiment = match &self.response {
-            Some(e) => Experiment::Response(e.clone()),
-            None => Experiment::Stand,
-        };
+        let experiment = self.experiment.clone();
         let schedule = Schedule {
             duration: self.seconds,
             initial: match &self.pose {
@@ -281,7 +278,8 @@ impl SweepSpec {
                 Some(PoseInput::Angles(p)) => InitialState::Pose(p.clone()),
                 None => InitialState::Keyframe(self.keyframe.clone()),
             },
-            // a response run excites joints, it does not push the robot
+            // a response run excites joints, it does not push the robot (a
+            // hold's push is its shove, resolved on the model's weight)
             push: (self.push && experiment.plan().pushes()).then(|| Push {
                 start: self.push_at,
                 duration: self.push_duration,

@@ -73,6 +73,21 @@ fn column(header: &[String], name: &str) -> Option<usize> {
     header.iter().position(|h| h == name)
 }
 
+/// Where a table's figures start, after its cell columns and axes: the
+/// stand metrics, a replicated run's count, or a response's first figure
+/// of a joint group.
+fn first_figure(header: &[String]) -> usize {
+    column(header, METRIC_NAMES[0])
+        .or_else(|| column(header, "replicates"))
+        .or_else(|| {
+            header.iter().position(|h| {
+                h.split_once('.')
+                    .is_some_and(|(m, _)| crate::sim::joints::JOINT_METRIC_NAMES.contains(&m))
+            })
+        })
+        .unwrap_or(header.len())
+}
+
 /// The best cell of each group of `rows` (summary.csv's rows as text).
 pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<Group>> {
     let replicated = column(header, "failure_fraction").is_some();
@@ -81,12 +96,20 @@ pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<
             .flat_map(|m| STATISTICS.iter().map(move |s| format!("{s}:{m}")))
             .collect()
     } else {
-        // status is text; when a cell fell is no quality to rank by
+        // status is text; when a cell fell is no quality to rank by. A
+        // kind's own figures follow the metrics (a hold's sag, torques; a
+        // response's figures per joint group)
         METRIC_NAMES
             .iter()
-            .filter(|m| !matches!(**m, "status" | "event_time"))
             .map(|m| m.to_string())
-            .collect()
+            .chain(header[first_figure(header)..].iter().cloned())
+            .filter(|m| !matches!(m.as_str(), "status" | "event_time") && !m.starts_with("status."))
+            .fold(Vec::new(), |mut v, m| {
+                if !v.contains(&m) {
+                    v.push(m);
+                }
+                v
+            })
     };
     let metric = column(header, &rule.metric)
         .filter(|_| numeric.contains(&rule.metric))
@@ -105,9 +128,7 @@ pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<
                 shown.join(", ")
             ))
         })?;
-    let first_metric = column(header, METRIC_NAMES[0])
-        .or_else(|| column(header, "replicates"))
-        .unwrap_or(header.len());
+    let first_metric = first_figure(header);
     let axes = &header[3.min(first_metric)..first_metric];
     let by = rule
         .by
@@ -134,10 +155,22 @@ pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<
             rule.max_saturation
         )));
     }
-    let status = column(header, "status");
+    // a figure of one joint group (a response's `rise_time_s.kfe`) is
+    // judged by that group's status and saturation
+    let group = rule
+        .metric
+        .split_once('.')
+        .map(|(_, g)| g)
+        .filter(|g| column(header, &format!("status.{g}")).is_some());
+    let status = match group {
+        Some(g) => column(header, &format!("status.{g}")),
+        None => column(header, "status"),
+    };
     let failures = column(header, "failure_fraction");
-    let saturation =
-        column(header, "saturation_frac").or_else(|| column(header, "p95:saturation_frac"));
+    let saturation = match group {
+        Some(g) => column(header, &format!("saturation_frac.{g}")),
+        None => column(header, "saturation_frac").or_else(|| column(header, "p95:saturation_frac")),
+    };
     let tolerance = if rule.metric.ends_with("_mm") {
         TIE_MM
     } else {
@@ -420,6 +453,41 @@ mod tests {
         let (h, rows) = table(&[("10", "1", "0.5", "0", "ok"), ("30", "1", "0.5", "0", "ok")]);
         let g = best(&h, &rows, &Rule::new("final_z", &[])).unwrap();
         assert_eq!((g[0].best, g[0].tied), (Some(0), 2));
+    }
+
+    #[test]
+    fn a_joint_groups_figure_ranks_by_that_groups_status() {
+        let header: Vec<String> = [
+            "index",
+            "id",
+            "name",
+            "kp",
+            "rise_time_s.kfe",
+            "saturation_frac.kfe",
+            "status.kfe",
+            "status",
+        ]
+        .map(String::from)
+        .to_vec();
+        let rows: Vec<Vec<String>> = [
+            ["0", "kp60", "", "60", "0.05", "0", "past_bound", "-"],
+            ["1", "kp20", "", "20", "0.1", "0", "ok", "saturated"],
+            ["2", "kp5", "", "5", "0.2", "0", "ok", "ok"],
+        ]
+        .iter()
+        .map(|r| r.map(String::from).to_vec())
+        .collect();
+        let g = best(&header, &rows, &Rule::new("rise_time_s.kfe", &[])).unwrap();
+        assert_eq!((g[0].best, g[0].eligible), (Some(1), 2));
+        let by = best(
+            &header,
+            &rows,
+            &Rule::new("rise_time_s.kfe", &["kp".into()]),
+        )
+        .unwrap();
+        assert_eq!(by.len(), 3);
+        let err = best(&header, &rows, &Rule::new("nope", &[])).unwrap_err();
+        assert!(err.to_string().contains("rise_time_s.kfe"), "{err}");
     }
 
     #[test]

@@ -897,6 +897,7 @@ mod tests {
             trace: vec![(0.002, 0.25)],
             frames: None,
             joints: Vec::new(),
+            figures: Vec::new(),
             steps: 0,
             replicates: Vec::new(),
         }

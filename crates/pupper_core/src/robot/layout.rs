@@ -159,6 +159,7 @@ pub(crate) mod tests {
                 gear: 1.0,
                 delay: 0.0,
                 gain_scale: [1.0, 1.0],
+                winding: None,
             })
             .collect();
         ModelInfo::for_test("test", joints, actuators)

@@ -176,6 +176,7 @@ impl ModelInfo {
             timestep: 0.002,
             integrator: 0,
             total_mass: 1.0,
+            gravity: EARTH,
             bodies: vec![],
             body_parent: vec![],
             joints,
@@ -227,6 +228,11 @@ pub struct ActuatorInfo {
     /// `pupper:kp_scale:NAME` and `pupper:kd_scale:NAME`; `pupper fit`).
     #[serde(default = "unit_scales", skip_serializing_if = "is_unit")]
     pub gain_scale: [f64; 2],
+    /// The motor's torque constant (N·m/A) and winding resistance (Ω),
+    /// where the model declares both (custom numerics `pupper:kt:NAME` and
+    /// `pupper:resistance:NAME`): the copper loss `pupper hold` reports.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub winding: Option<[f64; 2]>,
 }
 
 fn one() -> f64 {
@@ -235,6 +241,58 @@ fn one() -> f64 {
 
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
+}
+
+/// MuJoCo's default gravity.
+pub const EARTH: [f64; 3] = [0.0, 0.0, -9.81];
+
+fn earth() -> [f64; 3] {
+    EARTH
+}
+
+fn is_earth(v: &[f64; 3]) -> bool {
+    *v == EARTH
+}
+
+/// A custom numeric that declares a motor constant (`pupper:kt:ACT`, N·m/A,
+/// or `pupper:resistance:ACT`, Ω), checked: `Some((0 for kt or 1 for the
+/// resistance, actuator index, value))`, or None for another numeric. A
+/// constant is one finite number above 0.
+pub fn motor_constant(
+    numeric: &str,
+    values: &[f64],
+    actuators: &[ActuatorInfo],
+    model: &str,
+) -> Result<Option<(usize, usize, f64)>> {
+    let Some(rest) = numeric.strip_prefix("pupper:") else {
+        return Ok(None);
+    };
+    let Some((k, actuator)) = [("kt:", 0), ("resistance:", 1)]
+        .iter()
+        .find_map(|(kind, k)| rest.strip_prefix(kind).map(|a| (*k, a)))
+    else {
+        return Ok(None);
+    };
+    let bad = |why: String| {
+        Err(Error::Model(format!(
+            "{model}: custom numeric '{numeric}' {why}"
+        )))
+    };
+    let Some(index) = actuators.iter().position(|a| a.name == actuator) else {
+        let names: Vec<&str> = actuators.iter().map(|a| a.name.as_str()).collect();
+        return bad(format!(
+            "names no actuator of the model: use one of {}, or remove it",
+            names.join(", ")
+        ));
+    };
+    match values {
+        [v] if v.is_finite() && *v > 0.0 => Ok(Some((k, index, *v))),
+        [v] => bad(format!("is {v}: a motor constant must be a number > 0")),
+        _ => bad(format!(
+            "has {} values: a motor constant is one number (size=\"1\")",
+            values.len()
+        )),
+    }
 }
 
 fn unit_scales() -> [f64; 2] {
@@ -346,6 +404,10 @@ pub struct ModelInfo {
     #[serde(default)]
     pub integrator: i64,
     pub total_mass: f64,
+    /// MuJoCo's `opt.gravity` (m/s²); written only when it is not Earth's
+    /// default, so the info of every model before it reads as it was.
+    #[serde(default = "earth", skip_serializing_if = "is_earth")]
+    pub gravity: [f64; 3],
     pub bodies: Vec<String>,
     /// Each body's parent (the world, 0, is its own).
     #[serde(default)]
@@ -542,6 +604,7 @@ mod tests {
             gear: 1.0,
             delay: 0.0,
             gain_scale: [1.0, 1.0],
+            winding: None,
         }
     }
 

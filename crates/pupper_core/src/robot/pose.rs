@@ -353,6 +353,7 @@ mod tests {
                     gear: 1.0,
                     delay: 0.0,
                     gain_scale: [1.0, 1.0],
+                    winding: None,
                 });
             }
             legs.push(LegInfo {

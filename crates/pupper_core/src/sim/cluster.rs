@@ -298,6 +298,7 @@ mod tests {
             trace: vec![(0.002, 0.14)],
             frames: None,
             joints: Vec::new(),
+            figures: Vec::new(),
             steps: 0,
         }
     }

@@ -5,6 +5,7 @@ pub mod chunk;
 pub mod cluster;
 pub mod firmware;
 pub mod frames;
+pub mod hold;
 pub mod joints;
 pub mod metrics;
 pub mod physics;

@@ -34,6 +34,10 @@ pub struct CellResult {
     /// in a sweep.
     #[serde(default)]
     pub joints: Vec<JointResult>,
+    /// The kind's own figures (a hold's sag, sway and torques), in the
+    /// order its tables name them; empty for the kinds without any.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub figures: Vec<f64>,
     /// Steps its simulations took in all: the cell-steps it cost.
     #[serde(default)]
     pub steps: u64,

@@ -13,6 +13,7 @@ use crate::robot::layout::Layout;
 use crate::sim::chunk::{ChunkPlan, lanes};
 use crate::sim::firmware::Sensing;
 use crate::sim::frames::{FrameRecorder, frame_count};
+use crate::sim::hold::HoldProbe;
 use crate::sim::metrics::{Metrics, Recorder};
 use crate::sim::physics::SimBatch;
 use crate::sim::physics::{Force, Physics};
@@ -198,6 +199,12 @@ fn probe(cfg: &SweepConfig, s: &Start<'_>) -> Box<dyn Probe> {
             e.hold,
             s.dt,
         )),
+        (Experiment::Hold(l), _) => Box::new(HoldProbe::new(
+            StandProbe::new(Recorder::new(s.schedule, s.dt, s.stance)),
+            l,
+            s.schedule,
+            s.dt,
+        )),
         _ => Box::new(StandProbe::new(Recorder::new(s.schedule, s.dt, s.stance))),
     }
 }
@@ -313,6 +320,12 @@ impl Stepping<'_> {
             let s = self.cfg.schedule.sine_force(t);
             for i in 0..3 {
                 f[i] += s[i];
+            }
+        }
+        let own = self.cfg.experiment.plan().base_force(t);
+        if own != [0.0; 3] {
+            for i in 0..3 {
+                f[i] += own[i];
             }
         }
         f
@@ -523,7 +536,8 @@ fn advance_open_loop(
 ) -> Result<Vec<(usize, usize)>> {
     let dt = st.dt;
     let nstep = step_time.len();
-    let sine = st.cfg.schedule.sine.is_some();
+    // a force that changes every step: one per step of the call
+    let sine = st.cfg.schedule.sine.is_some() || st.cfg.experiment.plan().varying_force();
     let forces: Vec<[f64; 3]>;
     let force = if sine {
         forces = alive
@@ -688,6 +702,7 @@ fn finish_chunk(
                 trace: Vec::new(),
                 frames: None,
                 joints: Vec::new(),
+                figures: Vec::new(),
                 steps: 0,
             });
         }

@@ -4,9 +4,10 @@
 use pyo3::prelude::*;
 
 use super::python::{Mujoco, PyResultExt};
-use pupper_core::error::Result;
+use pupper_core::error::{Error, Result};
 use pupper_core::robot::model::{
     ActuatorInfo, JointInfo, KeyframeInfo, LegInfo, ModelInfo, ModelSource, SensorInfo, gain_scale,
+    motor_constant,
 };
 
 impl<'py> Mujoco<'py> {
@@ -104,6 +105,7 @@ impl<'py> Mujoco<'py> {
                 gear: gear[i][0],
                 delay: delays.get(i).copied().unwrap_or(0.0),
                 gain_scale: [1.0, 1.0],
+                winding: None,
             });
         }
         // a calibrated model's gain scales (`pupper fit`)
@@ -111,6 +113,8 @@ impl<'py> Mujoco<'py> {
         if nnumeric > 0 {
             let (adr, size): (Vec<i64>, Vec<i64>) = (ints("numeric_adr")?, ints("numeric_size")?);
             let data: Vec<f64> = list("numeric_data")?.extract().internal()?;
+            // a motor's torque constant and resistance (for copper loss)
+            let mut motor: Vec<[Option<f64>; 2]> = vec![[None; 2]; actuators.len()];
             for n in 0..nnumeric {
                 let name = self.name_of(model, "mjOBJ_NUMERIC", n)?;
                 let values = &data[adr[n] as usize..(adr[n] + size[n]) as usize];
@@ -119,6 +123,36 @@ impl<'py> Mujoco<'py> {
                 {
                     actuators[actuator].gain_scale[k] = scale;
                 }
+                if let Some((k, actuator, v)) =
+                    motor_constant(&name, values, &actuators, &source.display())?
+                {
+                    motor[actuator][k] = Some(v);
+                }
+            }
+            for (a, m) in actuators.iter_mut().zip(motor) {
+                a.winding = match m {
+                    [Some(kt), Some(r)] => Some([kt, r]),
+                    [None, None] => None,
+                    _ => {
+                        return Err(Error::Model(format!(
+                            "{}: actuator {} declares {} but not {}: copper loss needs both pupper:kt:{} (N·m/A) and pupper:resistance:{} (Ω)",
+                            source.display(),
+                            a.name,
+                            if m[0].is_some() {
+                                "a torque constant"
+                            } else {
+                                "a resistance"
+                            },
+                            if m[0].is_some() {
+                                "its resistance"
+                            } else {
+                                "its torque constant"
+                            },
+                            a.name,
+                            a.name
+                        )));
+                    }
+                };
             }
         }
         let nkey = int("nkey")?;
@@ -170,6 +204,12 @@ impl<'py> Mujoco<'py> {
                 .and_then(|i| i.extract())
                 .internal()?,
             total_mass: masses.iter().sum(),
+            gravity: model
+                .getattr("opt")
+                .and_then(|o| o.getattr("gravity"))
+                .and_then(|g| g.call_method0("tolist"))
+                .and_then(|g| g.extract())
+                .internal()?,
             bodies,
             body_parent: ints("body_parentid")?
                 .into_iter()

@@ -2,6 +2,7 @@
 //! its arguments into the Rust call the CLI makes.
 
 pub(crate) mod cli;
+pub(crate) mod hold;
 pub(crate) mod lab;
 pub(crate) mod model;
 pub(crate) mod record;

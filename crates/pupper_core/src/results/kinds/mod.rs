@@ -3,6 +3,7 @@
 //! own module; [`of`] is the registry. The run directory appends, resumes
 //! and merges every kind's tables the same way.
 
+pub mod hold;
 pub mod response;
 pub mod stand;
 
@@ -28,5 +29,6 @@ pub fn of(e: &Experiment) -> &dyn KindTables {
     match e {
         Experiment::Stand => &Stand,
         Experiment::Response(x) => x,
+        Experiment::Hold(l) => l,
     }
 }

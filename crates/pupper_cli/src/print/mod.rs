@@ -1,5 +1,7 @@
 //! Text and JSON for the terminal.
 
+mod hold;
+
 use std::fmt::Write;
 
 use pupper_core::robot::model::ModelInfo;
@@ -184,7 +186,7 @@ const SHOWN_REPLICATED: [(&str, &str, usize, usize); 8] = [
 
 /// An axis value in at most 8 characters: as written when it fits, else
 /// with 4 significant digits (summary.csv keeps every digit).
-fn short(text: &str) -> String {
+pub(crate) fn short(text: &str) -> String {
     match text.parse::<f64>() {
         Ok(v) if text.len() > 8 => {
             let digits = (3 - v.abs().log10().floor() as i32).clamp(0, 6) as usize;
@@ -197,6 +199,16 @@ fn short(text: &str) -> String {
             if t.len() <= 8 { t } else { format!("{v:.2e}") }
         }
         _ => text.to_string(),
+    }
+}
+
+/// The registry: a finished run's table as its experiment kind prints it.
+pub fn run_table(o: &SweepOutcome, e: &pupper_core::plan::experiment::Experiment) -> String {
+    use pupper_core::plan::experiment::Experiment;
+    match e {
+        Experiment::Stand => sweep(o),
+        Experiment::Response(_) => response(o),
+        Experiment::Hold(_) => hold::table(o),
     }
 }
 
@@ -316,14 +328,14 @@ fn steadiest(s: &mut String, o: &SweepOutcome) {
                     let _ = writeln!(s);
                 }
             }
-            edges(s, o, i);
+            edges(s, o, i, "steadiest");
         }
     }
 }
 
 /// The axes on whose edge the picked row `best` lies: its value there is
 /// the largest or smallest searched, so the best may lie beyond.
-fn edges(s: &mut String, o: &SweepOutcome, best: usize) {
+pub(crate) fn edges(s: &mut String, o: &SweepOutcome, best: usize, word: &str) {
     let end = o
         .header
         .iter()
@@ -363,14 +375,14 @@ fn edges(s: &mut String, o: &SweepOutcome, best: usize) {
     if !said.is_empty() {
         let _ = writeln!(
             s,
-            "the steadiest cell lies on the edge of the searched range ({}): the best may lie beyond it; widen the grid there",
+            "the {word} cell lies on the edge of the searched range ({}): the best may lie beyond it; widen the grid there",
             said.join("; ")
         );
     }
 }
 
 /// How many cells fell, saturated or had replicates that fell.
-fn counts(s: &mut String, o: &SweepOutcome) {
+pub(crate) fn counts(s: &mut String, o: &SweepOutcome) {
     let col = |name: &str| col(o, name);
     let bad = o
         .rows
@@ -420,7 +432,7 @@ fn counts(s: &mut String, o: &SweepOutcome) {
 }
 
 /// How many cells ran and where the table went.
-fn footer(s: &mut String, o: &SweepOutcome) {
+pub(crate) fn footer(s: &mut String, o: &SweepOutcome) {
     match &o.out {
         Some(d) if o.cells_run == 0 => {
             let _ = writeln!(
@@ -547,7 +559,10 @@ pub fn best(
 ) -> String {
     let col = |name: &str| o.header.iter().position(|h| h == name);
     let metric = col(&rule.metric);
-    let mut s = format!("\nbest {} by {}:\n", rule.metric, rule.by.join(", "));
+    let mut s = match rule.by.is_empty() {
+        true => format!("\nbest {}:\n", rule.metric),
+        false => format!("\nbest {} by {}:\n", rule.metric, rule.by.join(", ")),
+    };
     for g in groups {
         let key: Vec<String> = g.key.iter().map(|(k, v)| format!("{k}={v}")).collect();
         let key = if key.is_empty() {
@@ -732,7 +747,7 @@ fn group_title(g: &str) -> String {
 }
 
 /// A number to 3 significant digits, as a table shows it.
-struct Sig(f64);
+pub(crate) struct Sig(pub(crate) f64);
 
 impl std::fmt::Display for Sig {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

@@ -1,0 +1,209 @@
+//! The hold kind's probe: the stand kind's recorder (height, tilt, the
+//! shove's dip and settling, falls) plus what a load shows of the gains:
+//! the sag from the unloaded to the loaded height, the sideways sway under
+//! the shove, and the torque each joint group spends holding the load.
+
+use crate::math::stats::Settle;
+use crate::plan::hold::Load;
+use crate::plan::schedule::Schedule;
+use crate::sim::probe::{Finish, Probe, Sample};
+use crate::sim::result::CellResult;
+use crate::sim::stand::StandProbe;
+
+/// The hold kind's figures, in the order of [`HoldProbe`]'s `figures`.
+pub fn figure_names(load: &Load) -> Vec<String> {
+    let mut out: Vec<String> = ["sag_mm", "compliance_mm_per_n", "sway_mm", "recovery_s"]
+        .map(String::from)
+        .to_vec();
+    out.extend(load.group_names().iter().map(|g| format!("torque_rms.{g}")));
+    if load.copper() {
+        out.push("copper_w".into());
+    }
+    out
+}
+
+/// The band, as a fraction of the sway, within which the base has
+/// recovered: it stays that close to where it comes to rest.
+pub const RECOVERED: f64 = 0.05;
+
+/// A mean over the samples inside a time window `(from, to]`.
+#[derive(Default)]
+struct Mean {
+    sum: f64,
+    n: usize,
+}
+
+impl Mean {
+    fn add(&mut self, v: f64) {
+        self.sum += v;
+        self.n += 1;
+    }
+    fn value(&self) -> f64 {
+        if self.n == 0 {
+            f64::NAN
+        } else {
+            self.sum / self.n as f64
+        }
+    }
+}
+
+pub struct HoldProbe {
+    stand: StandProbe,
+    free: (f64, f64),
+    loaded: (f64, f64),
+    /// From the shove's start until its dip is known (s).
+    shoved: Option<(f64, f64)>,
+    full: f64,
+    /// Each actuator's group, as an index into the group names.
+    group_of: Vec<usize>,
+    groups: usize,
+    /// Each actuator's `R / kt²` (W per (N·m)²), where declared.
+    copper: Option<Vec<f64>>,
+    z_free: Mean,
+    z_loaded: Mean,
+    y_loaded: Mean,
+    /// Per group: the sum of squared torques and the count.
+    torque_sq: Vec<Mean>,
+    copper_w: Mean,
+    sway: f64,
+    /// The sideways position from the shove's start, for `recovery_s`.
+    settle: Option<Settle>,
+    last_y: f64,
+    dt: f64,
+}
+
+impl HoldProbe {
+    pub fn new(stand: StandProbe, load: &Load, schedule: &Schedule, dt: f64) -> HoldProbe {
+        let names = load.group_names();
+        let group_of = load
+            .groups
+            .iter()
+            .map(|g| names.iter().position(|n| n == g).unwrap_or(0))
+            .collect();
+        let copper = load.copper().then(|| {
+            load.winding
+                .iter()
+                .map(|w| w.map_or(0.0, |[kt, r]| r / (kt * kt)))
+                .collect()
+        });
+        let shoved = schedule
+            .push
+            .as_ref()
+            .zip(schedule.dip_end())
+            .map(|(p, end)| (p.start, end));
+        HoldProbe {
+            stand,
+            free: load.free_window(),
+            loaded: load.loaded_window(schedule),
+            shoved,
+            full: load.full(),
+            group_of,
+            groups: names.len(),
+            copper,
+            z_free: Mean::default(),
+            z_loaded: Mean::default(),
+            y_loaded: Mean::default(),
+            torque_sq: (0..names.len()).map(|_| Mean::default()).collect(),
+            copper_w: Mean::default(),
+            sway: f64::NAN,
+            settle: schedule
+                .push
+                .as_ref()
+                .map(|p| Settle::new(p.start, RECOVERED, crate::plan::schedule::SETTLE_FLOOR)),
+            last_y: f64::NAN,
+            dt,
+        }
+    }
+
+    fn figures(&self) -> Vec<f64> {
+        let sag = (self.z_free.value() - self.z_loaded.value()) * 1000.0;
+        let mut out = vec![
+            sag,
+            if self.full > 0.0 {
+                sag / self.full
+            } else {
+                f64::NAN
+            },
+            self.sway,
+            self.settle
+                .as_ref()
+                .and_then(|st| st.value(self.last_y, self.sway / 1000.0, self.dt))
+                .unwrap_or(f64::NAN),
+        ];
+        out.extend(self.torque_sq.iter().map(|m| m.value().sqrt()));
+        if self.copper.is_some() {
+            out.push(self.copper_w.value());
+        }
+        out
+    }
+}
+
+fn inside(t: f64, (from, to): (f64, f64)) -> bool {
+    // samples are taken at the end of each step
+    t > from + 1e-12 && t <= to + 1e-12
+}
+
+impl Probe for HoldProbe {
+    fn observe(&mut self, s: &Sample<'_>) {
+        self.stand.observe(s);
+        let Some(q) = s.layout.base.qpos else {
+            return;
+        };
+        let (y, z) = (s.qpos[q + 1], s.qpos[q + 2]);
+        self.last_y = y;
+        if let Some(st) = self.settle.as_mut() {
+            st.push(s.t, y);
+        }
+        if inside(s.t, self.free) {
+            self.z_free.add(z);
+        }
+        if inside(s.t, self.loaded) {
+            self.z_loaded.add(z);
+            self.y_loaded.add(y);
+            let mut sq = vec![0.0; self.groups];
+            let mut n = vec![0usize; self.groups];
+            for (a, &f) in s.act.iter().enumerate() {
+                let g = self.group_of.get(a).copied().unwrap_or(0);
+                sq[g] += f * f;
+                n[g] += 1;
+            }
+            for ((m, sq), n) in self.torque_sq.iter_mut().zip(sq).zip(n) {
+                if n > 0 {
+                    m.add(sq / n as f64);
+                }
+            }
+            if let Some(c) = &self.copper {
+                self.copper_w
+                    .add(s.act.iter().zip(c).map(|(f, c)| c * f * f).sum());
+            }
+        }
+        if let Some(w) = self.shoved
+            && inside(s.t, w)
+        {
+            let d = (y - self.y_loaded.value()).abs() * 1000.0;
+            if !d.is_nan() {
+                self.sway = if self.sway.is_nan() {
+                    d
+                } else {
+                    self.sway.max(d)
+                };
+            }
+        }
+    }
+
+    fn fallen(&self) -> bool {
+        self.stand.fallen()
+    }
+
+    fn diverge(&mut self, t: f64) {
+        self.stand.diverge(t);
+    }
+
+    fn finish(self: Box<Self>, cell: &mut CellResult, done: Finish<'_>) {
+        let figures = self.figures();
+        if done.replicate == 0 {
+            cell.figures = figures;
+        }
+        Box::new(self.stand).finish(cell, done);
+    }
+}
