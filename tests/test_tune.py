@@ -34,6 +34,10 @@ def test_each_sampler_finds_a_known_optimum(sampler):
     assert best > 60 * (2 / 60) ** 0.2, (sampler, best)
     # a trial that fell stopped early: never more than the full schedule
     assert len(res.trials) == 24 and 0 < res.cell_steps <= 24 * 750
+    if sampler == "tpe":
+        df = res.to_pandas()  # a row per trial, the columns of trials.csv
+        assert len(df) == 24 and list(df.columns) == list(res.trials[0])
+        assert df["tracking_rms"].min() == min(t["tracking_rms"] for t in res.trials)
 
 
 def test_gp_without_torch_says_so_in_one_line():

@@ -203,6 +203,15 @@ class TuneResult:
     cell_steps: int
     objectives: list[str] = field(default_factory=list)
 
+    def to_pandas(self) -> Any:
+        """The trials as a pandas DataFrame, a row per trial with the columns
+        of trials.csv (pandas is imported here, not by pupper)."""
+        try:
+            import pandas as pd
+        except ImportError as e:
+            raise ImportError("TuneResult.to_pandas needs pandas: pip install pandas") from e
+        return pd.DataFrame(self.trials)
+
     def __repr__(self) -> str:
         b = self.best[0] if self.best else {}
         return (f"TuneResult({len(self.trials)} trials, {self.cell_steps} cell-steps, "
