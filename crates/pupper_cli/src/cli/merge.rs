@@ -31,7 +31,7 @@ impl MergeArgs {
             (Some(o), false) => (o, Existing::Refuse),
             (None, _) => (rundir_name("merged"), Existing::Unique),
         };
-        let (dir, m) = pupper_core::results::rundir::merge(&self.dirs, &out, existing)?;
+        let (dir, m) = pupper_core::results::merge::merge(&self.dirs, &out, existing)?;
         if self.json {
             outln!(
                 "{}",

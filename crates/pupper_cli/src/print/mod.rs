@@ -1,162 +1,20 @@
 //! Text and JSON for the terminal.
 
 mod hold;
+mod model;
+mod response;
+
+pub use model::{doctor, gains, info, pose, stand};
+pub use response::response;
 
 use std::fmt::Write;
 
-use pupper_core::robot::model::ModelInfo;
 use pupper_core::{Error, Result};
-use pupper_mujoco::api::{StandReport, SweepOutcome};
-use pupper_mujoco::bridge::PythonReport;
+use pupper_mujoco::api::SweepOutcome;
 use serde::Serialize;
 
 pub fn json<T: Serialize>(v: &T) -> Result<String> {
     serde_json::to_string_pretty(v).map_err(|e| Error::Internal(format!("json: {e}")))
-}
-
-pub fn info(m: &ModelInfo) -> String {
-    let mut s = String::new();
-    let _ = writeln!(s, "model      {} ({})", m.name, m.source);
-    let _ = writeln!(s, "sha256     {}", m.sha256);
-    let _ = writeln!(
-        s,
-        "sizes      nq {}  nv {}  nu {}  nbody {}",
-        m.nq, m.nv, m.nu, m.nbody
-    );
-    let _ = writeln!(s, "timestep   {} s", m.timestep);
-    let _ = writeln!(s, "total mass {:.3} kg", m.total_mass);
-    let _ = writeln!(s, "\njoints ({})", m.joints.len());
-    let _ = writeln!(
-        s,
-        "  {:<18} {:<6} {:>4} {:>4}  range (rad)",
-        "name", "type", "qpos", "qvel"
-    );
-    for j in &m.joints {
-        let range = j
-            .range
-            .map(|r| format!("[{:.2}, {:.2}]", r[0], r[1]))
-            .unwrap_or_else(|| "-".into());
-        let _ = writeln!(
-            s,
-            "  {:<18} {:<6} {:>4} {:>4}  {}",
-            j.name, j.kind, j.qpos_adr, j.dof_adr, range
-        );
-    }
-    let _ = writeln!(s, "\nactuators in ctrl order ({})", m.actuators.len());
-    let _ = writeln!(
-        s,
-        "  {:>3} {:<18} {:<18} {:<5} {:>7} {:>7}  force range (N·m)",
-        "ctrl", "name", "joint", "group", "kp", "kd"
-    );
-    for (i, a) in m.actuators.iter().enumerate() {
-        let joint = a
-            .joint
-            .and_then(|j| m.joints.get(j))
-            .map(|j| j.name.as_str())
-            .unwrap_or("-");
-        let (kp, kd) = a.kp_kd();
-        let fr = a
-            .forcerange
-            .map(|r| format!("[{}, {}]", r[0], r[1]))
-            .unwrap_or_else(|| "unlimited".into());
-        // what the joint does in its leg, measured: the group its gain axes use
-        let group = m.actuator_group(i).unwrap_or("-");
-        let _ = writeln!(
-            s,
-            "  {i:>3}  {:<18} {:<18} {group:<5} {kp:>7} {kd:>7}  {fr}",
-            a.name, joint
-        );
-    }
-    let _ = writeln!(s, "\nkeyframes ({})", m.keyframes.len());
-    for k in &m.keyframes {
-        let head: Vec<String> = k.qpos.iter().take(7).map(|v| format!("{v}")).collect();
-        let more = if k.qpos.len() > 7 { " ..." } else { "" };
-        let _ = writeln!(s, "  {:<10} qpos [{}{more}]", k.name, head.join(" "));
-    }
-    let _ = writeln!(s, "\nsensors ({})", m.sensors.len());
-    for x in &m.sensors {
-        let _ = writeln!(s, "  {:<18} {:<14} dim {}", x.name, x.kind, x.dim);
-    }
-    if !m.legs.is_empty() {
-        let _ = writeln!(
-            s,
-            "\nlegs at the default pose (world m; hip = hip-flexion joint)"
-        );
-        let p = |v: [f64; 3]| format!("({:+.4}, {:+.4}, {:+.4})", v[0], v[1], v[2]);
-        for l in &m.legs {
-            let _ = writeln!(
-                s,
-                "  {:<16} hip-to-foot {:.4}  hip {}  knee {}  foot {}",
-                l.name,
-                l.hip_to_foot,
-                p(l.hip),
-                p(l.knee),
-                p(l.foot)
-            );
-        }
-    }
-    s
-}
-
-pub fn stand(r: &StandReport) -> String {
-    // a quantity the run was too short to measure (see the note) is "-"
-    let num = |v: f64, d: usize| {
-        if v.is_nan() {
-            "-".to_string()
-        } else {
-            format!("{v:.d$}")
-        }
-    };
-    format!(
-        "stand  {} ({} mode, {}, {} s, no push)\n  final z          {} m\n  last-1s std      {} mm\n  max tilt         {} deg\n  status           {}\n",
-        r.model,
-        r.mode.as_str(),
-        r.gains,
-        r.seconds,
-        num(r.final_z, 4),
-        num(r.last_1s_std_mm, 3),
-        num(r.max_tilt_deg, 2),
-        r.status.as_str()
-    )
-}
-
-pub fn doctor(r: &PythonReport) -> String {
-    let mut s = String::new();
-    let _ = writeln!(s, "python     {}", r.executable);
-    let _ = writeln!(s, "version    {}", r.version);
-    let _ = writeln!(s, "prefix     {}", r.prefix);
-    let _ = writeln!(s, "base       {}", r.base_prefix);
-    let _ = writeln!(
-        s,
-        "numpy      {}",
-        r.numpy.as_deref().unwrap_or("not found")
-    );
-    match (&r.mujoco, &r.mujoco_path) {
-        (Some(v), Some(p)) => {
-            let _ = writeln!(s, "mujoco     {v} ({p})");
-        }
-        _ => {
-            let _ = writeln!(s, "mujoco     not usable");
-        }
-    }
-    match (&r.warp, &r.warp_problem) {
-        (Some(v), _) => {
-            let _ = writeln!(s, "warp       {v}");
-            let _ = writeln!(s, "devices    {}", r.warp_devices.join(", "));
-        }
-        (None, Some(p)) => {
-            let _ = writeln!(s, "warp       not usable (--backend warp): {p}");
-        }
-        (None, None) => {}
-    }
-    let _ = writeln!(
-        s,
-        "ray        {}",
-        r.ray.as_deref().unwrap_or(
-            "not installed (--ray needs it: pip install 'pupper_core[ray]', or make setup PUPPER_EXTRAS=ray)"
-        )
-    );
-    s
 }
 
 /// Columns of the table, by summary.csv name: (header, width, decimals).
@@ -592,39 +450,6 @@ pub fn best(
     s
 }
 
-pub fn pose(p: &pupper_core::robot::pose::StandPose) -> String {
-    let mut s = String::new();
-    let why = match p.depth_from {
-        "given" => "as given".to_string(),
-        _ => format!(
-            "the chapter's 0.14 m scaled to legs of {:.3} m",
-            p.leg_length
-        ),
-    };
-    let _ = writeln!(
-        s,
-        "stand pose: hip {:.3} rad, knee {:.3} rad (first leg's convention), thigh {:.3} rad from vertical",
-        p.hfe, p.kfe, p.thigh_angle
-    );
-    let _ = writeln!(
-        s,
-        "target: feet {:.4} m below the hips ({why})",
-        -p.target_z
-    );
-    let _ = writeln!(
-        s,
-        "base height {:.4} m (lowest foot just above the floor)",
-        p.base_z
-    );
-    let _ = writeln!(s, "reached, each foot from its hip:");
-    for (name, x, z) in &p.feet {
-        let _ = writeln!(s, "  {name:<16} depth {:.4} m  x {:+.4} m", -z, x);
-    }
-    let t: Vec<String> = p.targets.iter().map(|v| format!("{v:.4}")).collect();
-    let _ = writeln!(s, "targets (actuator order): {}", t.join(","));
-    s
-}
-
 /// `pupper lab`: a line per body, its steadiest gains.
 pub fn lab(
     o: &SweepOutcome,
@@ -673,79 +498,6 @@ pub fn lab(
     s
 }
 
-/// A response run's summary: a table per joint group, a row per cell.
-pub fn response(o: &SweepOutcome) -> String {
-    let status_at = o.header.iter().position(|h| h == "status");
-    // axis columns come before the first "<metric>.<group>" column
-    let first = o
-        .header
-        .iter()
-        .position(|h| h.contains('.'))
-        .unwrap_or(o.header.len());
-    let axes: Vec<(usize, &String)> = o.header.iter().enumerate().take(first).skip(3).collect();
-    let mut groups: Vec<&str> = Vec::new();
-    for h in &o.header[first..] {
-        if let Some((_, g)) = h.split_once('.')
-            && !groups.contains(&g)
-        {
-            groups.push(g);
-        }
-    }
-    let mut s = String::new();
-    for (k, g) in groups.into_iter().enumerate() {
-        if k > 0 {
-            s.push('\n');
-        }
-        let cols: Vec<(usize, &str)> = o
-            .header
-            .iter()
-            .enumerate()
-            .filter_map(|(i, h)| h.strip_suffix(&format!(".{g}")).map(|m| (i, m)))
-            .filter(|(_, m)| *m != "status")
-            .collect();
-        let status_of = o
-            .header
-            .iter()
-            .position(|h| *h == format!("status.{g}"))
-            .or(status_at);
-        let _ = writeln!(s, "{}", group_title(g));
-        let mut head = String::new();
-        for (_, a) in &axes {
-            let _ = write!(head, "{:>8} ", a);
-        }
-        for (_, m) in &cols {
-            let _ = write!(head, "{:>16} ", m);
-        }
-        let _ = write!(head, "{:>10}", "status");
-        let _ = writeln!(s, "{}", head.trim_end());
-        for r in &o.rows {
-            let mut line = String::new();
-            for (i, _) in &axes {
-                let _ = write!(line, "{:>8} ", short(&r[*i]));
-            }
-            for (i, _) in &cols {
-                let text = match r[*i].parse::<f64>() {
-                    Ok(v) => format!("{}", Sig(v)),
-                    Err(_) => "-".into(),
-                };
-                let _ = write!(line, "{:>16} ", text);
-            }
-            let _ = write!(line, "{:>10}", status_of.map_or("", |i| r[i].as_str()));
-            let _ = writeln!(s, "{}", line.trim_end());
-        }
-    }
-    s
-}
-
-fn group_title(g: &str) -> String {
-    match g {
-        "haa" => "haa (hip abduction/adduction)".into(),
-        "hfe" => "hfe (hip flexion/extension)".into(),
-        "kfe" => "kfe (knee flexion/extension)".into(),
-        other => other.to_string(),
-    }
-}
-
 /// A number to 3 significant digits, as a table shows it.
 pub(crate) struct Sig(pub(crate) f64);
 
@@ -762,77 +514,6 @@ impl std::fmt::Display for Sig {
         let digits = (2 - v.abs().log10().floor() as i32).clamp(0, 6) as usize;
         write!(f, "{v:.digits$}")
     }
-}
-
-/// `pupper gains`: a line per joint group, then per joint.
-pub fn gains(r: &pupper_core::robot::gains::GainsReport) -> String {
-    let mut s = String::new();
-    match (r.bandwidth_hz, r.damping) {
-        (Some(hz), Some(z)) => {
-            let _ = writeln!(
-                s,
-                "{}: gains for a {hz} Hz bandwidth at damping {z} (timestep {} s)",
-                r.model, r.timestep
-            );
-        }
-        _ => {
-            let _ = writeln!(
-                s,
-                "{}: what the gains give (timestep {} s{})",
-                r.model,
-                r.timestep,
-                if r.implicit_damping {
-                    ", damping integrated implicitly"
-                } else {
-                    ""
-                }
-            );
-        }
-    }
-    let head = format!(
-        "{:<16} {:>12} {:>10} {:>10} {:>11} {:>9} {:>10}",
-        "", "inertia", "kp", "kd", "natural_hz", "damping", "stability"
-    );
-    let _ = writeln!(s, "{}", head.trim_end());
-    let flag = |m: f64| {
-        if m >= 1.0 {
-            format!("{} PAST", Sig(m))
-        } else {
-            format!("{}", Sig(m))
-        }
-    };
-    for g in &r.groups {
-        let _ = writeln!(
-            s,
-            "{:<16} {:>12} {:>10} {:>10} {:>11} {:>9} {:>10}",
-            format!("{} ({})", g.group, g.joints),
-            format!("{:.3e}", g.inertia),
-            Sig(g.kp).to_string(),
-            Sig(g.kd).to_string(),
-            Sig(g.natural_hz).to_string(),
-            Sig(g.damping_ratio).to_string(),
-            flag(g.stability_margin)
-        );
-    }
-    let _ = writeln!(s);
-    for j in &r.joints {
-        let _ = writeln!(
-            s,
-            "{:<16} {:>12} {:>10} {:>10} {:>11} {:>9} {:>10}",
-            j.actuator,
-            format!("{:.3e}", j.inertia),
-            Sig(j.kp).to_string(),
-            Sig(j.kd).to_string(),
-            Sig(j.natural_hz).to_string(),
-            Sig(j.damping_ratio).to_string(),
-            flag(j.stability_margin)
-        );
-    }
-    let _ = writeln!(
-        s,
-        "inertia: kg·m² (armature included); stability: 1 or more is past the explicit PD's bound (see --help)"
-    );
-    s
 }
 
 #[cfg(test)]

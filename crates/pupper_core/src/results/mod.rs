@@ -3,6 +3,7 @@
 
 pub mod best;
 pub mod kinds;
+pub mod merge;
 pub mod output;
 pub mod rundir;
 pub mod tables;

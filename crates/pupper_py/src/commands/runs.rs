@@ -25,7 +25,7 @@ pub(crate) fn merge(
         true => pupper_core::results::rundir::Existing::Overwrite,
         false => pupper_core::results::rundir::Existing::Refuse,
     };
-    let (dir, _) = pupper_core::results::rundir::merge(&dirs, &out, existing).map_err(to_py)?;
+    let (dir, _) = pupper_core::results::merge::merge(&dirs, &out, existing).map_err(to_py)?;
     load_run(py, dir)
 }
 
