@@ -220,11 +220,9 @@ impl SweepSpec {
         serde_json::to_value(SweepSpec::default()).unwrap_or(serde_json::Value::Null)
     }
 
-    /// Checks every value and builds the sweep ([`SweepConfig::validate`]
-    /// holds the checks a config read back from a manifest needs too).
-    /// Model-dependent checks (the pose length, the keyframe) happen when the
-    /// model is loaded.
-    pub fn build(&self) -> Result<Sweep> {
+    /// The options checked on their own, before the grid: each mistake in
+    /// one line naming the fix.
+    fn check_options(&self) -> Result<()> {
         if self.trace && self.trace_every == 0 {
             return Err(config_error(
                 "trace_every is 0 with tracing on: give --trace-every a whole number >= 1".into(),
@@ -242,8 +240,8 @@ impl SweepSpec {
         }
         if self.depth.is_some() && !matches!(self.pose, Some(PoseInput::Auto(_))) {
             return Err(config_error(
-                "depth sets how deep the searched stand pose puts the feet: give it with --pose auto (pupper lab always searches)".into(),
-            ));
+            "depth sets how deep the searched stand pose puts the feet: give it with --pose auto (pupper lab always searches)".into(),
+        ));
         }
         if self.threads > MAX_THREADS {
             return Err(config_error(format!(
@@ -251,24 +249,13 @@ impl SweepSpec {
                 self.threads
             )));
         }
-        let grid = self.grid()?;
-        grid.check_size(self.max_cells)?;
-        let randomize = self
-            .randomize
-            .iter()
-            .map(|r| Randomize::parse(r))
-            .collect::<Result<Vec<_>>>()?;
-        let sims = grid.len().saturating_mul(self.replicates.max(1) as usize);
-        if sims > self.max_cells {
-            return Err(Error::Grid(format!(
-                "{} cells x {} replicates make {sims} simulations, over the limit of {}: use fewer values or replicates, or raise --max-cells",
-                grid.len(),
-                self.replicates,
-                self.max_cells
-            )));
-        }
-        let experiment = self.experiment.clone();
-        let schedule = Schedule {
+        Ok(())
+    }
+
+    /// The schedule of every cell: the run's length, where it starts, the
+    /// push (when the kind has one) and the sine force.
+    fn schedule(&self, experiment: &Experiment) -> Schedule {
+        Schedule {
             duration: self.seconds,
             initial: match &self.pose {
                 Some(PoseInput::Auto(_)) => match self.depth {
@@ -294,7 +281,33 @@ impl SweepSpec {
             trace_every: if self.trace { self.trace_every } else { 0 },
             stop_fallen: self.stop_fallen,
             ..Schedule::default()
-        };
+        }
+    }
+
+    /// Checks every value and builds the sweep ([`SweepConfig::validate`]
+    /// holds the checks a config read back from a manifest needs too).
+    /// Model-dependent checks (the pose length, the keyframe) happen when the
+    /// model is loaded.
+    pub fn build(&self) -> Result<Sweep> {
+        self.check_options()?;
+        let grid = self.grid()?;
+        grid.check_size(self.max_cells)?;
+        let randomize = self
+            .randomize
+            .iter()
+            .map(|r| Randomize::parse(r))
+            .collect::<Result<Vec<_>>>()?;
+        let sims = grid.len().saturating_mul(self.replicates.max(1) as usize);
+        if sims > self.max_cells {
+            return Err(Error::Grid(format!(
+                "{} cells x {} replicates make {sims} simulations, over the limit of {}: use fewer values or replicates, or raise --max-cells",
+                grid.len(),
+                self.replicates,
+                self.max_cells
+            )));
+        }
+        let experiment = self.experiment.clone();
+        let schedule = self.schedule(&experiment);
         let config = SweepConfig {
             model: ModelSource::parse(&self.model)?,
             grid,

@@ -91,64 +91,8 @@ fn first_figure(header: &[String]) -> usize {
 /// The best cell of each group of `rows` (summary.csv's rows as text).
 pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<Group>> {
     let replicated = column(header, "failure_fraction").is_some();
-    let numeric: Vec<String> = if replicated {
-        aggregated()
-            .flat_map(|m| STATISTICS.iter().map(move |s| format!("{s}:{m}")))
-            .collect()
-    } else {
-        // status is text; when a cell fell is no quality to rank by. A
-        // kind's own figures follow the metrics (a hold's sag, torques; a
-        // response's figures per joint group)
-        METRIC_NAMES
-            .iter()
-            .map(|m| m.to_string())
-            .chain(header[first_figure(header)..].iter().cloned())
-            .filter(|m| !matches!(m.as_str(), "status" | "event_time") && !m.starts_with("status."))
-            .fold(Vec::new(), |mut v, m| {
-                if !v.contains(&m) {
-                    v.push(m);
-                }
-                v
-            })
-    };
-    let metric = column(header, &rule.metric)
-        .filter(|_| numeric.contains(&rule.metric))
-        .ok_or_else(|| {
-            let hint = match (replicated, rule.metric.contains(':')) {
-                (false, true) => {
-                    " (mean: and p95: statistics need replicates: add --replicates or --randomize)"
-                }
-                (true, false) => " (a replicated sweep ranks by a statistic over replicates)",
-                _ => "",
-            };
-            let shown: Vec<&str> = numeric.iter().map(String::as_str).collect();
-            Error::Config(format!(
-                "unknown metric '{}'{hint}: use one of {}",
-                rule.metric,
-                shown.join(", ")
-            ))
-        })?;
-    let first_metric = first_figure(header);
-    let axes = &header[3.min(first_metric)..first_metric];
-    let by = rule
-        .by
-        .iter()
-        .map(|b| {
-            axes.iter()
-                .position(|a| a == b)
-                .map(|i| i + 3)
-                .ok_or_else(|| {
-                    Error::Config(format!(
-                        "cannot group by '{b}': it is not an axis of this grid; use one of {}",
-                        if axes.is_empty() {
-                            "(none: the grid has no axes)".to_string()
-                        } else {
-                            axes.join(", ")
-                        }
-                    ))
-                })
-        })
-        .collect::<Result<Vec<usize>>>()?;
+    let metric = metric_column(header, rule, replicated)?;
+    let by = by_columns(header, rule)?;
     if !(rule.max_saturation.is_finite() && rule.max_saturation > 0.0) {
         return Err(Error::Config(format!(
             "saturation threshold {} is not a positive fraction: give --max-saturation a value in (0, 1]",
@@ -218,48 +162,145 @@ pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<
         }
     }
     let sense = if rule.minimize { 1.0 } else { -1.0 };
+    let decide = Decide {
+        header,
+        rows,
+        metric,
+        sense,
+        tolerance,
+        dip,
+    };
     Ok(groups
         .into_iter()
-        .map(|(_, mut g, eligible)| {
-            g.eligible = eligible.len();
-            let Some(top) = eligible
-                .iter()
-                .map(|&(_, v)| sense * v)
-                .min_by(f64::total_cmp)
-            else {
-                return g;
+        .map(|(_, g, eligible)| decide.group(g, &eligible, &number))
+        .collect())
+}
+
+/// The column `rule` ranks by: a numeric column of the table (a
+/// statistic over replicates in a replicated one), else a one-line error
+/// listing them.
+fn metric_column(header: &[String], rule: &Rule, replicated: bool) -> Result<usize> {
+    let numeric: Vec<String> = if replicated {
+        aggregated()
+            .flat_map(|m| STATISTICS.iter().map(move |s| format!("{s}:{m}")))
+            .collect()
+    } else {
+        // status is text; when a cell fell is no quality to rank by. A
+        // kind's own figures follow the metrics (a hold's sag, torques; a
+        // response's figures per joint group)
+        METRIC_NAMES
+            .iter()
+            .map(|m| m.to_string())
+            .chain(header[first_figure(header)..].iter().cloned())
+            .filter(|m| !matches!(m.as_str(), "status" | "event_time") && !m.starts_with("status."))
+            .fold(Vec::new(), |mut v, m| {
+                if !v.contains(&m) {
+                    v.push(m);
+                }
+                v
+            })
+    };
+    column(header, &rule.metric)
+        .filter(|_| numeric.contains(&rule.metric))
+        .ok_or_else(|| {
+            let hint = match (replicated, rule.metric.contains(':')) {
+                (false, true) => {
+                    " (mean: and p95: statistics need replicates: add --replicates or --randomize)"
+                }
+                (true, false) => " (a replicated sweep ranks by a statistic over replicates)",
+                _ => "",
             };
-            let tied: Vec<usize> = eligible
-                .iter()
-                .filter(|&&(_, v)| sense * v <= top + tolerance)
-                .map(|&(i, _)| i)
-                .collect();
-            g.tied = tied.len();
-            // the lowest metric (grid order on equal values) ...
-            let value = |i: usize| sense * number(&rows[i], metric);
+            let shown: Vec<&str> = numeric.iter().map(String::as_str).collect();
+            Error::Config(format!(
+                "unknown metric '{}'{hint}: use one of {}",
+                rule.metric,
+                shown.join(", ")
+            ))
+        })
+}
+
+/// The columns of `rule.by`: axes of the grid, else a one-line error.
+fn by_columns(header: &[String], rule: &Rule) -> Result<Vec<usize>> {
+    let first_metric = first_figure(header);
+    let axes = &header[3.min(first_metric)..first_metric];
+    rule.by
+        .iter()
+        .map(|b| {
+            axes.iter()
+                .position(|a| a == b)
+                .map(|i| i + 3)
+                .ok_or_else(|| {
+                    Error::Config(format!(
+                        "cannot group by '{b}': it is not an axis of this grid; use one of {}",
+                        if axes.is_empty() {
+                            "(none: the grid has no axes)".to_string()
+                        } else {
+                            axes.join(", ")
+                        }
+                    ))
+                })
+        })
+        .collect::<Result<Vec<usize>>>()
+}
+
+/// What decides a group's winner among its eligible cells.
+struct Decide<'a> {
+    header: &'a [String],
+    rows: &'a [Vec<String>],
+    metric: usize,
+    /// 1 to minimize, -1 to maximize.
+    sense: f64,
+    tolerance: f64,
+    dip: Option<usize>,
+}
+
+impl Decide<'_> {
+    /// The winner of `g` among its `eligible` (row, value) pairs.
+    fn group(
+        &self,
+        mut g: Group,
+        eligible: &[(usize, f64)],
+        number: &dyn Fn(&Vec<String>, usize) -> f64,
+    ) -> Group {
+        let (rows, sense) = (self.rows, self.sense);
+        g.eligible = eligible.len();
+        let Some(top) = eligible
+            .iter()
+            .map(|&(_, v)| sense * v)
+            .min_by(f64::total_cmp)
+        else {
+            return g;
+        };
+        let tied: Vec<usize> = eligible
+            .iter()
+            .filter(|&&(_, v)| sense * v <= top + self.tolerance)
+            .map(|&(i, _)| i)
+            .collect();
+        g.tied = tied.len();
+        // the lowest metric (grid order on equal values) ...
+        let value = |i: usize| sense * number(&rows[i], self.metric);
+        g.best = tied
+            .iter()
+            .copied()
+            .min_by(|&a, &b| value(a).total_cmp(&value(b)).then(a.cmp(&b)));
+        // ... unless the dip tells the tied cells apart: the smallest
+        // dip wins (a cell without one last)
+        let with_dip = self
+            .dip
+            .filter(|&d| tied.len() > 1 && tied.iter().any(|&i| number(&rows[i], d).is_finite()));
+        if let Some(d) = with_dip {
+            let key = |i: usize| {
+                let v = number(&rows[i], d);
+                if v.is_nan() { f64::INFINITY } else { v }
+            };
             g.best = tied
                 .iter()
                 .copied()
-                .min_by(|&a, &b| value(a).total_cmp(&value(b)).then(a.cmp(&b)));
-            // ... unless the dip tells the tied cells apart: the smallest
-            // dip wins (a cell without one last)
-            let with_dip = dip.filter(|&d| {
-                tied.len() > 1 && tied.iter().any(|&i| number(&rows[i], d).is_finite())
-            });
-            if let Some(d) = with_dip {
-                let key = |i: usize| {
-                    let v = number(&rows[i], d);
-                    if v.is_nan() { f64::INFINITY } else { v }
-                };
-                g.best = tied
-                    .iter()
-                    .copied()
-                    .min_by(|&a, &b| key(a).total_cmp(&key(b)).then(a.cmp(&b)));
-                g.tie_break = Some(header[d].clone());
-            }
-            g
-        })
-        .collect())
+                .min_by(|&a, &b| key(a).total_cmp(&key(b)).then(a.cmp(&b)));
+            g.tie_break = Some(self.header[d].clone());
+        }
+        g
+    }
 }
 
 /// `best.csv`: per group, its `by` values, how many cells it has and how

@@ -33,131 +33,182 @@ impl<'py> Mujoco<'py> {
         source: &ModelSource,
         model: &Bound<'py, PyAny>,
     ) -> Result<ModelInfo> {
-        let int =
-            |n: &str| -> Result<usize> { model.getattr(n).and_then(|v| v.extract()).internal() };
-        let list = |n: &str| -> Result<Bound<'py, PyAny>> {
-            model
-                .getattr(n)
-                .and_then(|v| v.call_method0("tolist"))
-                .internal()
-        };
-        let ints = |n: &str| -> Result<Vec<i64>> { list(n)?.extract().internal() };
-        let floats2 = |n: &str| -> Result<Vec<Vec<f64>>> { list(n)?.extract().internal() };
-        let (nq, nv, nu, nbody) = (int("nq")?, int("nv")?, int("nu")?, int("nbody")?);
-        let njnt = int("njnt")?;
-        let timestep: f64 = model
-            .getattr("opt")
-            .and_then(|o| o.getattr("timestep"))
-            .and_then(|t| t.extract())
-            .internal()?;
-        let masses: Vec<f64> = list("body_mass")?.extract().internal()?;
+        let f = Fields(model);
+        let (nq, nv, nu, nbody) = (f.int("nq")?, f.int("nv")?, f.int("nu")?, f.int("nbody")?);
+        let opt = |n: &str| model.getattr("opt").and_then(|o| o.getattr(n));
+        let masses: Vec<f64> = f.list("body_mass")?.extract().internal()?;
         let bodies = (0..nbody)
             .map(|i| self.name_of(model, "mjOBJ_BODY", i))
             .collect::<Result<Vec<_>>>()?;
+        let mut actuators = self.actuators(model, &f, nu)?;
+        self.numerics(model, &f, source, &mut actuators)?;
+        let name = match self.name_of(model, "mjOBJ_MODEL", 0) {
+            Ok(n) if !n.is_empty() => n,
+            _ => source.display(),
+        };
+        let legs = self.legs(model, &bodies, &f.ints("jnt_type")?).internal()?;
+        let ground = self.ground(model, &legs).internal()?;
+        Ok(ModelInfo {
+            name,
+            source: source.display(),
+            sha256: self.fingerprint(model).internal()?,
+            nq,
+            nv,
+            nu,
+            nbody,
+            timestep: opt("timestep").and_then(|t| t.extract()).internal()?,
+            integrator: opt("integrator").and_then(|i| i.extract()).internal()?,
+            total_mass: masses.iter().sum(),
+            gravity: opt("gravity")
+                .and_then(|g| g.call_method0("tolist"))
+                .and_then(|g| g.extract())
+                .internal()?,
+            bodies,
+            body_parent: f
+                .ints("body_parentid")?
+                .into_iter()
+                .map(|p| p as usize)
+                .collect(),
+            joints: self.joints(model, &f)?,
+            actuators,
+            keyframes: self.keyframes(model, &f)?,
+            sensors: self.sensors(model, &f)?,
+            qpos0: f.list("qpos0")?.extract().internal()?,
+            legs,
+            ground,
+        })
+    }
+
+    fn joints(&self, model: &Bound<'py, PyAny>, f: &Fields<'_, 'py>) -> Result<Vec<JointInfo>> {
         let (jtype, jq, jd, jlim, jbody) = (
-            ints("jnt_type")?,
-            ints("jnt_qposadr")?,
-            ints("jnt_dofadr")?,
-            ints("jnt_limited")?,
-            ints("jnt_bodyid")?,
+            f.ints("jnt_type")?,
+            f.ints("jnt_qposadr")?,
+            f.ints("jnt_dofadr")?,
+            f.ints("jnt_limited")?,
+            f.ints("jnt_bodyid")?,
         );
-        let jrange = floats2("jnt_range")?;
-        let mut joints = Vec::with_capacity(njnt);
-        for i in 0..njnt {
-            joints.push(JointInfo {
-                name: self.name_of(model, "mjOBJ_JOINT", i)?,
-                kind: ["free", "ball", "slide", "hinge"]
-                    .get(jtype[i] as usize)
-                    .unwrap_or(&"unknown")
-                    .to_string(),
-                qpos_adr: jq[i] as usize,
-                dof_adr: jd[i] as usize,
-                range: (jlim[i] != 0).then(|| [jrange[i][0], jrange[i][1]]),
-                body: jbody[i] as usize,
-            });
-        }
+        let jrange = f.floats2("jnt_range")?;
+        (0..f.int("njnt")?)
+            .map(|i| {
+                Ok(JointInfo {
+                    name: self.name_of(model, "mjOBJ_JOINT", i)?,
+                    kind: ["free", "ball", "slide", "hinge"]
+                        .get(jtype[i] as usize)
+                        .unwrap_or(&"unknown")
+                        .to_string(),
+                    qpos_adr: jq[i] as usize,
+                    dof_adr: jd[i] as usize,
+                    range: (jlim[i] != 0).then(|| [jrange[i][0], jrange[i][1]]),
+                    body: jbody[i] as usize,
+                })
+            })
+            .collect()
+    }
+
+    fn actuators(
+        &self,
+        model: &Bound<'py, PyAny>,
+        f: &Fields<'_, 'py>,
+        nu: usize,
+    ) -> Result<Vec<ActuatorInfo>> {
         let (trntype, trnid, flim, clim) = (
-            ints("actuator_trntype")?,
-            floats2("actuator_trnid")?,
-            ints("actuator_forcelimited")?,
-            ints("actuator_ctrllimited")?,
+            f.ints("actuator_trntype")?,
+            f.floats2("actuator_trnid")?,
+            f.ints("actuator_forcelimited")?,
+            f.ints("actuator_ctrllimited")?,
         );
-        let (crange, gear) = (floats2("actuator_ctrlrange")?, floats2("actuator_gear")?);
+        let (crange, gear) = (
+            f.floats2("actuator_ctrlrange")?,
+            f.floats2("actuator_gear")?,
+        );
         let (gain, bias, frange) = (
-            floats2("actuator_gainprm")?,
-            floats2("actuator_biasprm")?,
-            floats2("actuator_forcerange")?,
+            f.floats2("actuator_gainprm")?,
+            f.floats2("actuator_biasprm")?,
+            f.floats2("actuator_forcerange")?,
         );
-        let delays: Vec<f64> = list("actuator_delay")
+        let delays: Vec<f64> = f
+            .list("actuator_delay")
             .and_then(|l| l.extract().internal())
             .unwrap_or_default();
-        let mut actuators = Vec::with_capacity(nu);
-        for i in 0..nu {
-            // trntype 0 is mjTRN_JOINT
-            let joint = (trntype[i] == 0).then_some(trnid[i][0] as usize);
-            actuators.push(ActuatorInfo {
-                name: self.name_of(model, "mjOBJ_ACTUATOR", i)?,
-                joint,
-                gainprm: [gain[i][0], gain[i][1], gain[i][2]],
-                biasprm: [bias[i][0], bias[i][1], bias[i][2]],
-                forcerange: (flim[i] != 0).then(|| [frange[i][0], frange[i][1]]),
-                ctrlrange: (clim[i] != 0).then(|| [crange[i][0], crange[i][1]]),
-                gear: gear[i][0],
-                delay: delays.get(i).copied().unwrap_or(0.0),
-                gain_scale: [1.0, 1.0],
-                winding: None,
-            });
+        (0..nu)
+            .map(|i| {
+                Ok(ActuatorInfo {
+                    name: self.name_of(model, "mjOBJ_ACTUATOR", i)?,
+                    // trntype 0 is mjTRN_JOINT
+                    joint: (trntype[i] == 0).then_some(trnid[i][0] as usize),
+                    gainprm: [gain[i][0], gain[i][1], gain[i][2]],
+                    biasprm: [bias[i][0], bias[i][1], bias[i][2]],
+                    forcerange: (flim[i] != 0).then(|| [frange[i][0], frange[i][1]]),
+                    ctrlrange: (clim[i] != 0).then(|| [crange[i][0], crange[i][1]]),
+                    gear: gear[i][0],
+                    delay: delays.get(i).copied().unwrap_or(0.0),
+                    gain_scale: [1.0, 1.0],
+                    winding: None,
+                })
+            })
+            .collect()
+    }
+
+    /// What the model's custom numerics declare of its actuators: a
+    /// calibrated model's gain scales (`pupper fit`), a motor's torque
+    /// constant and resistance (for copper loss).
+    fn numerics(
+        &self,
+        model: &Bound<'py, PyAny>,
+        f: &Fields<'_, 'py>,
+        source: &ModelSource,
+        actuators: &mut [ActuatorInfo],
+    ) -> Result<()> {
+        let nnumeric = f.int("nnumeric")?;
+        if nnumeric == 0 {
+            return Ok(());
         }
-        // a calibrated model's gain scales (`pupper fit`)
-        let nnumeric = int("nnumeric")?;
-        if nnumeric > 0 {
-            let (adr, size): (Vec<i64>, Vec<i64>) = (ints("numeric_adr")?, ints("numeric_size")?);
-            let data: Vec<f64> = list("numeric_data")?.extract().internal()?;
-            // a motor's torque constant and resistance (for copper loss)
-            let mut motor: Vec<[Option<f64>; 2]> = vec![[None; 2]; actuators.len()];
-            for n in 0..nnumeric {
-                let name = self.name_of(model, "mjOBJ_NUMERIC", n)?;
-                let values = &data[adr[n] as usize..(adr[n] + size[n]) as usize];
-                if let Some((k, actuator, scale)) =
-                    gain_scale(&name, values, &actuators, &source.display())?
-                {
-                    actuators[actuator].gain_scale[k] = scale;
-                }
-                if let Some((k, actuator, v)) =
-                    motor_constant(&name, values, &actuators, &source.display())?
-                {
-                    motor[actuator][k] = Some(v);
-                }
+        let (adr, size) = (f.ints("numeric_adr")?, f.ints("numeric_size")?);
+        let data: Vec<f64> = f.list("numeric_data")?.extract().internal()?;
+        let mut motor: Vec<[Option<f64>; 2]> = vec![[None; 2]; actuators.len()];
+        for n in 0..nnumeric {
+            let name = self.name_of(model, "mjOBJ_NUMERIC", n)?;
+            let values = &data[adr[n] as usize..(adr[n] + size[n]) as usize];
+            if let Some((k, actuator, scale)) =
+                gain_scale(&name, values, actuators, &source.display())?
+            {
+                actuators[actuator].gain_scale[k] = scale;
             }
-            for (a, m) in actuators.iter_mut().zip(motor) {
-                a.winding = match m {
-                    [Some(kt), Some(r)] => Some([kt, r]),
-                    [None, None] => None,
-                    _ => {
-                        return Err(Error::Model(format!(
-                            "{}: actuator {} declares {} but not {}: copper loss needs both pupper:kt:{} (N·m/A) and pupper:resistance:{} (Ω)",
-                            source.display(),
-                            a.name,
-                            if m[0].is_some() {
-                                "a torque constant"
-                            } else {
-                                "a resistance"
-                            },
-                            if m[0].is_some() {
-                                "its resistance"
-                            } else {
-                                "its torque constant"
-                            },
-                            a.name,
-                            a.name
-                        )));
-                    }
-                };
+            if let Some((k, actuator, v)) =
+                motor_constant(&name, values, actuators, &source.display())?
+            {
+                motor[actuator][k] = Some(v);
             }
         }
-        let nkey = int("nkey")?;
-        let (kq, kc) = (floats2("key_qpos")?, floats2("key_ctrl")?);
-        let keyframes = (0..nkey)
+        for (a, m) in actuators.iter_mut().zip(motor) {
+            a.winding = match m {
+                [Some(kt), Some(r)] => Some([kt, r]),
+                [None, None] => None,
+                [kt, _] => {
+                    let (has, lacks) = match kt {
+                        Some(_) => ("a torque constant", "its resistance"),
+                        None => ("a resistance", "its torque constant"),
+                    };
+                    return Err(Error::Model(format!(
+                        "{}: actuator {} declares {has} but not {lacks}: copper loss needs both pupper:kt:{} (N·m/A) and pupper:resistance:{} (Ω)",
+                        source.display(),
+                        a.name,
+                        a.name,
+                        a.name
+                    )));
+                }
+            };
+        }
+        Ok(())
+    }
+
+    fn keyframes(
+        &self,
+        model: &Bound<'py, PyAny>,
+        f: &Fields<'_, 'py>,
+    ) -> Result<Vec<KeyframeInfo>> {
+        let (kq, kc) = (f.floats2("key_qpos")?, f.floats2("key_ctrl")?);
+        (0..f.int("nkey")?)
             .map(|i| {
                 Ok(KeyframeInfo {
                     name: self.name_of(model, "mjOBJ_KEY", i)?,
@@ -165,11 +216,13 @@ impl<'py> Mujoco<'py> {
                     ctrl: kc.get(i).cloned().unwrap_or_default(),
                 })
             })
-            .collect::<Result<Vec<_>>>()?;
-        let nsensor = int("nsensor")?;
-        let (stype, sdim) = (ints("sensor_type")?, ints("sensor_dim")?);
+            .collect()
+    }
+
+    fn sensors(&self, model: &Bound<'py, PyAny>, f: &Fields<'_, 'py>) -> Result<Vec<SensorInfo>> {
+        let (stype, sdim) = (f.ints("sensor_type")?, f.ints("sensor_dim")?);
         let sensor_enum = self.module.getattr("mjtSensor").internal()?;
-        let sensors = (0..nsensor)
+        (0..f.int("nsensor")?)
             .map(|i| {
                 let kind = sensor_enum
                     .call1((stype[i],))
@@ -182,51 +235,7 @@ impl<'py> Mujoco<'py> {
                     dim: sdim[i] as usize,
                 })
             })
-            .collect::<Result<Vec<_>>>()?;
-        let name = match self.name_of(model, "mjOBJ_MODEL", 0) {
-            Ok(n) if !n.is_empty() => n,
-            _ => source.display(),
-        };
-        let legs = self.legs(model, &bodies, &jtype).internal()?;
-        let ground = self.ground(model, &legs).internal()?;
-        Ok(ModelInfo {
-            name,
-            source: source.display(),
-            sha256: self.fingerprint(model).internal()?,
-            nq,
-            nv,
-            nu,
-            nbody,
-            timestep,
-            integrator: model
-                .getattr("opt")
-                .and_then(|o| o.getattr("integrator"))
-                .and_then(|i| i.extract())
-                .internal()?,
-            total_mass: masses.iter().sum(),
-            gravity: model
-                .getattr("opt")
-                .and_then(|o| o.getattr("gravity"))
-                .and_then(|g| g.call_method0("tolist"))
-                .and_then(|g| g.extract())
-                .internal()?,
-            bodies,
-            body_parent: ints("body_parentid")?
-                .into_iter()
-                .map(|p| p as usize)
-                .collect(),
-            joints,
-            actuators,
-            keyframes,
-            sensors,
-            qpos0: model
-                .getattr("qpos0")
-                .and_then(|q| q.call_method0("tolist"))
-                .and_then(|q| q.extract())
-                .internal()?,
-            legs,
-            ground,
-        })
+            .collect()
     }
 
     /// Whether a geom of a body welded to the world (no joint between them)
@@ -385,4 +394,25 @@ fn geom_contacts(model: &Bound<'_, PyAny>) -> PyResult<GeomContacts> {
         get("geom_contype")?.extract()?,
         get("geom_conaffinity")?.extract()?,
     ))
+}
+
+/// A compiled model's fields, read by name (counts, and arrays as lists).
+struct Fields<'a, 'py>(&'a Bound<'py, PyAny>);
+
+impl<'py> Fields<'_, 'py> {
+    fn int(&self, n: &str) -> Result<usize> {
+        self.0.getattr(n).and_then(|v| v.extract()).internal()
+    }
+    fn list(&self, n: &str) -> Result<Bound<'py, PyAny>> {
+        self.0
+            .getattr(n)
+            .and_then(|v| v.call_method0("tolist"))
+            .internal()
+    }
+    fn ints(&self, n: &str) -> Result<Vec<i64>> {
+        self.list(n)?.extract().internal()
+    }
+    fn floats2(&self, n: &str) -> Result<Vec<Vec<f64>>> {
+        self.list(n)?.extract().internal()
+    }
 }
