@@ -129,77 +129,9 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
         let colliding = colliding_geoms(&template).internal()?;
         if same_body {
             // one model: per-cell fields through expand()
-            let gain = expand3(&batch, "actuator_gainprm")?;
-            let bias = expand3(&batch, "actuator_biasprm")?;
-            let range = expand3(&batch, "actuator_forcerange")?;
-            let friction = if cells.iter().any(|c| c.friction.is_some()) {
-                Some(expand3(&batch, "geom_friction")?)
-            } else {
-                None
-            };
-            let mut g = gain.readwrite();
-            let mut b = bias.readwrite();
-            let mut r = range.readwrite();
-            let (mut g, mut b, mut r) = (g.as_array_mut(), b.as_array_mut(), r.as_array_mut());
-            for (i, c) in cells.iter().enumerate() {
-                let limits = c.torque_limits(info)?;
-                for a in 0..info.nu {
-                    let (gp, bp) = actuator_params(mode, c, a);
-                    for j in 0..gp.len().min(g.shape()[2]) {
-                        g[[i, a, j]] = gp[j];
-                        b[[i, a, j]] = bp[j];
-                    }
-                    r[[i, a, 0]] = -limits[a];
-                    r[[i, a, 1]] = limits[a];
-                }
-            }
-            if let Some(f) = friction {
-                let mut f = f.readwrite();
-                let mut f = f.as_array_mut();
-                for (i, c) in cells.iter().enumerate() {
-                    if let Some(mu) = c.friction {
-                        for &gid in &colliding {
-                            f[[i, gid, 0]] = mu;
-                        }
-                    }
-                }
-            }
+            set_cell_fields(&batch, cells, mode, info, &colliding)?;
         } else {
-            // bodies differ: a model per distinct setting, shared by the
-            // cells that have it (torque mode writes no gains into the model,
-            // so a lab's cells of one body share one; fewer copies stay in cache)
-            let models = PyList::empty(py);
-            let mut made: Vec<(Vec<u64>, Bound<'py, PyAny>)> = Vec::new();
-            // one scratch MjData for every mass edit's mj_setConst: the
-            // models differ in values, not sizes (an MjData per model cost
-            // seconds of page faults for 512 of them)
-            let mut scratch: Option<Bound<'py, PyAny>> = None;
-            for c in cells {
-                let key = model_key(mode, c, info.nu);
-                let m = match made.iter().find(|(k, _)| *k == key) {
-                    Some((_, m)) => m.clone(),
-                    None => {
-                        let m =
-                            prepare(&owner.variant(c.leg_scale, c.torso_mass_scale)?).internal()?;
-                        if !c.nominal_masses() {
-                            let data = match &scratch {
-                                Some(d) => d.clone(),
-                                None => {
-                                    let d =
-                                        mj.module.getattr("MjData").and_then(|f| f.call1((&m,)));
-                                    scratch.insert(d.internal()?).clone()
-                                }
-                            };
-                            scale_masses(mj, &m, &data, layout.base.body, c).internal()?;
-                        }
-                        let limits = c.torque_limits(info)?;
-                        set_model_params(&m, mode, c, &limits, &colliding).internal()?;
-                        made.push((key, m.clone()));
-                        m
-                    }
-                };
-                models.append(m).internal()?;
-            }
+            let models = cell_models(owner, cells, mode, dt, &colliding)?;
             batch.call_method1("set_models", (models,)).internal()?;
         }
         let state: Bound<'py, PyArray2<f64>> = batch
@@ -215,24 +147,7 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
             .getattr("warning")
             .and_then(|s| s.cast_into::<PyArray3<i32>>().map_err(PyErr::from))
             .internal()?;
-        let base_ptr = state.data() as usize;
-        let offset_of = |field: &str| -> Result<usize> {
-            let view = batch.call_method1("bind", (field,)).internal()?;
-            let ptr: usize = view
-                .getattr("__array_interface__")
-                .and_then(|d| d.get_item("data"))
-                .and_then(|d| d.get_item(0))
-                .and_then(|p| p.extract())
-                .internal()?;
-            Ok((ptr - base_ptr) / std::mem::size_of::<f64>())
-        };
-        let off = Offsets {
-            qpos: offset_of("qpos")?,
-            qvel: offset_of("qvel")?,
-            ctrl: offset_of("ctrl")?,
-            xfrc: offset_of("xfrc_applied")?,
-            nstate: state.shape()[1],
-        };
+        let off = offsets(&batch, &state)?;
         // initial state and targets
         let starts = StartStates::new(owner, cells, initial)?;
         let kw = PyDict::new(py);
@@ -276,7 +191,6 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
         Ok(me)
     }
 
-    /// Total warnings so far, per simulation.
     /// One `rollout` call of simulations `ids` for `nstep` steps: the
     /// base force constant or per step, and with `ctrl` each step's ctrl
     /// (servo targets that move), both as the rollout's control input.
@@ -289,8 +203,6 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
         observe: &mut Observer<'_>,
     ) -> Result<Vec<(usize, usize)>> {
         let py = self.owner.mj.py;
-        let nq = self.owner.info.nq;
-        let nu = self.owner.info.nu;
         let kw = PyDict::new(py);
         let per_step = match force {
             Force::Constant(f) => {
@@ -305,52 +217,7 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
             }
             Force::PerStep(f) => Some(f),
         };
-        if per_step.is_some() || ctrl.is_some() {
-            // a control row: [ctrl (nu)] then [xfrc_applied (6 nbody)], in
-            // mjtState's order
-            let (cw, fw) = (
-                if ctrl.is_some() { nu } else { 0 },
-                if per_step.is_some() {
-                    6 * self.nbody
-                } else {
-                    0
-                },
-            );
-            let width = cw + fw;
-            let mut control = vec![0.0f64; ids.len() * nstep * width];
-            for pos in 0..ids.len() {
-                for j in 0..nstep {
-                    let row = (pos * nstep + j) * width;
-                    if let Some(c) = ctrl {
-                        let from = (pos * nstep + j) * nu;
-                        control[row..row + nu].copy_from_slice(&c[from..from + nu]);
-                    }
-                    if let Some(f) = per_step {
-                        let at = row + cw + 6 * self.force_body;
-                        control[at..at + 3].copy_from_slice(&f[pos * nstep + j]);
-                    }
-                }
-            }
-            let arr = PyArray1::from_vec(py, control)
-                .reshape([ids.len(), nstep, width])
-                .internal()?;
-            let bit = |name: &str| -> Result<i64> {
-                self.owner
-                    .mj
-                    .module
-                    .getattr("mjtState")
-                    .and_then(|s| s.getattr(name))
-                    .and_then(|s| s.getattr("value"))
-                    .and_then(|v| v.extract())
-                    .internal()
-            };
-            let mut spec = 0i64;
-            if ctrl.is_some() {
-                spec |= bit("mjSTATE_CTRL")?;
-            }
-            if per_step.is_some() {
-                spec |= bit("mjSTATE_XFRC_APPLIED")?;
-            }
+        if let Some((arr, spec)) = self.control_input(ids.len(), nstep, per_step, ctrl)? {
             kw.set_item("control", arr).internal()?;
             kw.set_item("control_spec", spec).internal()?;
         }
@@ -370,6 +237,81 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
                     .collect());
             }
         };
+        self.observe_rollout(&out, ids, nstep, observe)
+    }
+
+    /// The rollout's control input when the force changes per step or
+    /// targets move: a row per (simulation, step) of [ctrl (nu)] then
+    /// [xfrc_applied (6 nbody)], in mjtState's order, and its spec bits.
+    fn control_input(
+        &self,
+        n: usize,
+        nstep: usize,
+        per_step: Option<&[[f64; 3]]>,
+        ctrl: Option<&[f64]>,
+    ) -> Result<Option<(Bound<'py, PyAny>, i64)>> {
+        if per_step.is_none() && ctrl.is_none() {
+            return Ok(None);
+        }
+        let (py, nu) = (self.owner.mj.py, self.owner.info.nu);
+        // a control row: [ctrl (nu)] then [xfrc_applied (6 nbody)], in
+        // mjtState's order
+        let (cw, fw) = (
+            if ctrl.is_some() { nu } else { 0 },
+            if per_step.is_some() {
+                6 * self.nbody
+            } else {
+                0
+            },
+        );
+        let width = cw + fw;
+        let mut control = vec![0.0f64; n * nstep * width];
+        for pos in 0..n {
+            for j in 0..nstep {
+                let row = (pos * nstep + j) * width;
+                if let Some(c) = ctrl {
+                    let from = (pos * nstep + j) * nu;
+                    control[row..row + nu].copy_from_slice(&c[from..from + nu]);
+                }
+                if let Some(f) = per_step {
+                    let at = row + cw + 6 * self.force_body;
+                    control[at..at + 3].copy_from_slice(&f[pos * nstep + j]);
+                }
+            }
+        }
+        let arr = PyArray1::from_vec(py, control)
+            .reshape([n, nstep, width])
+            .internal()?;
+        let bit = |name: &str| -> Result<i64> {
+            self.owner
+                .mj
+                .module
+                .getattr("mjtState")
+                .and_then(|s| s.getattr(name))
+                .and_then(|s| s.getattr("value"))
+                .and_then(|v| v.extract())
+                .internal()
+        };
+        let mut spec = 0i64;
+        if ctrl.is_some() {
+            spec |= bit("mjSTATE_CTRL")?;
+        }
+        if per_step.is_some() {
+            spec |= bit("mjSTATE_XFRC_APPLIED")?;
+        }
+        Ok(Some((arr.into_any(), spec)))
+    }
+
+    /// Hands each simulation's recorded steps to `observe`, up to the step
+    /// it warned or went non-finite at; returns those (position, step).
+    fn observe_rollout(
+        &mut self,
+        out: &Bound<'py, PyAny>,
+        ids: &[usize],
+        nstep: usize,
+        observe: &mut Observer<'_>,
+    ) -> Result<Vec<(usize, usize)>> {
+        let (nq, nu) = (self.owner.info.nq, self.owner.info.nu);
         let qpos = out
             .get_item("qpos")
             .and_then(|a| a.cast_into::<PyArray3<f64>>().map_err(PyErr::from))
@@ -411,6 +353,7 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
         Ok(diverged)
     }
 
+    /// Total warnings so far, per simulation.
     fn warning_counts(&self) -> Vec<i64> {
         let w = self.warning.readonly();
         let w = w.as_array();
@@ -451,6 +394,122 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
         rows[at..at + 3].copy_from_slice(&f);
         rows[at + 3..at + 6].fill(0.0);
     }
+}
+
+/// Where qpos, qvel, ctrl and xfrc_applied sit in a batch's state rows
+/// (from its field views' addresses) and a row's length.
+fn offsets(batch: &Bound<'_, PyAny>, state: &Bound<'_, PyArray2<f64>>) -> Result<Offsets> {
+    let base_ptr = state.data() as usize;
+    let offset_of = |field: &str| -> Result<usize> {
+        let view = batch.call_method1("bind", (field,)).internal()?;
+        let ptr: usize = view
+            .getattr("__array_interface__")
+            .and_then(|d| d.get_item("data"))
+            .and_then(|d| d.get_item(0))
+            .and_then(|p| p.extract())
+            .internal()?;
+        Ok((ptr - base_ptr) / std::mem::size_of::<f64>())
+    };
+    Ok(Offsets {
+        qpos: offset_of("qpos")?,
+        qvel: offset_of("qvel")?,
+        ctrl: offset_of("ctrl")?,
+        xfrc: offset_of("xfrc_applied")?,
+        nstate: state.shape()[1],
+    })
+}
+
+/// One model for every cell: each cell's gains, torque limits and friction
+/// written into the batch's per-cell fields (`expand()`).
+fn set_cell_fields(
+    batch: &Bound<'_, PyAny>,
+    cells: &[CellSetup],
+    mode: Mode,
+    info: &ModelInfo,
+    colliding: &[usize],
+) -> Result<()> {
+    let gain = expand3(batch, "actuator_gainprm")?;
+    let bias = expand3(batch, "actuator_biasprm")?;
+    let range = expand3(batch, "actuator_forcerange")?;
+    let friction = if cells.iter().any(|c| c.friction.is_some()) {
+        Some(expand3(batch, "geom_friction")?)
+    } else {
+        None
+    };
+    let mut g = gain.readwrite();
+    let mut b = bias.readwrite();
+    let mut r = range.readwrite();
+    let (mut g, mut b, mut r) = (g.as_array_mut(), b.as_array_mut(), r.as_array_mut());
+    for (i, c) in cells.iter().enumerate() {
+        let limits = c.torque_limits(info)?;
+        for a in 0..info.nu {
+            let (gp, bp) = actuator_params(mode, c, a);
+            for j in 0..gp.len().min(g.shape()[2]) {
+                g[[i, a, j]] = gp[j];
+                b[[i, a, j]] = bp[j];
+            }
+            r[[i, a, 0]] = -limits[a];
+            r[[i, a, 1]] = limits[a];
+        }
+    }
+    if let Some(f) = friction {
+        let mut f = f.readwrite();
+        let mut f = f.as_array_mut();
+        for (i, c) in cells.iter().enumerate() {
+            if let Some(mu) = c.friction {
+                for &gid in colliding {
+                    f[[i, gid, 0]] = mu;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Bodies differ: a model per distinct setting, shared by the cells that
+/// have it (torque mode writes no gains into the model, so a lab's cells of
+/// one body share one; fewer copies stay in cache).
+fn cell_models<'py>(
+    owner: &LoadedModel<'py>,
+    cells: &[CellSetup],
+    mode: Mode,
+    dt: f64,
+    colliding: &[usize],
+) -> Result<Bound<'py, PyList>> {
+    let (mj, info) = (&owner.mj, &owner.info);
+    let layout = Physics::layout(owner);
+    let prepare = |m: &Bound<'py, PyAny>| prepare_model(mj, m, mode, dt);
+    let models = PyList::empty(mj.py);
+    let mut made: Vec<(Vec<u64>, Bound<'py, PyAny>)> = Vec::new();
+    // one scratch MjData for every mass edit's mj_setConst: the
+    // models differ in values, not sizes (an MjData per model cost
+    // seconds of page faults for 512 of them)
+    let mut scratch: Option<Bound<'py, PyAny>> = None;
+    for c in cells {
+        let key = model_key(mode, c, info.nu);
+        let m = match made.iter().find(|(k, _)| *k == key) {
+            Some((_, m)) => m.clone(),
+            None => {
+                let m = prepare(&owner.variant(c.leg_scale, c.torso_mass_scale)?).internal()?;
+                if !c.nominal_masses() {
+                    let data = match &scratch {
+                        Some(d) => d.clone(),
+                        None => {
+                            let d = mj.module.getattr("MjData").and_then(|f| f.call1((&m,)));
+                            scratch.insert(d.internal()?).clone()
+                        }
+                    };
+                    scale_masses(mj, &m, &data, layout.base.body, c).internal()?;
+                }
+                let limits = c.torque_limits(info)?;
+                set_model_params(&m, mode, c, &limits, colliding).internal()?;
+                made.push((key, m.clone()));
+                m
+            }
+        };
+        models.append(m).internal()?;
+    }
+    Ok(models)
 }
 
 /// The simulations a `mujoco.batch.SimulationError` names; any other

@@ -185,61 +185,7 @@ impl<'py> WarpBatch<'py> {
             let first = &cells[sims[0]];
             let model =
                 prepare_model(mj, &owner.variant(first.leg_scale, 1.0)?, mode, dt).internal()?;
-            // the group's masses, in order of first appearance
-            let mut masses: Vec<([u64; 3], usize)> = Vec::new();
-            let mut mass_of = Vec::with_capacity(sims.len());
-            for &sim in &sims {
-                let key = mass_key(&cells[sim]);
-                let k = match masses.iter().position(|(m, _)| *m == key) {
-                    Some(k) => k,
-                    None => {
-                        masses.push((key, sim));
-                        masses.len() - 1
-                    }
-                };
-                mass_of.push(k);
-            }
-            let data = match &scratch {
-                Some(d) => d.clone(),
-                None => {
-                    let d = mj.module.getattr("MjData").and_then(|f| f.call1((&model,)));
-                    scratch.insert(d.internal()?).clone()
-                }
-            };
-            // the torso scale first, then the draws: the products the cpu
-            // backend forms (a scaled body, then its draws)
-            let scaled = |m: &Bound<'py, PyAny>, c: &CellSetup| -> Result<()> {
-                let base = layout.base.body;
-                if c.torso_mass_scale != 1.0 {
-                    scale_body_masses(mj, m, &data, base, c.torso_mass_scale, 1.0).internal()?;
-                }
-                if !c.nominal_masses() {
-                    scale_body_masses(mj, m, &data, base, c.torso_mass_factor, c.leg_mass_factor)
-                        .internal()?;
-                }
-                Ok(())
-            };
-            // one mass: the model carries it; several: one model, its mass
-            // and what MuJoCo derives from it per world
-            let per_world = if masses.len() == 1 {
-                scaled(&model, &cells[masses[0].1])?;
-                py.None().into_bound(py)
-            } else {
-                let copy = PyModule::import(py, "copy")
-                    .and_then(|c| c.getattr("copy"))
-                    .internal()?;
-                let rows_of = physics.module.getattr("mass_rows").internal()?;
-                // each body's rows only: a population's models would not fit
-                let mut bodies = Vec::with_capacity(masses.len());
-                for &(_, sim) in &masses {
-                    let m = copy.call1((&model,)).internal()?;
-                    scaled(&m, &cells[sim])?;
-                    bodies.push(rows_of.call1((&m,)).internal()?);
-                }
-                let bodies = PyList::new(py, bodies).internal()?;
-                let index = PyArray1::from_vec(py, mass_of.iter().map(|&k| k as i64).collect());
-                (bodies, index).into_pyobject(py).internal()?.into_any()
-            };
+            let per_world = group_masses(physics, &model, cells, &sims, &mut scratch)?;
             let colliding = colliding_geoms(&model).internal()?;
             let n = sims.len();
             let (mut qpos, mut ctrl) = (Vec::with_capacity(n * nq), Vec::with_capacity(n * nu));
@@ -266,22 +212,7 @@ impl<'py> WarpBatch<'py> {
                 }
                 friction.push(c.friction);
             }
-            // friction per world only when some cell sets it; the model's
-            // own value stands in for the others
-            let friction = if friction.iter().any(Option::is_some) {
-                let own: f64 = match colliding.first() {
-                    Some(&gid) => model
-                        .getattr("geom_friction")
-                        .and_then(|f| f.get_item((gid, 0)))
-                        .and_then(|v| v.extract())
-                        .internal()?,
-                    None => 1.0,
-                };
-                let v: Vec<f64> = friction.iter().map(|f| f.unwrap_or(own)).collect();
-                PyArray1::from_vec(py, v).into_any()
-            } else {
-                py.None().into_bound(py)
-            };
+            let friction = world_friction(py, &model, &colliding, &friction)?;
             let args = (
                 &model,
                 &physics.device,
@@ -322,7 +253,160 @@ impl<'py> WarpBatch<'py> {
     }
 }
 
+/// A body group's masses: one carried by the model itself, or several as
+/// each mass's rows of the model and the index of every world's (what
+/// MuJoCo derives from a mass is set per world).
+fn group_masses<'py>(
+    physics: &WarpPhysics<'_, 'py>,
+    model: &Bound<'py, PyAny>,
+    cells: &[CellSetup],
+    sims: &[usize],
+    scratch: &mut Option<Bound<'py, PyAny>>,
+) -> Result<Bound<'py, PyAny>> {
+    let owner = physics.owner;
+    let (mj, py) = (&owner.mj, owner.mj.py);
+    let layout = Physics::layout(owner);
+    // the group's masses, in order of first appearance
+    let mut masses: Vec<([u64; 3], usize)> = Vec::new();
+    let mut mass_of = Vec::with_capacity(sims.len());
+    for &sim in sims {
+        let key = mass_key(&cells[sim]);
+        let k = match masses.iter().position(|(m, _)| *m == key) {
+            Some(k) => k,
+            None => {
+                masses.push((key, sim));
+                masses.len() - 1
+            }
+        };
+        mass_of.push(k);
+    }
+    let data = match scratch {
+        Some(d) => d.clone(),
+        None => {
+            let d = mj.module.getattr("MjData").and_then(|f| f.call1((model,)));
+            scratch.insert(d.internal()?).clone()
+        }
+    };
+    // the torso scale first, then the draws: the products the cpu
+    // backend forms (a scaled body, then its draws)
+    let scaled = |m: &Bound<'py, PyAny>, c: &CellSetup| -> Result<()> {
+        let base = layout.base.body;
+        if c.torso_mass_scale != 1.0 {
+            scale_body_masses(mj, m, &data, base, c.torso_mass_scale, 1.0).internal()?;
+        }
+        if !c.nominal_masses() {
+            scale_body_masses(mj, m, &data, base, c.torso_mass_factor, c.leg_mass_factor)
+                .internal()?;
+        }
+        Ok(())
+    };
+    // one mass: the model carries it; several: one model, its mass
+    // and what MuJoCo derives from it per world
+    Ok(if masses.len() == 1 {
+        scaled(model, &cells[masses[0].1])?;
+        py.None().into_bound(py)
+    } else {
+        let copy = PyModule::import(py, "copy")
+            .and_then(|c| c.getattr("copy"))
+            .internal()?;
+        let rows_of = physics.module.getattr("mass_rows").internal()?;
+        // each body's rows only: a population's models would not fit
+        let mut bodies = Vec::with_capacity(masses.len());
+        for &(_, sim) in &masses {
+            let m = copy.call1((model,)).internal()?;
+            scaled(&m, &cells[sim])?;
+            bodies.push(rows_of.call1((&m,)).internal()?);
+        }
+        let bodies = PyList::new(py, bodies).internal()?;
+        let index = PyArray1::from_vec(py, mass_of.iter().map(|&k| k as i64).collect());
+        (bodies, index).into_pyobject(py).internal()?.into_any()
+    })
+}
+
+/// Friction per world only when some cell sets it; the model's own value
+/// stands in for the others.
+fn world_friction<'py>(
+    py: Python<'py>,
+    model: &Bound<'py, PyAny>,
+    colliding: &[usize],
+    friction: &[Option<f64>],
+) -> Result<Bound<'py, PyAny>> {
+    if !friction.iter().any(Option::is_some) {
+        return Ok(py.None().into_bound(py));
+    }
+    let own: f64 = match colliding.first() {
+        Some(&gid) => model
+            .getattr("geom_friction")
+            .and_then(|f| f.get_item((gid, 0)))
+            .and_then(|v| v.extract())
+            .internal()?,
+        None => 1.0,
+    };
+    let v: Vec<f64> = friction.iter().map(|f| f.unwrap_or(own)).collect();
+    Ok(PyArray1::from_vec(py, v).into_any())
+}
+
+/// The base force of each world for a piece of `k` steps from `start`:
+/// one row for a constant force, a row per step otherwise; worlds that
+/// left the call are pushed by nothing.
+fn force_table<'py>(
+    py: Python<'py>,
+    force: &Force<'_>,
+    members: &[(usize, usize)],
+    n: usize,
+    nstep: usize,
+    start: usize,
+    k: usize,
+) -> Result<Bound<'py, PyAny>> {
+    let rows = match force {
+        Force::Constant(_) => 1,
+        Force::PerStep(_) => k,
+    };
+    let mut table = vec![0.0f64; rows * n * 3];
+    for &(w, pos) in members {
+        for j in 0..rows {
+            let f = match force {
+                Force::Constant(f) => f[pos],
+                Force::PerStep(f) => f[pos * nstep + start + j],
+            };
+            table[(j * n + w) * 3..(j * n + w) * 3 + 3].copy_from_slice(&f);
+        }
+    }
+    array3(py, table, [rows, n, 3])
+}
+
 impl WarpBatch<'_> {
+    /// Moving targets: every world's ctrl for each step of a piece of `k`
+    /// steps from `start`; worlds outside the call hold their start targets.
+    #[allow(clippy::too_many_arguments)]
+    fn drive<'py>(
+        &self,
+        py: Python<'py>,
+        group: &Group<'_>,
+        pos_of: &[usize],
+        ctrl: &[f64],
+        nstep: usize,
+        start: usize,
+        k: usize,
+    ) -> Result<Bound<'py, PyAny>> {
+        let (n, nu) = (group.sims.len(), self.nu);
+        let mut rows = vec![0.0f64; k * n * nu];
+        for (w, &sim) in group.sims.iter().enumerate() {
+            for j in 0..k {
+                let at = (j * n + w) * nu;
+                let from = match pos_of[sim] {
+                    usize::MAX => &self.targets[sim][..],
+                    pos => {
+                        let s = (pos * nstep + start + j) * nu;
+                        &ctrl[s..s + nu]
+                    }
+                };
+                rows[at..at + nu].copy_from_slice(from);
+            }
+        }
+        array3(py, rows, [k, n, nu])
+    }
+
     /// Steps `ids` for `nstep` steps; `ctrl`, when given, is each
     /// simulation's ctrl for every step (`nstep` rows of `nu`,
     /// simulation-major), written on the device before each step.
@@ -361,43 +445,10 @@ impl WarpBatch<'_> {
             let mut start = 0;
             while start < nstep {
                 let k = group.block.min(nstep - start);
-                let rows = match force {
-                    Force::Constant(_) => 1,
-                    Force::PerStep(_) => k,
-                };
-                // worlds that left the call are pushed by nothing
-                let mut table = vec![0.0f64; rows * n * 3];
-                for &(w, pos) in &members {
-                    for j in 0..rows {
-                        let f = match force {
-                            Force::Constant(f) => f[pos],
-                            Force::PerStep(f) => f[pos * nstep + start + j],
-                        };
-                        table[(j * n + w) * 3..(j * n + w) * 3 + 3].copy_from_slice(&f);
-                    }
-                }
-                let table = array3(py, table, [rows, n, 3])?;
-                // moving targets: every world's ctrl for each step of the
-                // piece; worlds outside the call hold their start targets
+                let table = force_table(py, &force, &members, n, nstep, start, k)?;
                 let drive = match ctrl {
                     None => py.None().into_bound(py),
-                    Some(ctrl) => {
-                        let mut rows = vec![0.0f64; k * n * nu];
-                        for (w, &sim) in group.sims.iter().enumerate() {
-                            for j in 0..k {
-                                let at = (j * n + w) * nu;
-                                let from = match pos_of[sim] {
-                                    usize::MAX => &self.targets[sim][..],
-                                    pos => {
-                                        let s = (pos * nstep + start + j) * nu;
-                                        &ctrl[s..s + nu]
-                                    }
-                                };
-                                rows[at..at + nu].copy_from_slice(from);
-                            }
-                        }
-                        array3(py, rows, [k, n, nu])?
-                    }
+                    Some(ctrl) => self.drive(py, group, &pos_of, ctrl, nstep, start, k)?,
                 };
                 let out = group
                     .worlds
