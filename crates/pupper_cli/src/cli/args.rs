@@ -187,7 +187,7 @@ impl ScheduleArgs {
 /// `--out` help.
 #[derive(Args, Debug)]
 pub(super) struct OutputArgs {
-    /// Run directory (default runs/<time>-<grid>).
+    /// Run directory (default runs/<time>-<what ran: the grid's axes, or the command>).
     #[arg(long, short = 'o', value_name = "DIR", conflicts_with = "resume")]
     pub(super) out: Option<PathBuf>,
     /// Overwrite pupper's files in an existing --out directory.
@@ -231,6 +231,45 @@ impl PopulationArgs {
             ..spec
         }
     }
+}
+
+/// A run directory's life: a shard of the grid, resuming, the traces'
+/// decimation, what is printed.
+#[derive(Args, Debug)]
+pub(super) struct RunArgs {
+    /// Run only shard I of N of the grid's cells (1 <= I <= N; cell k belongs to shard
+    /// k mod N + 1, so costly and cheap cells spread evenly), into its own run directory
+    /// whose manifest records the whole grid, the shard and the host. Resume, Ctrl-C and
+    /// checks work per shard; `pupper merge` puts the shards together. In a Slurm array:
+    /// --shard $SLURM_ARRAY_TASK_ID/N with --array=1-N.
+    #[arg(long, value_name = "I/N")]
+    pub(super) shard: Option<String>,
+    /// Continue an interrupted run in DIR: checks the inputs match its manifest, runs only missing cells. Alone, it reuses the manifest's inputs.
+    #[arg(long, value_name = "DIR")]
+    pub(super) resume: Option<PathBuf>,
+    /// Decimation of the traces (--trace).
+    #[arg(long, default_value_t = SweepSpec::default().trace_every, value_name = "N")]
+    pub(super) trace_every: usize,
+    /// Print the rows (and the best cells) as JSON instead of a table.
+    #[arg(long)]
+    pub(super) json: bool,
+    /// No progress bar.
+    #[arg(long, short = 'q')]
+    pub(super) quiet: bool,
+}
+
+/// How a run's cells are batched: speed only, never the numbers.
+#[derive(Args, Debug)]
+pub(super) struct BatchArgs {
+    /// Batch threads; 0 uses all cores. Never changes the numbers.
+    #[arg(long, short = 'j', default_value_t = SweepSpec::default().threads, value_name = "N")]
+    pub(super) threads: usize,
+    /// Most cells per batch [default: 256 on the cpu backend, whose batches
+    /// hold about 10 s of work so a stop loses little; on warp, as many as
+    /// the device's memory holds]. Fewer cells bound memory. Never changes
+    /// the numbers.
+    #[arg(long, value_name = "N")]
+    pub(super) chunk_cells: Option<usize>,
 }
 
 #[derive(Args, Debug)]

@@ -2,7 +2,6 @@
 //! load and against a sideways shove, a run of the sweep runner with the
 //! hold kind's load instead of the sweep's push.
 
-use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 
 use clap::Args;
@@ -11,7 +10,7 @@ use pupper_core::request::hold::{HoldInput, seconds, spec};
 use pupper_core::request::spec::{GridInput, SweepSpec};
 use pupper_core::results::best;
 
-use super::args::{BackendArgs, GridArg, OutputArgs, SimArgs};
+use super::args::{BackendArgs, BatchArgs, GridArg, OutputArgs, RunArgs, SimArgs};
 use super::sweep::{Job, run_job};
 
 #[derive(Args, Debug)]
@@ -65,26 +64,16 @@ pub(super) struct HoldArgs {
     rank: Option<String>,
     #[command(flatten)]
     output: OutputArgs,
-    /// Continue an interrupted hold in DIR (finished cells are kept).
-    #[arg(long, value_name = "DIR")]
-    resume: Option<PathBuf>,
-    /// Batch threads (0: all cores); speed only, never numbers.
-    #[arg(long, short = 'j', default_value_t = SweepSpec::default().threads, value_name = "N")]
-    threads: usize,
     /// Record each cell's base height every --trace-every steps (traces.csv).
     #[arg(long)]
     trace: bool,
-    #[arg(long, default_value_t = SweepSpec::default().trace_every, value_name = "N")]
-    trace_every: usize,
     /// Write plots into DIR/plots (compliance heatmap, base height under the load).
     #[arg(long)]
     plot: bool,
-    /// Print the table and the stiffest cell as JSON.
-    #[arg(long)]
-    json: bool,
-    /// No progress bar.
-    #[arg(long, short = 'q')]
-    quiet: bool,
+    #[command(flatten)]
+    run: RunArgs,
+    #[command(flatten)]
+    batch: BatchArgs,
     #[command(flatten)]
     backend: BackendArgs,
 }
@@ -105,11 +94,12 @@ impl HoldArgs {
         let base = SweepSpec {
             grid: GridInput::Specs(self.grid.grid.clone()),
             seconds: self.sim.seconds.unwrap_or_else(|| seconds(&input)),
-            threads: self.threads,
+            threads: self.batch.threads,
+            chunk_cells: self.batch.chunk_cells,
             force: self.output.force,
             // the height plot draws the traces
             trace: self.trace || self.plot,
-            trace_every: self.trace_every,
+            trace_every: self.run.trace_every,
             ..self.backend.apply(self.sim.spec()?)
         };
         Ok(spec(base, &input))
@@ -136,10 +126,10 @@ pub(super) fn run(a: HoldArgs, stop: &'static AtomicBool) -> Result<u8> {
             baseline,
             resume_alone: a.grid.grid.is_empty(),
             out: a.output.out,
-            resume: a.resume,
+            resume: a.run.resume,
             preset: Some("hold".into()),
-            quiet: a.quiet,
-            json: a.json,
+            quiet: a.run.quiet,
+            json: a.run.json,
             plot: a.plot,
             render: false,
             rule: Some(best::Rule::new(&metric, &[])),

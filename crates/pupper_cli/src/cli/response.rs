@@ -1,14 +1,13 @@
 //! `pupper response`: how each joint follows its target, a run of the
 //! sweep runner with an excitation instead of a push.
 
-use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 
 use clap::Args;
 use pupper_core::Result;
 use pupper_core::request::spec::{GridInput, SweepSpec};
 
-use super::args::{BackendArgs, GridArg, PopulationArgs, SimArgs};
+use super::args::{BackendArgs, BatchArgs, GridArg, OutputArgs, PopulationArgs, RunArgs, SimArgs};
 use super::sweep::{Job, run_job};
 
 #[derive(Args, Debug)]
@@ -62,42 +61,21 @@ pub(super) struct ResponseArgs {
     /// in the air.
     #[arg(long)]
     standing: bool,
-    /// Run directory (default runs/<time>-response).
-    #[arg(long, short = 'o', value_name = "DIR", conflicts_with = "resume")]
-    out: Option<PathBuf>,
-    /// Overwrite pupper's files in an existing --out directory.
-    #[arg(long)]
-    force: bool,
-    /// Run only shard I of N of the grid's cells (see `pupper sweep --help`).
-    #[arg(long, value_name = "I/N")]
-    shard: Option<String>,
-    /// Continue an interrupted run in DIR (alone: with the manifest's inputs).
-    #[arg(long, value_name = "DIR")]
-    resume: Option<PathBuf>,
-    /// Batch threads; 0 uses all cores. Never changes the numbers.
-    #[arg(long, short = 'j', default_value_t = SweepSpec::default().threads, value_name = "N")]
-    threads: usize,
-    /// Most cells per batch. Never changes the numbers.
-    #[arg(long, value_name = "N")]
-    chunk_cells: Option<usize>,
     /// Keep each excited joint's angle after the hold (response_traces.csv), every
     /// --trace-every-th step.
     #[arg(long)]
     trace: bool,
-    /// Decimation of the traces.
-    #[arg(long, default_value_t = SweepSpec::default().trace_every, value_name = "N")]
-    trace_every: usize,
     /// Write plots into DIR/plots: step responses per joint group (target dashed, the 2 %
     /// band shaded), Bode gain and phase per group (sine, chirp), heatmaps of rise time,
     /// overshoot and settling time over Kp x Kd.
     #[arg(long)]
     plot: bool,
-    /// Print the rows as JSON instead of a table per joint group.
-    #[arg(long)]
-    json: bool,
-    /// No progress bar.
-    #[arg(long, short = 'q')]
-    quiet: bool,
+    #[command(flatten)]
+    output: OutputArgs,
+    #[command(flatten)]
+    run: RunArgs,
+    #[command(flatten)]
+    batch: BatchArgs,
     #[command(flatten)]
     backend: BackendArgs,
     #[command(flatten)]
@@ -122,13 +100,13 @@ impl ResponseArgs {
                 .sim
                 .seconds
                 .unwrap_or(pupper_core::request::response::SECONDS),
-            threads: self.threads,
-            chunk_cells: self.chunk_cells,
-            force: self.force,
-            shard: self.shard.clone(),
+            threads: self.batch.threads,
+            chunk_cells: self.batch.chunk_cells,
+            force: self.output.force,
+            shard: self.run.shard.clone(),
             // the step plots draw the traces
             trace: self.trace || self.plot,
-            trace_every: self.trace_every,
+            trace_every: self.run.trace_every,
             ..self.backend.apply(self.population.apply(self.sim.spec()?))
         };
         pupper_core::request::response::spec(
@@ -160,11 +138,11 @@ pub(super) fn run(a: ResponseArgs, stop: &'static AtomicBool) -> Result<u8> {
             spec: a.spec()?,
             baseline,
             resume_alone: a.grid.grid.is_empty(),
-            out: a.out,
-            resume: a.resume,
+            out: a.output.out,
+            resume: a.run.resume,
             preset: Some("response".into()),
-            quiet: a.quiet,
-            json: a.json,
+            quiet: a.run.quiet,
+            json: a.run.json,
             plot: a.plot,
             render: false,
             rule: None,

@@ -16,7 +16,9 @@ use pupper_core::{Error, Result};
 use pupper_mujoco::api::{self, SweepOutcome, SweepRequest, SweepUi};
 use pupper_mujoco::bridge;
 
-use super::args::{BackendArgs, GridArg, OutputArgs, PopulationArgs, ScheduleArgs, SimArgs};
+use super::args::{
+    BackendArgs, BatchArgs, GridArg, OutputArgs, PopulationArgs, RunArgs, ScheduleArgs, SimArgs,
+};
 use super::python::write_report;
 use super::rundir_name;
 use crate::print;
@@ -53,31 +55,9 @@ pub(super) struct SweepArgs {
     schedule: ScheduleArgs,
     #[command(flatten)]
     output: OutputArgs,
-    /// Run only shard I of N of the grid's cells (1 <= I <= N; cell k belongs to shard
-    /// k mod N + 1, so costly and cheap cells spread evenly), into its own run directory
-    /// whose manifest records the whole grid, the shard and the host. Resume, Ctrl-C and
-    /// checks work per shard; `pupper merge` puts the shards together. In a Slurm array:
-    /// --shard $SLURM_ARRAY_TASK_ID/N with --array=1-N.
-    #[arg(long, value_name = "I/N")]
-    shard: Option<String>,
-    /// Continue an interrupted run in DIR: checks the inputs match its manifest, runs only missing cells. Alone, it reuses the manifest's inputs.
-    #[arg(long, value_name = "DIR")]
-    resume: Option<PathBuf>,
     /// Keep base-z traces (traces.csv), every --trace-every-th step.
     #[arg(long)]
     trace: bool,
-    /// Decimation of the traces.
-    #[arg(long, default_value_t = SweepSpec::default().trace_every, value_name = "N")]
-    trace_every: usize,
-    /// Batch threads; 0 uses all cores. Never changes the numbers.
-    #[arg(long, short = 'j', default_value_t = SweepSpec::default().threads, value_name = "N")]
-    threads: usize,
-    /// Most cells per batch [default: 256 on the cpu backend, whose batches
-    /// hold about 10 s of work so a stop loses little; on warp, as many as
-    /// the device's memory holds]. Fewer cells bound memory. Never changes
-    /// the numbers.
-    #[arg(long, value_name = "N")]
-    chunk_cells: Option<usize>,
     /// Refuse grids with more cells than this.
     #[arg(long, default_value_t = SweepSpec::default().max_cells, value_name = "N")]
     max_cells: usize,
@@ -110,12 +90,10 @@ pub(super) struct SweepArgs {
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
     #[arg(long, default_value_t = pupper_core::results::best::MAX_SATURATION, value_name = "FRACTION")]
     max_saturation: f64,
-    /// Print the rows as JSON instead of a table.
-    #[arg(long)]
-    json: bool,
-    /// No progress bar.
-    #[arg(long, short = 'q')]
-    quiet: bool,
+    #[command(flatten)]
+    run: RunArgs,
+    #[command(flatten)]
+    batch: BatchArgs,
     // last: their help headings would hold every option after them
     #[command(flatten)]
     backend: BackendArgs,
@@ -134,13 +112,13 @@ impl SweepArgs {
             },
             // plots draw the base-z curves from the traces
             trace: self.trace || self.plot,
-            trace_every: self.trace_every,
+            trace_every: self.run.trace_every,
             stop_fallen: self.stop_fallen,
-            threads: self.threads,
-            chunk_cells: self.chunk_cells,
+            threads: self.batch.threads,
+            chunk_cells: self.batch.chunk_cells,
             max_cells: self.max_cells,
             force: self.output.force,
-            shard: self.shard.clone(),
+            shard: self.run.shard.clone(),
             ..self.schedule.apply(
                 sine,
                 self.backend.apply(self.population.apply(self.sim.spec()?)),
@@ -183,10 +161,10 @@ pub(super) fn run(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
             baseline: SweepSpec::default(),
             resume_alone: a.grid.grid.is_empty() && a.preset.is_none(),
             out: a.output.out,
-            resume: a.resume,
+            resume: a.run.resume,
             preset: a.preset,
-            quiet: a.quiet,
-            json: a.json,
+            quiet: a.run.quiet,
+            json: a.run.json,
             plot: a.plot,
             render: a.render,
             rule,

@@ -8,7 +8,7 @@ use pupper_core::request::spec::SweepSpec;
 use pupper_core::{Error, Result};
 use serde_json::Value;
 
-use super::args::{BackendArgs, OutputArgs, PopulationArgs, ScheduleArgs, SimArgs};
+use super::args::{BackendArgs, BatchArgs, OutputArgs, PopulationArgs, ScheduleArgs, SimArgs};
 use super::python::python_command;
 use super::rundir_name;
 use crate::pyargs::PyArgs;
@@ -65,18 +65,11 @@ pub(super) struct TuneArgs {
     sim: SimArgs,
     #[command(flatten)]
     schedule: ScheduleArgs,
-    /// Most cells per batch (a generation runs in batches of at most this many). Never
-    /// changes the numbers.
-    #[arg(long, value_name = "N")]
-    chunk_cells: Option<usize>,
     #[command(flatten)]
     output: OutputArgs,
     /// Continue an interrupted study in DIR (the same inputs, or --resume DIR alone).
     #[arg(long, value_name = "DIR")]
     resume: Option<PathBuf>,
-    /// Batch threads; 0 uses all cores. Never changes the numbers.
-    #[arg(long, short = 'j', default_value_t = 0, value_name = "N")]
-    threads: usize,
     /// Write DIR/plots/tune_progress.png (best objective against cell-steps spent) and, for
     /// two searched axes, tune_trials.png (the trials over that plane).
     #[arg(long)]
@@ -88,6 +81,8 @@ pub(super) struct TuneArgs {
     /// No line per generation.
     #[arg(long, short = 'q')]
     quiet: bool,
+    #[command(flatten)]
+    batching: BatchArgs,
     // last: their help headings would hold every option after them
     #[command(flatten)]
     backend: BackendArgs,
@@ -137,8 +132,8 @@ impl TuneArgs {
         let sim = self.sim.spec()?;
         let sine = self.schedule.sine()?;
         let spec = SweepSpec {
-            threads: self.threads,
-            chunk_cells: self.chunk_cells,
+            threads: self.batching.threads,
+            chunk_cells: self.batching.chunk_cells,
             ..self
                 .schedule
                 .apply(sine, self.backend.apply(self.population.apply(sim)))

@@ -264,34 +264,64 @@ pub fn motor_constant(
     actuators: &[ActuatorInfo],
     model: &str,
 ) -> Result<Option<(usize, usize, f64)>> {
-    let Some(rest) = numeric.strip_prefix("pupper:") else {
-        return Ok(None);
-    };
-    let Some((k, actuator)) = [("kt:", 0), ("resistance:", 1)]
-        .iter()
-        .find_map(|(kind, k)| rest.strip_prefix(kind).map(|a| (*k, a)))
-    else {
-        return Ok(None);
-    };
-    let bad = |why: String| {
-        Err(Error::Model(format!(
-            "{model}: custom numeric '{numeric}' {why}"
-        )))
-    };
-    let Some(index) = actuators.iter().position(|a| a.name == actuator) else {
-        let names: Vec<&str> = actuators.iter().map(|a| a.name.as_str()).collect();
-        return bad(format!(
-            "names no actuator of the model: use one of {}, or remove it",
-            names.join(", ")
-        ));
-    };
-    match values {
-        [v] if v.is_finite() && *v > 0.0 => Ok(Some((k, index, *v))),
-        [v] => bad(format!("is {v}: a motor constant must be a number > 0")),
-        _ => bad(format!(
-            "has {} values: a motor constant is one number (size=\"1\")",
-            values.len()
-        )),
+    ActuatorNumeric {
+        kinds: ["kt:", "resistance:"],
+        what: "a motor constant",
+        rule: "a number > 0".into(),
+        fits: |v| v > 0.0,
+    }
+    .read(numeric, values, actuators, model)
+}
+
+/// A family of custom numerics `pupper:KIND:ACTUATOR` holding one number
+/// about an actuator: its two kinds, what it is and the rule its value
+/// follows (in words and as a check of a finite value).
+struct ActuatorNumeric {
+    kinds: [&'static str; 2],
+    what: &'static str,
+    rule: String,
+    fits: fn(f64) -> bool,
+}
+
+impl ActuatorNumeric {
+    /// `Some((kind index, actuator index, value))` for a numeric of this
+    /// family, None for another; a bad one is a one-line model error.
+    fn read(
+        &self,
+        numeric: &str,
+        values: &[f64],
+        actuators: &[ActuatorInfo],
+        model: &str,
+    ) -> Result<Option<(usize, usize, f64)>> {
+        let Some(rest) = numeric.strip_prefix("pupper:") else {
+            return Ok(None);
+        };
+        let Some((k, actuator)) =
+            (0..2).find_map(|k| rest.strip_prefix(self.kinds[k]).map(|a| (k, a)))
+        else {
+            return Ok(None);
+        };
+        let bad = |why: String| {
+            Err(Error::Model(format!(
+                "{model}: custom numeric '{numeric}' {why}"
+            )))
+        };
+        let Some(index) = actuators.iter().position(|a| a.name == actuator) else {
+            let names: Vec<&str> = actuators.iter().map(|a| a.name.as_str()).collect();
+            return bad(format!(
+                "names no actuator of the model: use one of {}, or remove it",
+                names.join(", ")
+            ));
+        };
+        let what = self.what;
+        match values {
+            [v] if v.is_finite() && (self.fits)(*v) => Ok(Some((k, index, *v))),
+            [v] => bad(format!("is {v}: {what} must be {}", self.rule)),
+            _ => bad(format!(
+                "has {} values: {what} is one number (size=\"1\")",
+                values.len()
+            )),
+        }
     }
 }
 
@@ -320,39 +350,13 @@ pub fn gain_scale(
     actuators: &[ActuatorInfo],
     model: &str,
 ) -> Result<Option<(usize, usize, f64)>> {
-    let Some(rest) = numeric.strip_prefix("pupper:") else {
-        return Ok(None);
-    };
-    let Some((k, actuator)) = [("kp_scale:", 0), ("kd_scale:", 1)]
-        .iter()
-        .find_map(|(kind, k)| rest.strip_prefix(kind).map(|a| (*k, a)))
-    else {
-        return Ok(None);
-    };
-    let bad = |why: String| {
-        Err(Error::Model(format!(
-            "{model}: custom numeric '{numeric}' {why}"
-        )))
-    };
-    let Some(index) = actuators.iter().position(|a| a.name == actuator) else {
-        let names: Vec<&str> = actuators.iter().map(|a| a.name.as_str()).collect();
-        return bad(format!(
-            "names no actuator of the model: use one of {}, or remove it",
-            names.join(", ")
-        ));
-    };
-    let [scale] = values else {
-        return bad(format!(
-            "has {} values: a gain scale is one number (size=\"1\")",
-            values.len()
-        ));
-    };
-    if !(scale.is_finite() && *scale > 0.0 && *scale <= MAX_GAIN_SCALE) {
-        return bad(format!(
-            "is {scale}: a gain scale must be a number in (0, {MAX_GAIN_SCALE}]; refit the model or remove it"
-        ));
+    ActuatorNumeric {
+        kinds: ["kp_scale:", "kd_scale:"],
+        what: "a gain scale",
+        rule: format!("a number in (0, {MAX_GAIN_SCALE}]; refit the model or remove it"),
+        fits: |v| v > 0.0 && v <= MAX_GAIN_SCALE,
     }
-    Ok(Some((k, index, *scale)))
+    .read(numeric, values, actuators, model)
 }
 
 /// The largest gain scale a model may declare: a fit that lands past it has

@@ -61,30 +61,19 @@ pub trait SimBatch {
     /// The current qpos of simulation `sim`.
     fn qpos(&self, sim: usize) -> Result<Vec<f64>>;
     /// Open-loop advance of simulations `ids` (sorted) by `nstep` steps,
-    /// observing after each. Returns `(position in ids, step)` of simulations
-    /// that diverged; they are not observed from that step on.
+    /// observing after each; with `ctrl`, each simulation's ctrl for every
+    /// step (`nstep` rows of `nu` per simulation, simulation-major): servo
+    /// targets that move on a schedule known in advance. Returns
+    /// `(position in ids, step)` of simulations that diverged; they are not
+    /// observed from that step on.
     fn advance(
         &mut self,
         ids: &[usize],
         nstep: usize,
         force: Force<'_>,
+        ctrl: Option<&[f64]>,
         observe: &mut Observer<'_>,
     ) -> Result<Vec<(usize, usize)>>;
-    /// [`SimBatch::advance`] with each simulation's ctrl given for every
-    /// step (`nstep` rows of `nu` per simulation, simulation-major): servo
-    /// targets that move on a schedule known in advance.
-    fn advance_driven(
-        &mut self,
-        _ids: &[usize],
-        _nstep: usize,
-        _force: Force<'_>,
-        _ctrl: &[f64],
-        _observe: &mut Observer<'_>,
-    ) -> Result<Vec<(usize, usize)>> {
-        Err(crate::error::Error::Config(
-            "moving targets run on --backend cpu: use it for pupper response".into(),
-        ))
-    }
     /// One closed-loop step: `control` writes each simulation's ctrl from its
     /// state, then all step once, then `observe` sees the new state. Returns
     /// the positions in ids of simulations that diverged.

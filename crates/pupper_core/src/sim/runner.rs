@@ -567,7 +567,7 @@ fn advance_open_loop(
         );
     };
     Ok(match st.moving {
-        false => batch.advance(alive, nstep, force, &mut observe)?,
+        false => batch.advance(alive, nstep, force, None, &mut observe)?,
         true => {
             // the servos' targets of every step, known in advance
             let nu = st.layout.nu;
@@ -577,7 +577,7 @@ fn advance_open_loop(
                     ctrl.extend((0..nu).map(|a| st.target(sim, a, t)));
                 }
             }
-            batch.advance_driven(alive, nstep, force, &ctrl, &mut observe)?
+            batch.advance(alive, nstep, force, Some(&ctrl), &mut observe)?
         }
     })
 }

@@ -191,55 +191,6 @@ impl<'a, 'py> MujocoBatch<'a, 'py> {
         Ok(me)
     }
 
-    /// One `rollout` call of simulations `ids` for `nstep` steps: the
-    /// base force constant or per step, and with `ctrl` each step's ctrl
-    /// (servo targets that move), both as the rollout's control input.
-    fn rollout(
-        &mut self,
-        ids: &[usize],
-        nstep: usize,
-        force: Force<'_>,
-        ctrl: Option<&[f64]>,
-        observe: &mut Observer<'_>,
-    ) -> Result<Vec<(usize, usize)>> {
-        let py = self.owner.mj.py;
-        let kw = PyDict::new(py);
-        let per_step = match force {
-            Force::Constant(f) => {
-                let mut s = self.state.readwrite();
-                let rows = s
-                    .as_slice_mut()
-                    .map_err(|e| Error::Internal(e.to_string()))?;
-                for (pos, &sim) in ids.iter().enumerate() {
-                    self.write_force(rows, sim, f[pos]);
-                }
-                None
-            }
-            Force::PerStep(f) => Some(f),
-        };
-        if let Some((arr, spec)) = self.control_input(ids.len(), nstep, per_step, ctrl)? {
-            kw.set_item("control", arr).internal()?;
-            kw.set_item("control_spec", spec).internal()?;
-        }
-        kw.set_item("record", ("qpos", "actuator_force"))
-            .internal()?;
-        kw.set_item("ids", self.ids_arg(ids)?).internal()?;
-        let out = match self.batch.call_method("rollout", (nstep,), Some(&kw)) {
-            Ok(out) => out,
-            Err(e) => {
-                // MuJoCo raised in some simulations: they diverged at this call
-                let failed = failed_ids(py, e)?;
-                return Ok(ids
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, s)| failed.contains(&(**s as i64)))
-                    .map(|(p, _)| (p, 0))
-                    .collect());
-            }
-        };
-        self.observe_rollout(&out, ids, nstep, observe)
-    }
-
     /// The rollout's control input when the force changes per step or
     /// targets move: a row per (simulation, step) of [ctrl (nu)] then
     /// [xfrc_applied (6 nbody)], in mjtState's order, and its spec bits.
@@ -705,25 +656,53 @@ impl SimBatch for MujocoBatch<'_, '_> {
         Ok(rows[at..at + self.owner.info.nq].to_vec())
     }
 
+    /// One `rollout` call of simulations `ids` for `nstep` steps: the
+    /// base force constant or per step, and with `ctrl` each step's ctrl
+    /// (servo targets that move), both as the rollout's control input.
     fn advance(
         &mut self,
         ids: &[usize],
         nstep: usize,
         force: Force<'_>,
+        ctrl: Option<&[f64]>,
         observe: &mut Observer<'_>,
     ) -> Result<Vec<(usize, usize)>> {
-        self.rollout(ids, nstep, force, None, observe)
-    }
-
-    fn advance_driven(
-        &mut self,
-        ids: &[usize],
-        nstep: usize,
-        force: Force<'_>,
-        ctrl: &[f64],
-        observe: &mut Observer<'_>,
-    ) -> Result<Vec<(usize, usize)>> {
-        self.rollout(ids, nstep, force, Some(ctrl), observe)
+        let py = self.owner.mj.py;
+        let kw = PyDict::new(py);
+        let per_step = match force {
+            Force::Constant(f) => {
+                let mut s = self.state.readwrite();
+                let rows = s
+                    .as_slice_mut()
+                    .map_err(|e| Error::Internal(e.to_string()))?;
+                for (pos, &sim) in ids.iter().enumerate() {
+                    self.write_force(rows, sim, f[pos]);
+                }
+                None
+            }
+            Force::PerStep(f) => Some(f),
+        };
+        if let Some((arr, spec)) = self.control_input(ids.len(), nstep, per_step, ctrl)? {
+            kw.set_item("control", arr).internal()?;
+            kw.set_item("control_spec", spec).internal()?;
+        }
+        kw.set_item("record", ("qpos", "actuator_force"))
+            .internal()?;
+        kw.set_item("ids", self.ids_arg(ids)?).internal()?;
+        let out = match self.batch.call_method("rollout", (nstep,), Some(&kw)) {
+            Ok(out) => out,
+            Err(e) => {
+                // MuJoCo raised in some simulations: they diverged at this call
+                let failed = failed_ids(py, e)?;
+                return Ok(ids
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, s)| failed.contains(&(**s as i64)))
+                    .map(|(p, _)| (p, 0))
+                    .collect());
+            }
+        };
+        self.observe_rollout(&out, ids, nstep, observe)
     }
 
     fn step_controlled(

@@ -406,11 +406,41 @@ impl WarpBatch<'_> {
         }
         array3(py, rows, [k, n, nu])
     }
+}
+
+impl SimBatch for WarpBatch<'_> {
+    fn len(&self) -> usize {
+        self.place.len()
+    }
+
+    fn actuator_pd(&self) -> bool {
+        true
+    }
+
+    fn targets(&self, sim: usize) -> &[f64] {
+        &self.targets[sim]
+    }
+
+    fn stance(&self, sim: usize) -> f64 {
+        self.stance[sim]
+    }
+
+    fn qpos(&self, sim: usize) -> Result<Vec<f64>> {
+        let (g, w) = self.place[sim];
+        let q = self.groups[g]
+            .worlds
+            .call_method0("qpos")
+            .and_then(|a| a.cast_into::<numpy::PyArray2<f32>>().map_err(PyErr::from))
+            .internal()?;
+        let q = q.readonly();
+        let q = q.as_array();
+        Ok(q.row(w).iter().map(|&x| f64::from(x)).collect())
+    }
 
     /// Steps `ids` for `nstep` steps; `ctrl`, when given, is each
     /// simulation's ctrl for every step (`nstep` rows of `nu`,
     /// simulation-major), written on the device before each step.
-    fn rollout(
+    fn advance(
         &mut self,
         ids: &[usize],
         nstep: usize,
@@ -498,57 +528,6 @@ impl WarpBatch<'_> {
             }
         }
         Ok(diverged)
-    }
-}
-
-impl SimBatch for WarpBatch<'_> {
-    fn len(&self) -> usize {
-        self.place.len()
-    }
-
-    fn actuator_pd(&self) -> bool {
-        true
-    }
-
-    fn targets(&self, sim: usize) -> &[f64] {
-        &self.targets[sim]
-    }
-
-    fn stance(&self, sim: usize) -> f64 {
-        self.stance[sim]
-    }
-
-    fn qpos(&self, sim: usize) -> Result<Vec<f64>> {
-        let (g, w) = self.place[sim];
-        let q = self.groups[g]
-            .worlds
-            .call_method0("qpos")
-            .and_then(|a| a.cast_into::<numpy::PyArray2<f32>>().map_err(PyErr::from))
-            .internal()?;
-        let q = q.readonly();
-        let q = q.as_array();
-        Ok(q.row(w).iter().map(|&x| f64::from(x)).collect())
-    }
-
-    fn advance(
-        &mut self,
-        ids: &[usize],
-        nstep: usize,
-        force: Force<'_>,
-        observe: &mut Observer<'_>,
-    ) -> Result<Vec<(usize, usize)>> {
-        self.rollout(ids, nstep, force, None, observe)
-    }
-
-    fn advance_driven(
-        &mut self,
-        ids: &[usize],
-        nstep: usize,
-        force: Force<'_>,
-        ctrl: &[f64],
-        observe: &mut Observer<'_>,
-    ) -> Result<Vec<(usize, usize)>> {
-        self.rollout(ids, nstep, force, Some(ctrl), observe)
     }
 
     fn step_controlled(
