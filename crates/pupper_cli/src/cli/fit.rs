@@ -10,6 +10,7 @@ use super::args::ModelArg;
 use super::python::python_command;
 use super::rundir_name;
 use crate::pyargs::PyArgs;
+use pupper_mujoco::bridge::calls;
 
 #[derive(Args, Debug)]
 #[command(after_help = "The log (CSV): `# key: value` lines, then a header
@@ -130,7 +131,7 @@ impl ExciteArgs {
             "max_velocity": self.max_velocity,
             "seed": self.seed,
         });
-        python_command("pupper_core._fit", "_cli_excite", &py.text(&args))
+        python_command(&calls::EXCITE, &py.text(&args))
     }
 }
 
@@ -195,6 +196,6 @@ impl FitArgs {
             "max_iters": self.max_iters,
             "plot": self.plot,
         });
-        python_command("pupper_core._fit", "_cli_fit", &py.text(&args))
+        python_command(&calls::FIT, &py.text(&args))
     }
 }

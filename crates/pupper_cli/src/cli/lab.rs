@@ -14,6 +14,7 @@ use super::python::python_command;
 use super::rundir_name;
 use super::sweep::{Job, run_job};
 use crate::pyargs::PyArgs;
+use pupper_mujoco::bridge::calls;
 
 #[derive(Args, Debug)]
 #[command(
@@ -167,5 +168,5 @@ fn tune(a: &LabArgs, sine: [f64; 2]) -> Result<u8> {
     if let (Some(d), Some(m)) = (a.depth, args.as_object_mut()) {
         m.insert("depth".into(), serde_json::json!(d));
     }
-    python_command("pupper_core._tune", "_lab_cli", &py.text(&args))
+    python_command(&calls::LAB_TUNE, &py.text(&args))
 }

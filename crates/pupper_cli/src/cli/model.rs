@@ -10,6 +10,7 @@ use pupper_mujoco::bridge;
 
 use super::args::{ModelArg, SimArgs};
 use crate::print;
+use pupper_mujoco::bridge::calls;
 
 /// A model, one of its bodies, and how to print what is found.
 #[derive(Args, Debug)]
@@ -115,11 +116,6 @@ pub(super) fn view(model: &ModelArg) -> Result<u8> {
         ModelSource::Path(p) => p.display().to_string(),
         ModelSource::Builtin(n) => n.clone(),
     };
-    bridge::call_helper(
-        "pupper_core.render",
-        "view",
-        &[name],
-        &serde_json::json!({}),
-    )?;
+    bridge::call_helper(&calls::VIEW, &[name], &serde_json::json!({}))?;
     Ok(0)
 }

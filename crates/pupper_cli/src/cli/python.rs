@@ -3,16 +3,12 @@
 
 use pupper_core::Result;
 use pupper_mujoco::bridge;
+use pupper_mujoco::bridge::calls::{self, PyCall};
 
 /// A command whose work is in pupper's Python package: its flags as JSON
 /// to `module.func`, which returns the files it wrote (said on stderr).
-pub(super) fn python_command(module: &str, func: &str, args_json: &str) -> Result<u8> {
-    for p in bridge::call_helper(
-        module,
-        func,
-        &[args_json.to_string()],
-        &serde_json::json!({}),
-    )? {
+pub(super) fn python_command(call: &PyCall, args_json: &str) -> Result<u8> {
+    for p in bridge::call_helper(call, &[args_json.to_string()], &serde_json::json!({}))? {
         eprintln!("wrote {p}");
     }
     Ok(0)
@@ -28,11 +24,6 @@ pub(super) fn write_report(dir: &std::path::Path) -> Result<()> {
         .iter()
         .map(|b| format!("{b:02x}"))
         .collect();
-    bridge::call_helper(
-        "pupper_core._report",
-        "_cli_hex",
-        &[hex],
-        &serde_json::json!({}),
-    )?;
+    bridge::call_helper(&calls::REPORT, &[hex], &serde_json::json!({}))?;
     Ok(())
 }

@@ -9,6 +9,7 @@ use pupper_core::{Error, Result};
 use pupper_mujoco::bridge;
 
 use super::args::SimArgs;
+use pupper_mujoco::bridge::calls;
 
 #[derive(Args, Debug)]
 #[command(after_help = "Examples:
@@ -88,8 +89,7 @@ impl RenderArgs {
         let out = self.target("pupper.png", None);
         check_png_target(&out, self.force)?;
         let written = bridge::call_helper(
-            "pupper_core.render",
-            "render_png",
+            &calls::RENDER_PNG,
             &[out.display().to_string()],
             &serde_json::json!({
                 "width": self.width,
@@ -143,8 +143,7 @@ impl RenderArgs {
         );
         check_png_target(&out, self.force)?;
         let written = bridge::call_helper(
-            "pupper_core.render",
-            "render_cell_png",
+            &calls::RENDER_CELL_PNG,
             &[out.display().to_string(), dir.display().to_string()],
             &serde_json::json!({
                 "cell": cell.index,

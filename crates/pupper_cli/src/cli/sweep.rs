@@ -22,6 +22,7 @@ use super::args::{
 use super::python::write_report;
 use super::rundir_name;
 use crate::print;
+use pupper_mujoco::bridge::calls;
 
 #[derive(Args, Debug)]
 #[command(
@@ -348,8 +349,7 @@ fn write_after(a: &Job, dir: &Path) -> Result<()> {
     if a.plot {
         // the plots of the run's kind, as its manifest names it
         for p in bridge::call_helper(
-            "pupper_core.plots",
-            "write_plots",
+            &calls::WRITE_PLOTS,
             std::slice::from_ref(&dir_s),
             &serde_json::json!({}),
         )? {
@@ -359,8 +359,7 @@ fn write_after(a: &Job, dir: &Path) -> Result<()> {
     if a.lab {
         // the bodies at their best gains, side by side: a PNG, and a GIF with --render
         match bridge::call_helper(
-            "pupper_core.render",
-            "write_lab_effects",
+            &calls::WRITE_LAB_EFFECTS,
             std::slice::from_ref(&dir_s),
             &serde_json::json!({ "gif": a.render }),
         ) {
@@ -373,8 +372,7 @@ fn write_after(a: &Job, dir: &Path) -> Result<()> {
         }
     } else if a.render {
         for p in bridge::call_helper(
-            "pupper_core.render",
-            "write_run_effects",
+            &calls::WRITE_RUN_EFFECTS,
             std::slice::from_ref(&dir_s),
             &serde_json::json!({}),
         )? {

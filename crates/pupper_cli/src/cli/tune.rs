@@ -12,6 +12,7 @@ use super::args::{BackendArgs, BatchArgs, OutputArgs, PopulationArgs, ScheduleAr
 use super::python::python_command;
 use super::rundir_name;
 use crate::pyargs::PyArgs;
+use pupper_mujoco::bridge::calls;
 
 #[derive(Args, Debug)]
 #[command(
@@ -119,7 +120,7 @@ impl TuneArgs {
         if let Some(a) = args.as_object_mut() {
             a.extend(options);
         }
-        python_command("pupper_core._tune", "_cli", &py.text(&args))
+        python_command(&calls::TUNE, &py.text(&args))
     }
 
     /// The study's simulation inputs, each one's JSON as the spec serializes

@@ -1,6 +1,7 @@
 //! Entry points that hold the interpreter: run a closure on a loaded model,
 //! and call the Python package's helpers (plots, rendering, the viewer).
 
+use crate::bridge::calls::PyCall;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -63,11 +64,18 @@ pub fn physics<'a, 'py>(
 /// strings (a path or a list of paths). `RenderUnavailable` and
 /// `DisplayUnavailable` become one-line [`Error::Display`]s.
 pub fn call_helper(
-    module: &str,
-    func: &str,
+    call: &PyCall,
     args: &[String],
     kwargs: &serde_json::Value,
 ) -> Result<Vec<String>> {
+    let (module, func) = (call.module, call.function);
+    if !call.accepts(args.len(), kwargs) {
+        return Err(Error::Internal(format!(
+            "{} is called with {} arguments and keywords {kwargs}, not as bridge::calls says",
+            call.name(),
+            args.len()
+        )));
+    }
     Python::attach(|py| {
         Mujoco::import(py)?;
         let m = PyModule::import(py, module).map_err(|e| {

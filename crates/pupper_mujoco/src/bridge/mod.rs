@@ -1,6 +1,7 @@
 //! The MuJoCo bridge: the only code that touches Python objects for
 //! physics. One job per module.
 
+pub mod calls;
 pub mod cpu;
 mod helpers;
 mod inspect;
