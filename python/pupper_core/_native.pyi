@@ -31,6 +31,10 @@ from pupper_core._types import (
 
 __version__: str
 METRICS: list[str]
+#: The named bodies (the lab's by default), in the Rust core's order.
+VARIANTS: list[str]
+#: The metric a standing run ranks by unless told.
+DEFAULT_METRIC: str
 
 ErrorCode = Literal[
     "grid", "config", "model", "model_not_found", "mujoco", "output", "run_not_found",

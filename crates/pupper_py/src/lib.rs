@@ -28,6 +28,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add("__version__", pupper_core::VERSION)?;
     m.add("METRICS", pupper_core::sim::metrics::METRIC_NAMES.to_vec())?;
+    m.add("VARIANTS", pupper_core::request::lab::VARIANTS.to_vec())?;
+    m.add("DEFAULT_METRIC", pupper_core::results::best::DEFAULT_METRIC)?;
     m.add("PupperError", py.get_type::<PupperError>())?;
     m.add("GridError", py.get_type::<GridError>())?;
     m.add("ConfigError", py.get_type::<ConfigError>())?;

@@ -11,6 +11,7 @@ use pyo3::types::{PyDict, PyList};
 
 use crate::error::{ConfigError, InternalError, to_py};
 use pupper_core::results::best;
+use pupper_core::results::tables::NamedTable;
 use pupper_core::sim::metrics::METRIC_NAMES;
 
 /// Columns of text in summary.csv.
@@ -70,7 +71,7 @@ pub struct SweepResult {
     #[pyo3(get)]
     tables: Py<PyDict>,
     /// The tables as text, for pickling: file name, header, rows.
-    detail_text: Vec<(String, Vec<String>, Vec<Vec<String>>)>,
+    detail_text: Vec<NamedTable>,
     /// The experiment kind's metric, what `best()` ranks by unless told.
     metric: &'static str,
     /// Cell-steps each row's cell took when it ran in this call (None for
@@ -89,7 +90,7 @@ pub struct Parts<'a> {
     pub wall_seconds: f64,
     pub config: &'a pupper_core::plan::config::SweepConfig,
     /// Every table beside summary.csv: file name, header, rows.
-    pub tables: Vec<(String, Vec<String>, Vec<Vec<String>>)>,
+    pub tables: Vec<NamedTable>,
     /// Cell-steps per row, when the cells ran in this call.
     pub cell_steps: Vec<Option<u64>>,
 }
@@ -403,7 +404,7 @@ impl SweepResult {
         max_saturation: f64,
     ) -> PyResult<Bound<'py, PyAny>> {
         let replicated = self.header.iter().any(|h| h == "failure_fraction");
-        let robust = format!("p95:{}", self.metric);
+        let robust = best::robust(self.metric);
         let metric = metric.unwrap_or(if replicated { &robust } else { self.metric });
         let grouped = by.is_some();
         let rule = best::Rule {
@@ -546,7 +547,7 @@ pub fn _result_from_state(py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult
                 "a result's inputs do not read back: {e}"
             ))
         })?;
-    let tables: Vec<(String, Vec<String>, Vec<Vec<String>>)> = get("tables")?.extract()?;
+    let tables: Vec<NamedTable> = get("tables")?.extract()?;
     let cell_steps: Vec<Option<u64>> = get("cell_steps")?.extract()?;
     SweepResult::new(
         py,

@@ -151,7 +151,7 @@ fn tune(a: &LabArgs, sine: [f64; 2]) -> Result<u8> {
     let mut py = PyArgs::new();
     let mut args = serde_json::json!({
         "variants": a.variants,
-        "objective": a.rank.clone().unwrap_or_else(|| "last_1s_std_mm".into()),
+        "objective": a.rank.clone().unwrap_or_else(|| pupper_core::results::best::DEFAULT_METRIC.into()),
         "trials": a.trials,
         "batch": a.batch,
         "seed": a.population.seed,

@@ -186,8 +186,8 @@ pub(super) fn run_job(mut a: Job, stop: &'static AtomicBool) -> Result<u8> {
     // some (a `--resume DIR` alone learns that from the manifest)
     if let Some(rule) = a.rule.as_mut().filter(|r| r.metric.is_empty()) {
         rule.metric = match sweep.config.replicates.is_plain() {
-            true => "last_1s_std_mm".into(),
-            false => "p95:last_1s_std_mm".into(),
+            true => best::DEFAULT_METRIC.into(),
+            false => best::robust(best::DEFAULT_METRIC),
         };
     }
     // the ranking rule is checked against the grid before anything runs

@@ -37,7 +37,7 @@ pub(super) struct TuneArgs {
     #[arg(long, value_name = "AXIS=RANGE", allow_hyphen_values = true)]
     space: Vec<String>,
     /// The summary.csv column to minimize, or several comma-separated (a Pareto front).
-    #[arg(long, default_value = "last_1s_std_mm", value_name = "COLUMN[,COLUMN]")]
+    #[arg(long, default_value = pupper_core::results::best::DEFAULT_METRIC, value_name = "COLUMN[,COLUMN]")]
     objective: String,
     /// Maximize the objective(s) instead.
     #[arg(long)]

@@ -3,6 +3,10 @@
 //! type, `plan::experiment::Experiment`; each layer has a module per kind
 //! and dispatches on that type in one place, its registry.
 
+/// The metric a standing run ranks by unless told: the base height's
+/// spread over the last second.
+pub const DEFAULT_METRIC: &str = "last_1s_std_mm";
+
 /// What a kind decides of its simulations, before any physics. The
 /// defaults are the stand kind's.
 pub trait KindPlan {
@@ -42,7 +46,7 @@ pub trait KindPlan {
     /// The summary column its best cell is the lowest of, unless a rule
     /// names another.
     fn default_metric(&self) -> &'static str {
-        "last_1s_std_mm"
+        DEFAULT_METRIC
     }
     /// Refuses a run the kind cannot measure, in one line: its schedule,
     /// its grid, and whether it has replicates.

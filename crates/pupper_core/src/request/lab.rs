@@ -7,8 +7,11 @@
 use crate::plan::mode::Mode;
 use crate::request::spec::{AutoPose, GridInput, PoseInput, SweepSpec};
 
-/// The bodies of the lab, by default.
-pub const VARIANTS: [&str; 3] = ["original", "long-leg", "heavy"];
+/// The bodies of the lab, by default: every named variant.
+pub const VARIANTS: [&str; 3] = {
+    let v = crate::robot::variant::VARIANTS;
+    [v[0].name, v[1].name, v[2].name]
+};
 /// The gains, by default.
 pub const GRID: [&str; 2] = ["kp=10,30,60,120", "kd=0.5,1,2,5"];
 /// Simulated seconds per cell.

@@ -29,6 +29,15 @@ pub const MAX_SATURATION: f64 = crate::sim::metrics::SATURATED;
 /// push dip decides, then grid order.
 pub const TIE_MM: f64 = 0.001;
 
+/// The metric a standing run ranks by unless told (the stand kind's).
+pub use crate::plan::kind::DEFAULT_METRIC;
+
+/// The statistic a replicated run ranks `metric` by: its worst-side 95th
+/// percentile over the replicates.
+pub fn robust(metric: &str) -> String {
+    format!("p95:{metric}")
+}
+
 /// A group's eligible cells: (row index, metric value), in grid order.
 type Eligible = Vec<(usize, f64)>;
 

@@ -21,6 +21,7 @@ use crate::results::output::{
     MANIFEST, Manifest, REPLICATES, SUMMARY, TRACES, Trace, config_diff, csv_bytes, fmt_f64,
     read_detail, read_manifest, read_rows, read_traces,
 };
+use crate::results::tables::NamedTable;
 use crate::results::tables::{self, BODE, RESPONSE, RESPONSE_TRACES, header_of};
 use crate::sim::runner::CellResult;
 
@@ -346,7 +347,7 @@ impl RunWriter {
     }
 
     /// Every table beside summary.csv: file name, header, rows so far.
-    pub fn detail_tables(&self) -> Vec<(String, Vec<String>, Vec<Vec<String>>)> {
+    pub fn detail_tables(&self) -> Vec<NamedTable> {
         self.details
             .iter()
             .map(|d| {

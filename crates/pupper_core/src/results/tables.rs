@@ -34,6 +34,10 @@ pub fn detail_rows(config: &SweepConfig, r: &CellResult) -> Vec<Vec<Vec<String>>
     kinds::of(&config.experiment).detail_rows(config, r)
 }
 
+/// A table beside summary.csv as text: its file name, header, and rows in
+/// cell order.
+pub type NamedTable = (String, Vec<String>, Vec<Vec<String>>);
+
 /// A run directory read back (what Python's `load_run` returns).
 #[derive(Debug, Clone)]
 pub struct RunTables {
@@ -49,7 +53,7 @@ pub struct RunTables {
     pub replicate_rows: Vec<Vec<String>>,
     /// Every table beside summary.csv (replicates.csv too): file name,
     /// header, rows in cell order.
-    pub details: Vec<(String, Vec<String>, Vec<Vec<String>>)>,
+    pub details: Vec<NamedTable>,
 }
 
 /// Reads a run directory, checking its rows against its manifest.
@@ -81,7 +85,7 @@ pub fn read_run(dir: &Path) -> Result<RunTables> {
         .filter(|(i, _)| rows.contains_key(i))
         .map(|(_, t)| t)
         .collect();
-    let details: Vec<(String, Vec<String>, Vec<Vec<String>>)> = details
+    let details: Vec<NamedTable> = details
         .into_iter()
         .zip(read)
         .map(|(d, got)| {

@@ -20,6 +20,7 @@ use pupper_core::sim::runner::{self, CellResult, Hooks, RunOptions};
 use super::SweepUi;
 use super::bound::Bound;
 use super::start::{check_start, resolved};
+use pupper_core::results::tables::NamedTable;
 
 /// A validated sweep and the command line that asked for it (for the manifest).
 #[derive(Debug, Clone)]
@@ -41,7 +42,7 @@ pub struct SweepOutcome {
     pub replicate_rows: Vec<Vec<String>>,
     /// Every table beside summary.csv (replicates.csv; response.csv and
     /// bode.csv): file name, header, rows in cell order.
-    pub details: Vec<(String, Vec<String>, Vec<Vec<String>>)>,
+    pub details: Vec<NamedTable>,
     /// Cell-steps each row's cell took, in row order (None for a row a
     /// resume kept from before).
     pub cell_steps: Vec<Option<u64>>,
