@@ -260,3 +260,20 @@ def test_top_level_help_lists_commands(run):
     for sub in ("info", "stand", "sweep", "doctor"):
         assert re.search(rf"^\s+{sub}\s", p.stdout, re.M), sub
     assert "Exit status" in p.stdout
+
+
+def test_info_shows_what_a_run_uses_of_a_motor(run, tmp_path):
+    """A `<motor>` has no servo gains of its own and its limit is its control
+    range: `info` says so instead of printing kp 1, kd -0, unlimited."""
+    src = (Path(__file__).parent / "models" / "trotter15.xml").read_text()
+    motor = src.replace('<position kp="50" kv="0.5" forcerange="-24 24"/>',
+                        '<motor ctrlrange="-24 24" ctrllimited="true"/>').replace("<position name=", "<motor name=")
+    assert motor != src
+    (tmp_path / "motor.xml").write_text(motor)
+    out = run("info", "--model", tmp_path / "motor.xml", check=0).stdout
+    row = next(line for line in out.splitlines() if "fl_knee_motor" in line)
+    assert row.split()[4:] == ["-", "-", "[-24,", "24]", "(ctrlrange)"], row
+    assert "a motor, no servo gains of its own" in out
+    # the run asks for the gains info says it lacks
+    p = run("sweep", "--model", tmp_path / "motor.xml", "--seconds", "1", "-o", tmp_path / "r", check=2)
+    assert "give --kp and --kd" in p.stderr

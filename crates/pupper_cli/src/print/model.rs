@@ -40,26 +40,42 @@ pub fn info(m: &ModelInfo) -> String {
     let _ = writeln!(s, "\nactuators in ctrl order ({})", m.actuators.len());
     let _ = writeln!(
         s,
-        "  {:>3} {:<18} {:<18} {:<5} {:>7} {:>7}  force range (N·m)",
+        "  {:>3} {:<18} {:<18} {:<5} {:>7} {:>7}  torque limit (N·m)",
         "ctrl", "name", "joint", "group", "kp", "kd"
     );
+    let mut motors = 0;
     for (i, a) in m.actuators.iter().enumerate() {
         let joint = a
             .joint
             .and_then(|j| m.joints.get(j))
             .map(|j| j.name.as_str())
             .unwrap_or("-");
-        let (kp, kd) = a.kp_kd();
-        let fr = a
-            .forcerange
-            .map(|r| format!("[{}, {}]", r[0], r[1]))
-            .unwrap_or_else(|| "unlimited".into());
+        // a motor has no servo gains of its own: what a run gives it is used
+        let (kp, kd) = match a.own_gains() {
+            Some([kp, kd]) => (kp.to_string(), kd.to_string()),
+            None => {
+                motors += 1;
+                ("-".into(), "-".into())
+            }
+        };
+        // the limit a run clips at: the force range, else the control range
+        let fr = match (a.forcerange, a.ctrlrange) {
+            (Some(r), _) => format!("[{}, {}]", r[0], r[1]),
+            (None, Some(r)) => format!("[{}, {}] (ctrlrange)", r[0], r[1]),
+            (None, None) => "unlimited".into(),
+        };
         // what the joint does in its leg, measured: the group its gain axes use
         let group = m.actuator_group(i).unwrap_or("-");
         let _ = writeln!(
             s,
             "  {i:>3}  {:<18} {:<18} {group:<5} {kp:>7} {kd:>7}  {fr}",
             a.name, joint
+        );
+    }
+    if motors > 0 {
+        let _ = writeln!(
+            s,
+            "  -: a motor, no servo gains of its own: a run uses --kp/--kd (or a kp/kd grid)"
         );
     }
     let _ = writeln!(s, "\nkeyframes ({})", m.keyframes.len());
