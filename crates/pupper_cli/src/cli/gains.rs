@@ -19,10 +19,19 @@ polynomial z^2 - (2 - a - b) z + (1 - b)). stability_margin = max((a + 2b)/4, b/
 past the bound, where the joint chatters or diverges. With --integrator implicitfast (or implicit)
 a servo's damping is integrated implicitly: stable exactly when a < 4 + 2b, stability_margin =
 a / (4 + 2b). A sweep marks cells past the bound past_bound and never ranks them.
+Loop margins (with --motor or --sensing-delay): each joint linearised at the pose, its reflected
+inertia driven by kp + kd s through the feedback path's latency (the sensing delay plus half the
+PD's update period: --motor rate=HZ, else the physics step), the derivative's low-pass filter
+(filter=HZ) and, with encoder counts, half a period more on the derivative (a difference over one
+period); no viscous damping (the conservative case). phase_margin_deg: 180 plus the phase of
+the open loop where its gain is 1 (below 0: the real joint oscillates or runs away however the
+simulation looks); gain_margin_db: how much more loop gain makes it unstable. A command delay
+(delay=S) is not in the loop: it shifts the step response, not these margins.
 
 Examples:
   pupper gains --bandwidth 8 --damping 0.7
-  pupper gains --kp 20 --kd 0.5 --json"
+  pupper gains --kp 20 --kd 0.5 --json
+  pupper gains --kp 10 --kd 1 --motor rate=500 --sensing-delay 0.001"
 )]
 pub(super) struct GainsArgs {
     #[command(flatten)]
@@ -50,6 +59,13 @@ pub(super) struct GainsArgs {
     /// model's own]. Torque mode's PD is explicit whatever the integrator.
     #[arg(long, value_name = "NAME")]
     integrator: Option<String>,
+    /// The servo firmware whose loop margins to state (see `pupper sweep --help`'s --motor:
+    /// rate, filter, counts, delay, noload).
+    #[arg(long, value_name = "SPEC")]
+    motor: Option<String>,
+    /// How old the firmware's measurements are when the PD uses them (s), for the loop margins.
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    sensing_delay: Option<f64>,
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
@@ -74,7 +90,19 @@ impl GainsArgs {
             Some(spec::PoseInput::Angles(p)) => Some(p),
             _ => None,
         };
-        let r = api::gains(&self.model.source()?, pose, ask, self.integrator.as_deref())?;
+        let mut r = api::gains(&self.model.source()?, pose, ask, self.integrator.as_deref())?;
+        if self.motor.is_some() || self.sensing_delay.is_some() {
+            let sensing = self.sensing_delay.unwrap_or(0.0);
+            if !(sensing.is_finite() && sensing >= 0.0) {
+                return Err(Error::Config(format!(
+                    "--sensing-delay {sensing} must be a number of seconds >= 0"
+                )));
+            }
+            let motor =
+                pupper_core::plan::motor::Motor::parse(self.motor.as_deref().unwrap_or(""))?;
+            let timestep = r.timestep;
+            r = r.with_feedback(motor.feedback(sensing, timestep));
+        }
         if self.json {
             outln!("{}", print::json(&r)?);
         } else {

@@ -228,11 +228,32 @@ pub fn gains(r: &pupper_core::robot::gains::GainsReport) -> String {
             );
         }
     }
-    let head = format!(
+    let looped = r.feedback.is_some();
+    let mut head = format!(
         "{:<16} {:>12} {:>10} {:>10} {:>11} {:>9} {:>10}",
         "", "inertia", "kp", "kd", "natural_hz", "damping", "stability"
     );
+    if looped {
+        head.push_str(&format!(" {:>9} {:>9}", "PM deg", "GM dB"));
+    }
     let _ = writeln!(s, "{}", head.trim_end());
+    // the loop's margins, when a firmware is given: below 0 deg is unstable
+    let margins = |pm: Option<f64>, gm: Option<f64>| match (pm, gm) {
+        (Some(pm), Some(gm)) => format!(
+            " {:>9} {:>9}",
+            if pm < 0.0 {
+                format!("{pm:.0} UNST")
+            } else {
+                format!("{pm:.0}")
+            },
+            if gm.is_finite() {
+                format!("{gm:.1}")
+            } else {
+                "inf".into()
+            }
+        ),
+        _ => String::new(),
+    };
     let flag = |m: f64| {
         if m >= 1.0 {
             format!("{} PAST", Sig(m))
@@ -252,6 +273,10 @@ pub fn gains(r: &pupper_core::robot::gains::GainsReport) -> String {
             Sig(g.damping_ratio).to_string(),
             flag(g.stability_margin)
         );
+        if looped {
+            s.pop();
+            let _ = writeln!(s, "{}", margins(g.phase_margin_deg, g.gain_margin_db));
+        }
     }
     let _ = writeln!(s);
     for j in &r.joints {
@@ -266,10 +291,32 @@ pub fn gains(r: &pupper_core::robot::gains::GainsReport) -> String {
             Sig(j.damping_ratio).to_string(),
             flag(j.stability_margin)
         );
+        if looped {
+            s.pop();
+            let _ = writeln!(s, "{}", margins(j.phase_margin_deg, j.gain_margin_db));
+        }
     }
     let _ = writeln!(
         s,
         "inertia: kg·m² (armature included); stability: 1 or more is past the explicit PD's bound (see --help)"
     );
+    if let Some(fb) = &r.feedback {
+        let _ = writeln!(
+            s,
+            "PM/GM: phase and gain margin of the loop the firmware closes: {} ms of feedback latency{}{} (see --help)",
+            Sig(fb.latency * 1000.0),
+            fb.filter_hz
+                .map(|f| format!(", derivative filtered at {} Hz", Sig(f)))
+                .unwrap_or_default(),
+            if fb.derivative_delay > 0.0 {
+                format!(
+                    ", derivative differenced over a period (+{} ms)",
+                    Sig(fb.derivative_delay * 1000.0)
+                )
+            } else {
+                String::new()
+            }
+        );
+    }
     s
 }

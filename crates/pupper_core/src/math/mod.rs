@@ -2,6 +2,7 @@
 //! statistics, numbers as text. Depends on nothing else in the crate.
 
 pub mod decimal;
+pub mod margins;
 pub mod motor;
 pub mod pd;
 pub mod quat;

@@ -53,6 +53,25 @@ fn is_zero(v: &f64) -> bool {
 }
 
 impl Motor {
+    /// What this firmware puts in a joint's feedback path, measurements
+    /// `sensing` s old, the physics stepping at `dt`: the sensing delay
+    /// plus half an update period (the PD's output is held for one: `rate`,
+    /// else every step), the derivative's filter, and half a period more on
+    /// the derivative when it is an encoder's difference over a period. The
+    /// command delay is not feedback: it moves the target, not the loop.
+    pub fn feedback(&self, sensing: f64, dt: f64) -> crate::math::margins::Feedback {
+        let period = self.rate.map_or(dt, |r| 1.0 / r);
+        crate::math::margins::Feedback {
+            latency: sensing + 0.5 * period,
+            filter_hz: self.filter,
+            derivative_delay: if self.counts.is_some() {
+                0.5 * period
+            } else {
+                0.0
+            },
+        }
+    }
+
     pub fn is_ideal(&self) -> bool {
         *self == Motor::default()
     }

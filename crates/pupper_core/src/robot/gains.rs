@@ -5,6 +5,7 @@
 
 use serde::Serialize;
 
+use crate::math::margins::Feedback;
 use crate::math::response::{gains_for, natural, pd_margin};
 use crate::robot::model::ModelInfo;
 
@@ -23,6 +24,12 @@ pub struct JointGains {
     /// The stability margin at the timestep ([`pd_margin`]): 1 or more is
     /// past the bound.
     pub stability_margin: f64,
+    /// With a firmware ([`GainsReport::with_feedback`]): the loop's phase
+    /// margin (deg) and gain margin (dB); a group's, its worst joint's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub phase_margin_deg: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gain_margin_db: Option<f64>,
 }
 
 /// A joint group's gains: for a bandwidth, on the group's mean inertia.
@@ -36,6 +43,12 @@ pub struct GroupGains {
     pub natural_hz: f64,
     pub damping_ratio: f64,
     pub stability_margin: f64,
+    /// With a firmware ([`GainsReport::with_feedback`]): the loop's phase
+    /// margin (deg) and gain margin (dB); a group's, its worst joint's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub phase_margin_deg: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gain_margin_db: Option<f64>,
 }
 
 /// What `pupper gains` reports.
@@ -51,6 +64,39 @@ pub struct GainsReport {
     pub implicit_damping: bool,
     pub groups: Vec<GroupGains>,
     pub joints: Vec<JointGains>,
+    /// The firmware the loop margins are for, when asked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub feedback: Option<Feedback>,
+}
+
+impl GainsReport {
+    /// Each joint's (and group's worst) phase and gain margin of the loop
+    /// `fb` closes, the joint linearised at the report's pose with no
+    /// viscous damping (the conservative case: damping adds phase).
+    pub fn with_feedback(mut self, fb: Feedback) -> GainsReport {
+        let margins = |i: f64, kp: f64, kd: f64| {
+            fb.servo(i, 0.0, kp, kd)
+                .margins()
+                .map_or((f64::NAN, f64::NAN), |m| (m.phase_deg, m.gain_db))
+        };
+        for j in &mut self.joints {
+            let (pm, gm) = margins(j.inertia, j.kp, j.kd);
+            (j.phase_margin_deg, j.gain_margin_db) = (Some(pm), Some(gm));
+        }
+        for g in &mut self.groups {
+            let worst = |f: &dyn Fn(&JointGains) -> Option<f64>| {
+                self.joints
+                    .iter()
+                    .filter(|j| j.group == g.group)
+                    .filter_map(f)
+                    .fold(f64::INFINITY, f64::min)
+            };
+            g.phase_margin_deg = Some(worst(&|j| j.phase_margin_deg));
+            g.gain_margin_db = Some(worst(&|j| j.gain_margin_db));
+        }
+        self.feedback = Some(fb);
+        self
+    }
 }
 
 /// What the gains are for: a bandwidth and damping, or given gains.
@@ -112,6 +158,8 @@ pub fn report(
                 natural_hz,
                 damping_ratio,
                 stability_margin: margin,
+                phase_margin_deg: None,
+                gain_margin_db: None,
             }
         })
         .collect::<Vec<_>>();
@@ -136,6 +184,8 @@ pub fn report(
                 natural_hz,
                 damping_ratio,
                 stability_margin: pd_margin(inertia[a], kp, kd, timestep, implicit),
+                phase_margin_deg: None,
+                gain_margin_db: None,
             }
         })
         .collect();
@@ -151,5 +201,6 @@ pub fn report(
         implicit_damping: implicit,
         groups,
         joints,
+        feedback: None,
     }
 }

@@ -1,0 +1,219 @@
+//! Phase and gain margins of one joint's servo loop as a firmware closes
+//! it, linearised at a pose: the joint's reflected inertia `J` and viscous
+//! damping `b` driven by a PD `kp + kd·s` that sees the joint late.
+//!
+//! The open loop is
+//! `L(s) = (kp + kd·s·F(s)·e^{-s·d}) · e^{-s·τ} / (s·(J·s + b))`,
+//! with `τ` the feedback path's latency (sensing delay plus half the PD's
+//! update period: a sampled controller holds its output for one period,
+//! on average half a period late), `F` the derivative's first-order
+//! low-pass filter and `d` the extra half period of a derivative taken as
+//! an encoder's difference over one period. A command delay is not in the
+//! loop: it shifts the target, not the feedback, and leaves these margins
+//! alone. The margins are the classical ones: the phase margin at the gain
+//! crossover (|L| = 1), the gain margin at the phase crossover (arg L =
+//! −180°).
+
+use nalgebra::Complex;
+use serde::Serialize;
+
+/// What a firmware puts in a servo loop's feedback path.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct Feedback {
+    /// Latency of the whole feedback path (s).
+    pub latency: f64,
+    /// Cutoff of the derivative's low-pass filter (Hz); None: no filter.
+    pub filter_hz: Option<f64>,
+    /// Extra delay of the derivative path alone (s).
+    pub derivative_delay: f64,
+}
+
+impl Feedback {
+    /// The loop of a joint of `inertia` and `damping` under `kp`, `kd`.
+    pub fn servo(&self, inertia: f64, damping: f64, kp: f64, kd: f64) -> ServoLoop {
+        ServoLoop {
+            inertia,
+            damping,
+            kp,
+            kd,
+            latency: self.latency,
+            filter_hz: self.filter_hz,
+            derivative_delay: self.derivative_delay,
+        }
+    }
+}
+
+/// One joint's linearised servo loop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ServoLoop {
+    /// Reflected inertia (kg·m²), armature included.
+    pub inertia: f64,
+    /// Viscous damping of the joint (N·m·s/rad).
+    pub damping: f64,
+    pub kp: f64,
+    pub kd: f64,
+    /// Latency of the whole feedback path (s).
+    pub latency: f64,
+    /// Cutoff of the derivative's low-pass filter (Hz); None: no filter.
+    pub filter_hz: Option<f64>,
+    /// Extra delay of the derivative path alone (s): half an update period
+    /// for a derivative differenced over one.
+    pub derivative_delay: f64,
+}
+
+/// Where the loop crosses over, and by how much it is stable.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Margins {
+    /// Gain crossover (Hz): |L| = 1.
+    pub crossover_hz: f64,
+    /// 180° plus the phase of L there (deg); below 0: unstable.
+    pub phase_deg: f64,
+    /// Phase crossover (Hz): arg L = −180°; infinite when the phase never
+    /// gets there (no latency).
+    pub phase_crossover_hz: f64,
+    /// −20·log10 |L| at the phase crossover (dB); infinite without one.
+    pub gain_db: f64,
+}
+
+/// Frequencies searched (rad/s): far below and above any joint's loop.
+const LOW: f64 = 1e-2;
+const HIGH: f64 = 1e6;
+const STEPS: usize = 4000;
+
+impl ServoLoop {
+    /// The controller's transfer at `w` rad/s (derivative filtered and
+    /// delayed), without the common latency.
+    fn controller(&self, w: f64) -> Complex<f64> {
+        let s = Complex::new(0.0, w);
+        let filter = match self.filter_hz {
+            Some(f) => Complex::new(1.0, 0.0) / (s / (2.0 * std::f64::consts::PI * f) + 1.0),
+            None => Complex::new(1.0, 0.0),
+        };
+        let delay = Complex::from_polar(1.0, -w * self.derivative_delay);
+        s * self.kd * filter * delay + self.kp
+    }
+
+    /// |L(jw)|.
+    pub fn magnitude(&self, w: f64) -> f64 {
+        let plant = Complex::new(-self.inertia * w * w, self.damping * w);
+        self.controller(w).norm() / plant.norm()
+    }
+
+    /// arg L(jw) in radians, unwrapped: the controller's angle (its real
+    /// part stays positive, so it lies in (−90°, 90°)), the plant's
+    /// `−(90° + atan2(J·w, b))` and the latency's `−w·τ`.
+    pub fn phase(&self, w: f64) -> f64 {
+        let c = self.controller(w);
+        c.im.atan2(c.re)
+            - (std::f64::consts::FRAC_PI_2 + (self.inertia * w).atan2(self.damping))
+            - w * self.latency
+    }
+
+    /// The margins; None for a loop without a gain crossover (no gains).
+    pub fn margins(&self) -> Option<Margins> {
+        let ws: Vec<f64> = (0..=STEPS)
+            .map(|i| LOW * (HIGH / LOW).powf(i as f64 / STEPS as f64))
+            .collect();
+        let gain = |w: f64| self.magnitude(w).ln();
+        let wc = first_root(&ws, &gain)?;
+        let turn = |w: f64| self.phase(w) + std::f64::consts::PI;
+        let w180 = first_root(&ws, &turn);
+        let hz = |w: f64| w / (2.0 * std::f64::consts::PI);
+        Some(Margins {
+            crossover_hz: hz(wc),
+            phase_deg: turn(wc).to_degrees(),
+            phase_crossover_hz: w180.map_or(f64::INFINITY, hz),
+            gain_db: w180.map_or(f64::INFINITY, |w| -20.0 * self.magnitude(w).log10()),
+        })
+    }
+}
+
+/// The first `w` of the log grid `ws` where `f` falls through zero,
+/// refined by bisection.
+fn first_root(ws: &[f64], f: &dyn Fn(f64) -> f64) -> Option<f64> {
+    let k = ws
+        .windows(2)
+        .position(|p| f(p[0]) > 0.0 && f(p[1]) <= 0.0)?;
+    let (mut a, mut b) = (ws[k], ws[k + 1]);
+    for _ in 0..100 {
+        let m = (a * b).sqrt();
+        if f(m) > 0.0 {
+            a = m;
+        } else {
+            b = m;
+        }
+    }
+    Some((a * b).sqrt())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Pupper's knee (reflected inertia 1.816e-3 kg·m²) under a PD updated
+    /// at 500 Hz on 1 ms old measurements: 1 ms + half of 2 ms of latency.
+    fn knee(kp: f64, kd: f64) -> ServoLoop {
+        ServoLoop {
+            inertia: 1.816e-3,
+            damping: 0.0,
+            kp,
+            kd,
+            latency: 0.002,
+            filter_hz: None,
+            derivative_delay: 0.0,
+        }
+    }
+
+    #[test]
+    fn a_pd_on_a_delayed_double_integrator_has_its_known_margins() {
+        // the closed forms: |L| = sqrt(kp² + (kd w)²) / (J w²) and
+        // arg L = atan(kd w / kp) − 180° − w τ
+        for (kp, kd) in [(5.0, 0.25), (10.0, 1.0), (120.0, 2.0)] {
+            let l = knee(kp, kd);
+            let m = l.margins().unwrap();
+            let w = 2.0 * std::f64::consts::PI * m.crossover_hz;
+            let mag = (kp * kp + (kd * w).powi(2)).sqrt() / (1.816e-3 * w * w);
+            assert!((mag - 1.0).abs() < 1e-9, "{mag}");
+            let pm = (kd * w / kp).atan().to_degrees() - (w * 0.002).to_degrees();
+            assert!((m.phase_deg - pm).abs() < 1e-6, "{} vs {pm}", m.phase_deg);
+        }
+        // the figures the issue quotes for this loop: about 68°, 27°, −39°
+        let pm = |kp, kd| knee(kp, kd).margins().unwrap().phase_deg;
+        assert!((pm(5.0, 0.25) - 66.0).abs() < 3.0, "{}", pm(5.0, 0.25));
+        assert!((pm(10.0, 1.0) - 27.0).abs() < 2.0, "{}", pm(10.0, 1.0));
+        assert!((pm(120.0, 2.0) + 39.0).abs() < 2.0, "{}", pm(120.0, 2.0));
+    }
+
+    #[test]
+    fn latency_filter_and_differencing_each_cost_phase_and_none_costs_nothing() {
+        let base = knee(10.0, 0.5);
+        let ideal = ServoLoop {
+            latency: 0.0,
+            ..base
+        };
+        let mi = ideal.margins().unwrap();
+        // no latency: the phase never reaches −180°, the gain margin is infinite
+        assert!(mi.gain_db.is_infinite() && mi.phase_deg > 0.0);
+        let m = base.margins().unwrap();
+        assert!(m.phase_deg < mi.phase_deg && m.gain_db.is_finite() && m.gain_db > 0.0);
+        let filtered = ServoLoop {
+            filter_hz: Some(100.0),
+            ..base
+        };
+        assert!(filtered.margins().unwrap().phase_deg < m.phase_deg);
+        let differenced = ServoLoop {
+            derivative_delay: 0.001,
+            ..base
+        };
+        assert!(differenced.margins().unwrap().phase_deg < m.phase_deg);
+        // at the phase crossover the phase is −180° and |L| is the gain margin
+        let w = 2.0 * std::f64::consts::PI * m.phase_crossover_hz;
+        assert!((base.phase(w) + std::f64::consts::PI).abs() < 1e-9);
+        assert!((-20.0 * base.magnitude(w).log10() - m.gain_db).abs() < 1e-9);
+    }
+
+    #[test]
+    fn no_gains_no_crossover() {
+        assert_eq!(knee(0.0, 0.0).margins(), None);
+    }
+}
