@@ -61,3 +61,11 @@ def test_feedback_latency_costs_margin_a_command_delay_does_not(run):
 def test_a_negative_sensing_delay_is_one_line(run):
     p = run("gains", "--kp", "10", "--kd", "1", "--sensing-delay", "-1", check=2)
     assert "--sensing-delay -1" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+
+
+def test_python_gives_the_same_margins(run):
+    import pupper_core as pc
+
+    cli = gains(run, "--kp", "10", "--kd", "1", "--motor", "rate=500", "--sensing-delay", "0.001")
+    py = pc.gains(kp=10, kd=1, motor="rate=500", sensing_delay=0.001)
+    assert [j["phase_margin_deg"] for j in py["joints"]] == [j["phase_margin_deg"] for j in cli["joints"]]

@@ -12,18 +12,29 @@ same inputs give the same summary.csv.
 
 from __future__ import annotations
 
-import atexit as _atexit
-import functools
-import inspect
-import os
-import sys
-import threading as _threading
-from typing import TYPE_CHECKING, Any, Callable, Literal, Mapping, Sequence, TypeVar, cast
-
-if TYPE_CHECKING:
-    from typing_extensions import Unpack
+# The facade: what a user imports, re-exported from where it is written (the
+# functions in _api, the spec's keywords in _spec, the native module's types
+# and errors in _native, the typed dicts in _types).
+from typing import Any
 
 from pupper_core import _native
+from pupper_core._api import (
+    excite,
+    fit,
+    gains,
+    hold,
+    info,
+    lab,
+    load_run,
+    merge,
+    pose,
+    report,
+    response,
+    stand,
+    sweep,
+    tune,
+)
+from pupper_core._api import lazy_attribute as _lazy_attribute
 from pupper_core._native import (
     ClusterError,
     ConfigError,
@@ -40,22 +51,12 @@ from pupper_core._native import (
     RunNotFoundError,
     SweepResult,
 )
-from pupper_core._types import ModelInfo, Recording, SimOptions, StandReport, SweepOptions
-
-# A sweep still running in a thread when the interpreter exits stops at
-# its next check (finished cells kept) before Python tears threads down.
-_atexit.register(_native._shutdown)
-
-
-def _stop_after_ctrl_c() -> None:
-    """Python waits for non-daemon threads before exiting: when the main
-    thread ended on Ctrl-C, their sweeps stop too instead of running on."""
-    if isinstance(getattr(sys, "last_value", None), KeyboardInterrupt):
-        _native._shutdown()
-
-
-if hasattr(_threading, "_register_atexit"):  # CPython >= 3.9: before the joins
-    _threading._register_atexit(_stop_after_ctrl_c)
+from pupper_core._spec import METRICS
+from pupper_core._spec import Mode as Mode
+from pupper_core._spec import Variant as Variant
+from pupper_core._types import ModelInfo, Recording, StandReport
+from pupper_core._types import SimOptions as SimOptions
+from pupper_core._types import SweepOptions as SweepOptions
 
 __version__: str = _native.__version__
 
@@ -102,421 +103,7 @@ def __dir__() -> list[str]:
     the modules this file imports for itself."""
     return sorted([*__all__, "plots", "render", "__version__"])
 
-#: Metric columns of summary.csv, in order (defined once, in the Rust core).
-METRICS: tuple[str, ...] = tuple(_native.METRICS)
-
-
-def info(model: str | os.PathLike[str] = "pupper_v3", variant: Variant = "original") -> ModelInfo:
-    """Sizes, mass, joints, actuators (ctrl order), keyframes, sensors and
-    legs (hip, knee, foot, measured on the compiled body) of a model, or of
-    one of its named variants ("long-leg", "heavy")."""
-    return _native.info(os.fspath(model), variant)
-
-
-#: Defaults of every sweep keyword, as the Rust core's SweepSpec holds them
-#: (the CLI's --help shows the same ones; tests/test_spec.py checks).
-_D: dict[str, Any] = _native.sweep_defaults()
-
-Mode = Literal["servo", "torque"]
-Variant = Literal["original", "long-leg", "heavy"]
-
-
-_F = TypeVar("_F", bound=Callable[..., Any])
-
-
-def _with_spec_signature(options: type, *, after: str) -> Callable[[_F], _F]:
-    """Gives a wrapper taking `**options` the full signature notebooks and
-    help() show: each keyword of the TypedDict `options` (names and types
-    written once, in _types.py) with its default from the Rust spec (_D),
-    placed after the parameter `after`."""
-
-    def wrap(fn: _F) -> _F:
-        sig = inspect.signature(fn)
-        head = [p for p in sig.parameters.values() if p.kind is not p.VAR_KEYWORD]
-        at = [p.name for p in head].index(after) + 1
-        spec = [
-            inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY,
-                              # a list default would read as a shared mutable one
-                              default=tuple(_D[name]) if isinstance(_D[name], list) else _D[name],
-                              annotation=getattr(kind, "__forward_arg__", kind))
-            for name, kind in options.__annotations__.items()
-            if name not in sig.parameters
-        ]
-        fn.__signature__ = sig.replace(parameters=head[:at] + spec + head[at:])  # type: ignore[attr-defined]
-        known = set(options.__annotations__) | set(sig.parameters)
-
-        @functools.wraps(fn)
-        def checked(*args: Any, **kwargs: Any) -> Any:
-            unknown = sorted(set(kwargs) - known)
-            if unknown:
-                raise TypeError(
-                    f"{fn.__name__}() got an unexpected keyword argument {unknown[0]!r}; "
-                    f"it takes {', '.join(p for p in fn.__signature__.parameters)}"  # type: ignore[attr-defined]
-                )
-            return fn(*args, **kwargs)
-
-        # the wrapper keeps the function's declared types for type checkers
-        return cast(_F, checked)
-
-    return wrap
-
-
-@_with_spec_signature(SimOptions, after="model")
-def stand(model: str | os.PathLike[str] = _D["model"], **options: Unpack[SimOptions]) -> StandReport:
-    """Reset to a keyframe (or pose), stand with no push; final z, last-second std, tilt.
-
-    Keywords are those of `pupper stand` (`--help` there), same defaults."""
-    return _native.stand(**_options({**options, "model": model}))
-
-
-def _options(arguments: Mapping[str, Any]) -> dict[str, Any]:
-    """The spec's keyword arguments among a call's `locals()`, as plain
-    values: paths as text, sequences as lists of floats."""
-    out: dict[str, Any] = {}
-    for name, value in arguments.items():
-        if name not in _D or name == "out":
-            continue
-        if name == "model":
-            value = os.fspath(value)
-        elif name == "sine" and isinstance(value, str):
-            value = _sine(value)
-        elif name in ("pose", "sine") and value is not None and not isinstance(value, str):
-            value = [float(x) for x in value]
-        out[name] = value
-    return out
-
-
-def _sine(text: str) -> list[float]:
-    """`"2,1.2"`, as the CLI's --sine takes it: amplitude (N), frequency (Hz)."""
-    try:
-        return [float(x) for x in text.split(",")]
-    except ValueError:
-        raise ConfigError(f"sine={text!r} is not 'AMPLITUDE,FREQUENCY': give two numbers, "
-                          "e.g. sine='2,1.2' or sine=(2, 1.2)") from None
-
-
-def _progress_printer() -> Callable[[int, int], None] | None:
-    """A progress callback: tqdm in notebooks/terminals if installed, else none."""
-    try:
-        from tqdm.auto import tqdm
-    except ImportError:
-        return None
-    bar = None
-
-    def update(done: int, total: int) -> None:
-        nonlocal bar
-        if bar is None:
-            # tqdm's habit: nothing for a run shorter than a second, and
-            # nothing in a script whose stderr is not a terminal (a log)
-            shown = sys.stderr.isatty() or "ipykernel" in sys.modules
-            bar = tqdm(total=total, unit="step", unit_scale=True, desc="pupper sweep",
-                       delay=1.0, disable=not shown)
-        bar.update(done - bar.n)
-        if done >= total:
-            bar.close()
-
-    return update
-
-
-@_with_spec_signature(SweepOptions, after="preset")
-def sweep(
-    grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | Sequence[Mapping[str, float | str]]
-    | str | None = None,
-    *,
-    preset: str | None = None,
-    out: str | os.PathLike[str] | None = None,
-    progress: bool | Callable[[int, int], None] = True,
-    **options: Unpack[SweepOptions],
-) -> SweepResult:
-    """Run a grid of settings as one batched MuJoCo simulation.
-
-    grid: {"kp": [10, 30], "kd": 1} (a value may also be text parsed as the
-    CLI parses it: "10,30" or "1:120:16:log"), or the CLI's strings
-    ["kp=10,30", "kd=1"] (or one such string), or cells one by one
-    [{"kp": 10, "kd": 1}, {"kp": 30, "kd": 0.5, "name": "b"}] (not a product). preset: "chapter-4.6" or
-    "lab-grid" (the lab's Kp x Kd grid only) instead of a grid. Every other keyword is the CLI flag of the same
-    name, with the same default and checks (`pupper sweep --help`).
-    out: also write the run directory (summary.csv, manifest.json, traces.csv)
-    as `pupper sweep --out` does; resume=True continues an interrupted one.
-    progress: True shows a tqdm bar when tqdm is installed; or a callable
-    (done_steps, total_steps). Ctrl-C stops within a second, keeps what is
-    finished, and raises KeyboardInterrupt.
-    """
-    callback = _progress_printer() if progress is True else (progress or None)
-    return _with_report(_native.sweep(grid, preset=preset, out=out, progress=callback, **_options(options)))
-
-
-def _with_report(res: SweepResult) -> SweepResult:
-    """Writes report.html into a finished run's directory."""
-    if res.out is not None and res.complete:
-        from pupper_core import _report
-
-        _report.report(res.out)
-    return res
-
-
-def report(run_dir: str | os.PathLike[str]) -> str:
-    """Write ``run_dir/report.html`` (inputs, the table, plots, the best
-    cells and the rule, warnings, links to the files beside it: one page,
-    no network) from any run directory, as `pupper report DIR` does;
-    returns its path. Every run with ``out`` writes one when it ends."""
-    from pupper_core import _report
-
-    return str(_report.report(run_dir))
-
-
-def response(
-    grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | str | None = None,
-    *,
-    signal: str = "step",
-    amplitude: float = 0.2,
-    frequency: float | None = None,
-    chirp: Sequence[float] | str | None = None,
-    hold: float = 0.5,
-    joints: Sequence[str] | str = (),
-    standing: bool = False,
-    out: str | os.PathLike[str] | None = None,
-    progress: bool | Callable[[int, int], None] = True,
-    **options: Any,
-) -> SweepResult:
-    """How each joint follows its target, as `pupper response` runs it: every
-    joint excited alone (its target steps by ``amplitude`` rad, or follows a
-    sine of ``frequency`` Hz, or a logarithmic ``chirp`` F0,F1 Hz, after
-    ``hold`` s at the stand pose) while the others hold, on the robot hung
-    in the air (``standing=True``: on the floor), for every cell of
-    ``grid`` in one batch.
-
-    The result's table is summary.csv (each joint group's figures per
-    cell); ``res.tables["response"]`` has a row per cell and joint (rise
-    and settling time, overshoot, steady-state error; gain, phase,
-    bandwidth), ``res.tables["bode"]`` the frequency response of a sine or
-    chirp. ``joints``: groups (haa, hfe, kfe) or actuator names. Other
-    keywords are `sweep`'s (model, mode, kp, kd, seconds (default 3),
-    pose, replicates, threads, ...); see `pupper response --help` for the
-    definitions.
-    """
-    unknown = sorted(set(options) - set(_D))
-    if unknown:
-        raise TypeError(f"response() got unexpected keyword argument(s) {', '.join(unknown)}: "
-                        "see help(pupper_core.response)")
-    callback = _progress_printer() if progress is True else (progress or None)
-    if isinstance(chirp, str):
-        chirp = _sine(chirp)
-    if isinstance(joints, str):
-        joints = [j for j in joints.split(",") if j]
-    elif isinstance(joints, Mapping):
-        # iterating a dict gives its keys: a typo would pass as a joint list
-        raise TypeError(f"joints must be a joint group or actuator name, or a list of them, not a dict "
-                        f"({joints!r}): e.g. joints=['kfe'] or joints='haa,hfe'")
-    return _with_report(_native.response(grid, out=out, progress=callback, signal=signal, amplitude=amplitude,
-                            frequency=frequency, chirp=None if chirp is None else list(chirp),
-                            hold=hold, joints=list(joints), standing=standing, **_options(options)))
-
-
-def hold(
-    grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | str | None = None,
-    *,
-    load: float = 1.0,
-    ramp: float = 2.0,
-    shove: float = 0.25,
-    shove_at: float | None = None,
-    shove_duration: float = 0.25,
-    out: str | os.PathLike[str] | None = None,
-    progress: bool | Callable[[int, int], None] = True,
-    **options: Any,
-) -> SweepResult:
-    """How firmly each cell of ``grid`` holds the robot up, as `pupper hold`
-    runs it: the robot lands (1 s), a vertical load on its base ramps to
-    ``load`` times its own weight (total mass times gravity, from the model)
-    over ``ramp`` s and is held; 0.5 s after it is full (or at ``shove_at``)
-    a sideways shove of ``shove`` times the weight acts for
-    ``shove_duration`` s.
-
-    The table (summary.csv) has the sweep's metrics per cell and the
-    hold's: ``sag_mm`` (unloaded minus loaded base height, each the mean
-    over 0.5 s), ``compliance_mm_per_n`` (sag per newton; lower is
-    stiffer), ``sway_mm`` and ``recovery_s`` (the shove's sideways
-    excursion, and the time until the base stays within 5 % of it of where
-    it rests), ``torque_rms.GROUP`` (what each joint group spends holding
-    the load) and, when the model declares each motor's ``pupper:kt:NAME``
-    and ``pupper:resistance:NAME``, ``copper_w``. ``res.best()`` is the
-    stiffest cell that stood. Other keywords are `sweep`'s (model, mode,
-    kp, kd, seconds (default 7), pose, threads, motor, ...); see `pupper
-    hold --help`.
-    """
-    unknown = sorted(set(options) - set(_D))
-    if unknown:
-        raise TypeError(f"hold() got unexpected keyword argument(s) {', '.join(unknown)}: "
-                        "see help(pupper_core.hold)")
-    callback = _progress_printer() if progress is True else (progress or None)
-    return _with_report(_native.hold(grid, out=out, progress=callback, load=load, ramp=ramp, shove=shove,
-                                     shove_at=shove_at, shove_duration=shove_duration, **_options(options)))
-
-
-def gains(model: str | os.PathLike[str] = "pupper_v3", *, kp: float | None = None, kd: float | None = None,
-          bandwidth: float | None = None, damping: float = 0.7,
-          pose: Sequence[float] | None = None, integrator: str | None = None) -> dict[str, Any]:
-    """Servo gains for a ``bandwidth`` (Hz) and ``damping`` ratio per joint,
-    or the natural frequency, damping ratio and stability margin of given
-    ``kp`` and ``kd``, from each joint's inertia at ``pose`` (default: the
-    stand pose), as `pupper gains --json` prints them. A stability margin
-    of 1 or more is past the bound of the PD at the model's timestep as
-    ``integrator`` (default: the model's own) takes its damping: the joint
-    chatters or diverges there."""
-    return cast("dict[str, Any]", _native.gains(os.fspath(model), kp=kp, kd=kd, bandwidth=bandwidth,
-                                                 damping=damping,
-                                                 pose=None if pose is None else [float(q) for q in pose],
-                                                 integrator=integrator))
-
-
-def pose(model: str | os.PathLike[str] = "pupper_v3", variant: Variant = "original",
-         depth: float | None = None) -> dict[str, Any]:
-    """The stand pose of a body, as `pupper pose --json` prints it: each
-    leg's joint angles that put its foot ``depth`` m below the hip (default:
-    the chapter's 0.14 m scaled to the model's legs)."""
-    return cast("dict[str, Any]", _native.pose(os.fspath(model), variant, depth))
-
-
-def tune(space: Sequence[str] | Mapping[str, Any], **options: Any) -> Any:
-    """Search gains (or any grid axis) with Optuna's ask/tell, a generation
-    of ``batch`` trials per batch of cells, as `pupper tune` does: see
-    ``help(pupper_core._tune.tune)`` for the keywords (objective, trials or
-    budget, batch, sampler, seed, aggregate, out, resume) and the sweep's
-    options. Needs the tune extra (Optuna); returns a TuneResult (the study,
-    its trials as trials.csv has them, the best trial or Pareto front)."""
-    from pupper_core import _tune
-
-    return _tune.tune(space, **options)
-
-
-def excite(model: str | os.PathLike[str] = "pupper_v3", **options: Any) -> Any:
-    """Write an excitation to play on the robot hung in the air (per joint
-    group a multisine or chirp inside the ranges, with holds) and the nominal
-    model's response, in the joint-log format, as `pupper excite` does;
-    returns the file's path. Keywords: out, kp, kd, signal, band, seconds,
-    hold, amplitude, max_velocity, seed, force (``help(pupper_core._fit.excite)``)."""
-    from pupper_core import _fit
-
-    return _fit.excite(model, **options)
-
-
-def fit(logs: Sequence[str | os.PathLike[str]] | str | os.PathLike[str], **options: Any) -> Any:
-    """Calibrate the model to joint logs with mujoco.sysid, as `pupper fit`
-    does: keywords model, params (armature, damping, frictionloss, kp_scale,
-    kd_scale, delay), per ("all", "group", "joint"), out, force, max_iters,
-    plot. Needs the fit extra; returns a FitResult (``table`` as fit.csv,
-    ``value(name)``, ``interval(name)``, RMS angle error before and after)."""
-    from pupper_core import _fit
-
-    if isinstance(logs, (str, os.PathLike)):
-        logs = [logs]
-    elif isinstance(logs, Mapping):
-        raise TypeError(f"logs must be a joint log's path or a list of paths, not a dict ({logs!r})")
-    return _fit.fit(list(logs), **options)
-
-
-def lab(
-    variants: Variant | Sequence[Variant] | None = None,
-    grid: Mapping[str, Any] | Sequence[str] | str | None = None,
-    *,
-    out: str | os.PathLike[str] | None = None,
-    render: bool = False,
-    progress: bool | Callable[[int, int], None] = True,
-    **options: Any,
-) -> SweepResult:
-    """The chapter's lab, as `pupper lab` runs it: every body (default
-    original, long-leg, heavy) from a stand pose searched on its own body,
-    Kp 10,30,60,120 x Kd 0.5,1,2,5 (or `grid`, CLI strings) in torque mode
-    under a 2 N, 1.2 Hz vertical sine force, 6 s, no push, in one batch.
-
-    `res.best(by=["variant"])` gives each body's steadiest gains (by
-    last_1s_std_mm, or p95:last_1s_std_mm over replicates). With `out`, the run directory also gets best.csv, the lab's
-    figures and (where OpenGL works) the bodies drawn at their best gains;
-    `render=True` adds the GIF. Other keywords: seconds, sine, model,
-    force, resume, threads, max_saturation, rank, backend, device, ray, motor
-    (the servo firmware of the lab's torque-mode PD, as `sweep`'s), depth
-    (the feet's depth below the hips in m; default the chapter's 0.14 m scaled
-    to the model's legs), and the
-    population (replicates, seed, randomize) as `sweep` takes them (defaults as
-    `pupper lab --help`).
-    """
-    callback = _progress_printer() if progress is True else (progress or None)
-    if isinstance(options.get("sine"), str):
-        options["sine"] = _sine(options["sine"])
-    res = _native.lab(_names(variants), _grid_specs(grid), out=out, progress=callback, **options)
-    if res.out is not None:
-        from pupper_core import plots, render as draw
-
-        plots.write_lab_plots(res.out)
-        try:
-            draw.write_lab_effects(res.out, gif=render)
-        except draw.RenderUnavailable:
-            if render:
-                raise
-    return _with_report(res)
-
-
-def _names(variants: str | Sequence[str] | None) -> list[str] | None:
-    """Body names: one name or several (a string is one name, never its letters)."""
-    if variants is None:
-        return None
-    return [variants] if isinstance(variants, str) else [str(v) for v in variants]
-
-
-def _grid_specs(grid: Any) -> list[str] | None:
-    """The lab's grid as CLI strings, from what `sweep` takes: a dict of
-    axis -> values (numbers or text), `AXIS=VALUES` strings, or one."""
-    if grid is None:
-        return None
-    if isinstance(grid, str):
-        return [grid]
-    if isinstance(grid, Mapping):
-        def one(v: Any) -> str:
-            if isinstance(v, str) or (isinstance(v, int) and not isinstance(v, bool)):
-                return str(v)
-            return repr(float(v))  # numpy scalars too: the shortest exact text
-
-        def text(values: Any) -> str:
-            if isinstance(values, (str, int, float)):
-                return one(values)
-            return ",".join(one(v) for v in values)
-
-        return [f"{axis}={text(values)}" for axis, values in grid.items()]
-    return [str(g) for g in grid]
-
-
-def merge(dirs: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], *,
-          force: bool = False) -> SweepResult:
-    """Puts the shards of one sweep (each run with ``shard="I/N"``) together
-    into the run directory `out`, as `pupper merge` does: its summary.csv is
-    the unsharded sweep's. Refuses shards of different sweeps, a missing or
-    repeated shard (saying which to rerun)."""
-    if isinstance(dirs, (str, os.PathLike)):
-        dirs = [dirs]  # one directory, never its characters
-    return _native.merge([os.fspath(d) for d in dirs], os.fspath(out), force=force)
-
-
-def load_run(run_dir: str | os.PathLike[str]) -> SweepResult:
-    """A SweepResult from a run directory written by `pupper sweep` or
-    sweep(out=...); its rows are checked against its manifest's grid."""
-    return _native.load_run(os.fspath(run_dir))
-
 
 def __getattr__(name: str) -> Any:
-    # the search's and the fit's errors live beside their (optional) code
-    if name == "TuneError":
-        from pupper_core._tune import TuneError
-
-        return TuneError
-    if name == "FitError":
-        from pupper_core._fit import FitError
-
-        return FitError
-    # plots and render import matplotlib / a GL context: only when used
-    if name in ("plots", "render"):
-        import importlib
-
-        module = importlib.import_module(f"pupper_core.{name}")
-        setattr(sys.modules[__name__], name, module)
-        return module
-    raise AttributeError(f"module 'pupper_core' has no attribute {name!r}")
+    # the search's and the fit's errors, plots and render: imported when used
+    return _lazy_attribute(name)

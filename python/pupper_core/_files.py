@@ -17,3 +17,13 @@ def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """``text`` as the whole of ``path`` (through `atomic_write`), its
+    newlines as they are."""
+
+    def write(tmp: Path) -> None:
+        tmp.write_text(text, newline="")
+
+    atomic_write(path, write)

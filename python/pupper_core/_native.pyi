@@ -172,7 +172,8 @@ def pose(model: str = ..., variant: str = ..., depth: float | None = ...) -> dic
     """What `pupper pose --json` prints, as a dict."""
 
 def gains(model: str = ..., *, kp: float | None = ..., kd: float | None = ..., bandwidth: float | None = ...,
-          damping: float = ..., pose: list[float] | None = ..., integrator: str | None = ...) -> dict[str, Any]:
+          damping: float = ..., pose: list[float] | None = ..., integrator: str | None = ...,
+          motor: str | None = ..., sensing_delay: float | None = ...) -> dict[str, Any]:
     """What `pupper gains --json` prints, as a dict."""
 
 def sweep(

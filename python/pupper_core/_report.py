@@ -9,6 +9,7 @@ experiment kind's own tables), never by stepping physics.
 """
 
 from __future__ import annotations
+from pupper_core._spec import DEFAULT_METRIC, ROBUST_METRIC
 
 import csv
 import html
@@ -282,9 +283,9 @@ def _best(run_dir: Path, kind: str = "sweep") -> tuple[str | None, str]:
     """The cell pupper's rule picks (by the kind's own metric), and the rule
     in words."""
     try:
-        import pupper_core as pc
+        from pupper_core._api import load_run
 
-        res = pc.load_run(run_dir)
+        res = load_run(run_dir)
         b = res.best()
     except Exception:  # a run with nothing ranked (or not a sweep)
         return None, ""
@@ -369,8 +370,8 @@ def _grid_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[st
         parts.append(f"<h2>Best cell</h2><p>{html.escape(rule)}</p>")
     axes = [a.get("axis") for a in manifest.get("config", {}).get("grid", {}).get("axes", [])]
     metric = "compliance_mm_per_n" if kind == "hold" else (
-        "last_1s_std_mm" if "last_1s_std_mm" in header else (
-            "p95:last_1s_std_mm" if "p95:last_1s_std_mm" in header else None))
+        DEFAULT_METRIC if DEFAULT_METRIC in header else (
+            ROBUST_METRIC if ROBUST_METRIC in header else None))
     parts.append("<h2>Plots</h2>")
     if kind == "response":
         for m in ("rise_time_s", "overshoot_pct"):
@@ -477,7 +478,7 @@ def report(run_dir: str | os.PathLike[str]) -> Path:
     d = Path(run_dir)
     mpath = d / "manifest.json"
     if not mpath.is_file():
-        from pupper_core import OutputError
+        from pupper_core._native import OutputError
 
         raise OutputError(f"{d} holds no pupper run (no manifest.json): give a run directory")
     manifest = json.loads(mpath.read_text())

@@ -17,10 +17,11 @@ the chosen backend's context class in MuJoCo's renderer. Setting
 
 from __future__ import annotations
 
+# The OpenGL probing is in _render_gl, the panels' layout and the GIF's
+# palette in _render_panels; this module records and draws.
+
 import copy
 import os
-import subprocess
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence, Union
@@ -28,13 +29,15 @@ from typing import TYPE_CHECKING, Any, Sequence, Union
 import numpy as np
 
 from pupper_core._files import atomic_write
+from pupper_core._render_gl import FIX_HINT, RenderUnavailable, _one_line, _require_gl, gl_available
+from pupper_core._render_panels import _atomic_save, _compose, _font, _labels, _panel, _push_text, _shared_palette
+from pupper_core._spec import DEFAULT_METRIC
 
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco
 
-    from pupper_core._native import Recording
+    from pupper_core._types import Recording
     from PIL import Image as PILImage
-    from PIL import ImageFont
 
 __all__ = [
     "RenderUnavailable",
@@ -52,159 +55,7 @@ __all__ = [
     "view",
 ]
 
-FIX_HINT = (
-    "install libegl1 and libgl1-mesa-dri (apt-get) and set MUJOCO_GL=egl, "
-    "or set MUJOCO_GL=osmesa with libosmesa6"
-)
-
-#: The tiny scene used to check that a context can be made and drawn into.
-_PROBE_XML = (
-    "<mujoco><worldbody><light pos='0 0 3'/>"
-    "<geom type='sphere' size='0.5' rgba='1 0 0 1'/></worldbody></mujoco>"
-)
-_PROBE_CODE = (
-    "import mujoco\n"
-    f"m = mujoco.MjModel.from_xml_string({_PROBE_XML!r})\n"
-    "d = mujoco.MjData(m)\n"
-    "mujoco.mj_forward(m, d)\n"
-    "with mujoco.Renderer(m, 16, 16) as r:\n"
-    "    r.update_scene(d)\n"
-    "    r.render()\n"
-)
-
 ModelLike = Union["mujoco.MjModel", str, os.PathLike]
-
-_gl_status: tuple[str, str | None] | None = None  # (MUJOCO_GL, reason) of the last check
-
-
-class RenderUnavailable(RuntimeError):
-    """No OpenGL context can be made for offscreen rendering."""
-
-
-# ---------------------------------------------------------------------------
-# OpenGL backend
-
-
-def _one_line(text: str) -> str:
-    lines = [ln.strip() for ln in str(text).strip().splitlines() if ln.strip()]
-    return lines[-1] if lines else "unknown error"
-
-
-def _probe_subprocess(backend: str) -> str | None:
-    """Tries ``backend`` in a fresh interpreter; None when it renders."""
-    env = dict(os.environ, MUJOCO_GL=backend)
-    env.pop("PYOPENGL_PLATFORM", None)
-    try:
-        p = subprocess.run(
-            [sys.executable, "-c", _PROBE_CODE],
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
-    except (OSError, subprocess.TimeoutExpired) as e:
-        return f"probe did not run ({e})"
-    if p.returncode == 0:
-        return None
-    return _one_line(p.stderr or p.stdout or f"exit status {p.returncode}")
-
-
-def _install_backend(backend: str) -> None:
-    """Makes an already imported ``mujoco`` use ``backend``'s GL context."""
-    import importlib
-
-    from mujoco.rendering.classic import gl_context  # type: ignore[import-not-found]
-
-    module = {"egl": "mujoco.egl", "osmesa": "mujoco.osmesa", "glfw": "mujoco.glfw"}[backend]
-    cls = importlib.import_module(module).GLContext
-    gl_context.GLContext = cls
-    import mujoco
-
-    mujoco.GLContext = cls  # type: ignore[attr-defined]
-
-
-def _probe_in_process() -> str | None:
-    try:
-        import mujoco
-
-        m = mujoco.MjModel.from_xml_string(_PROBE_XML)
-        d = mujoco.MjData(m)
-        mujoco.mj_forward(m, d)
-        with mujoco.Renderer(m, 16, 16) as r:
-            r.update_scene(d)
-            img = r.render()
-        if img.shape != (16, 16, 3):
-            return f"unexpected image shape {img.shape}"
-    except Exception as e:  # noqa: BLE001 - any failure means "no rendering"
-        return f"{type(e).__name__}: {_one_line(str(e))}"
-    return None
-
-
-def _candidates() -> list[str]:
-    if sys.platform != "linux":
-        return ["glfw"]
-    c = ["egl", "osmesa"]
-    if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
-        c.append("glfw")
-    return c
-
-
-def gl_available() -> str | None:
-    """None if an offscreen OpenGL context works, else a one-line reason.
-
-    Respects an existing ``MUJOCO_GL``; otherwise probes egl, then osmesa, and
-    sets ``os.environ["MUJOCO_GL"]`` to the first that works. Call it before
-    anything renders (``MUJOCO_GL`` is read when ``mujoco`` is imported; if it
-    already was, the chosen backend is installed into the imported module).
-    The answer is cached per ``MUJOCO_GL`` value.
-    """
-    global _gl_status
-    env = os.environ.get("MUJOCO_GL", "").strip().lower()
-    if _gl_status is not None and _gl_status[0] == env:
-        return _gl_status[1]
-    reason: str | None
-    if env:
-        err = _probe_in_process()
-        reason = None if err is None else f"MUJOCO_GL={env} cannot render ({err}); fix: {FIX_HINT}"
-    else:
-        tried: list[str] = []
-        chosen = None
-        for backend in _candidates():
-            err = _probe_subprocess(backend)
-            if err is None:
-                chosen = backend
-                break
-            tried.append(f"{backend}: {err}")
-        if chosen is None:
-            reason = f"no OpenGL backend works ({'; '.join(tried)}); fix: {FIX_HINT}"
-        else:
-            os.environ["MUJOCO_GL"] = chosen
-            env = chosen
-            err = None
-            if "mujoco" in sys.modules:
-                try:
-                    _install_backend(chosen)
-                except Exception as e:  # noqa: BLE001
-                    err = f"{type(e).__name__}: {_one_line(str(e))}"
-            if err is None:
-                err = _probe_in_process()
-            reason = (
-                None
-                if err is None
-                else (
-                    f"MUJOCO_GL={chosen} works in a fresh process but not in this one, "
-                    f"where mujoco was imported first ({err}); fix: set MUJOCO_GL={chosen} "
-                    "before importing mujoco"
-                )
-            )
-    _gl_status = (env, reason)
-    return reason
-
-
-def _require_gl() -> None:
-    reason = gl_available()
-    if reason is not None:
-        raise RenderUnavailable(reason)
 
 
 # ---------------------------------------------------------------------------
@@ -354,9 +205,10 @@ def record(
     (nothing is written). Each recording holds the compiled body the cell ran
     on (``model``: its leg/torso variant), so drawing it shows that body.
     """
-    from pupper_core import _native, _options
+    from pupper_core import _native
+    from pupper_core._spec import sweep_options
 
-    return _native.record(grid, preset=preset, fps=float(fps), **_options(options))
+    return _native.record(grid, preset=preset, fps=float(fps), **sweep_options(options))
 
 
 def record_run(run_dir: str | os.PathLike[str], cells: Sequence[int], fps: float = 25.0) -> list["Recording"]:
@@ -446,163 +298,6 @@ def simulate_frames(
 
 # ---------------------------------------------------------------------------
 # Pictures
-
-
-def _font(size: int) -> "ImageFont.FreeTypeFont | ImageFont.ImageFont":
-    from PIL import ImageFont
-
-    for name in ("DejaVuSans.ttf", "DejaVuSans-Bold.ttf"):
-        try:
-            return ImageFont.truetype(name, size)
-        except OSError:
-            pass
-    try:
-        import importlib.util
-
-        spec = importlib.util.find_spec("matplotlib")
-        if spec is not None and spec.submodule_search_locations:
-            p = Path(list(spec.submodule_search_locations)[0]) / "mpl-data/fonts/ttf/DejaVuSans.ttf"
-            if p.exists():
-                return ImageFont.truetype(str(p), size)
-    except (ImportError, OSError):
-        pass
-    try:
-        return ImageFont.load_default(size=size)
-    except TypeError:  # old Pillow
-        return ImageFont.load_default()
-
-
-def _text_box(draw: Any, xy: tuple[int, int], text: str, font: Any, fill: tuple[int, int, int]) -> None:
-    """Text with a dark translucent backing box for legibility on any scene."""
-    x0, y0, x1, y1 = draw.textbbox(xy, text, font=font)
-    draw.rectangle((x0 - 4, y0 - 3, x1 + 4, y1 + 3), fill=(0, 0, 0, 150))
-    draw.text(xy, text, font=font, fill=fill)
-
-
-def _panel(
-    img: np.ndarray,
-    title: str,
-    params: str,
-    t: float,
-    pushing: bool,
-    push_text: str,
-    status: str,
-    fonts: tuple[Any, Any],
-    header_h: int,
-) -> "PILImage.Image":
-    from PIL import Image, ImageDraw
-
-    big, small = fonts
-    h, w = img.shape[:2]
-    panel = Image.new("RGB", (w, h + header_h), (245, 245, 245))
-    panel.paste(Image.fromarray(img), (0, header_h))
-    d = ImageDraw.Draw(panel)
-    if title:
-        d.text((8, 4), title, font=big, fill=(20, 20, 20))
-        d.text((8, 4 + big.size + 4), params, font=small, fill=(60, 60, 60))
-    else:
-        d.text((8, 4), params, font=big, fill=(20, 20, 20))
-    over = Image.new("RGBA", panel.size, (0, 0, 0, 0))
-    od = ImageDraw.Draw(over)
-    _text_box(od, (8, h + header_h - small.size - 10), f"t = {t:5.2f} s", small, (255, 255, 255))
-    if pushing:
-        od.rectangle((0, header_h, w - 1, h + header_h - 1), outline=(230, 30, 30, 255), width=4)
-        tw = od.textlength(push_text, font=big)
-        _text_box(od, (int(w - tw - 12), header_h + 8), push_text, big, (255, 60, 60))
-    if status:
-        tw = od.textlength(status, font=small)
-        _text_box(od, (int(w - tw - 12), h + header_h - small.size - 10), status, small, (255, 200, 60))
-    panel = Image.alpha_composite(panel.convert("RGBA"), over).convert("RGB")
-    return panel
-
-
-def _compose(panels: Sequence["PILImage.Image"], gap: int = 4) -> "PILImage.Image":
-    from PIL import Image
-
-    w = sum(p.width for p in panels) + gap * (len(panels) - 1)
-    h = max(p.height for p in panels)
-    out = Image.new("RGB", (w, h), (255, 255, 255))
-    x = 0
-    for p in panels:
-        out.paste(p, (x, 0))
-        x += p.width + gap
-    return out
-
-
-def _atomic_save(img_or_frames: Any, path: Path, fmt: str, **kw: Any) -> None:
-    def save(tmp: Path) -> None:
-        if isinstance(img_or_frames, list):
-            first, rest = img_or_frames[0], img_or_frames[1:]
-            first.save(tmp, format=fmt, save_all=True, append_images=rest, **kw)
-        else:
-            img_or_frames.save(tmp, format=fmt, **kw)
-
-    atomic_write(path, save)
-
-
-_LABEL_COLOURS = [(255, 60, 60), (230, 30, 30), (255, 255, 255), (255, 200, 60), (20, 20, 20), (60, 60, 60), (245, 245, 245), (0, 0, 0)]
-
-
-def _palette_of(img: "PILImage.Image", colors: int) -> list[tuple[int, int, int]]:
-    """The colours (at most ``colors``) of a median-cut quantization of ``img``."""
-    from PIL import Image
-
-    q = img.quantize(colors=colors, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
-    pal = q.getpalette() or []
-    used = sorted({c for _, c in (q.getcolors(colors) or [])})
-    return [tuple(pal[3 * i : 3 * i + 3]) for i in used]  # type: ignore[misc]
-
-
-def _shared_palette(frames: Sequence["PILImage.Image"]) -> list["PILImage.Image"]:
-    """Quantizes all frames to one palette (smaller, flicker-free GIFs).
-
-    The palette mixes the common colours of a few sample frames, the vivid
-    ones (the legs, which are small) and the label colours.
-    """
-    from PIL import Image
-
-    n = len(frames)
-    picks = sorted({0, n // 4, n // 2, (3 * n) // 4, n - 1})
-    w, h = frames[0].size
-    mosaic = Image.new("RGB", (w, h * len(picks)))
-    for j, i in enumerate(picks):
-        mosaic.paste(frames[i], (0, h * j))
-    colours = list(_LABEL_COLOURS)
-    arr = np.asarray(mosaic).reshape(-1, 3).astype(np.int16)
-    vivid = arr[(arr.max(axis=1) - arr.min(axis=1)) > 90]
-    if len(vivid) > 64:
-        vivid_img = Image.fromarray(vivid.astype(np.uint8)[None, :, :], "RGB")
-        colours += _palette_of(vivid_img, 48)
-    colours += _palette_of(mosaic, 256 - len(colours))
-    colours = colours[:256]
-    flat = [v for c in colours for v in c]
-    flat += flat[-3:] * (256 - len(colours))
-    pal = Image.new("P", (1, 1))
-    pal.putpalette(flat)
-    return [f.quantize(palette=pal, dither=Image.Dither.NONE) for f in frames]
-
-
-def _labels(rec: "Recording") -> tuple[str, str]:
-    """A panel's title (the cell's name) and its parameter line."""
-    setup = rec["setup"]
-
-    def gain(values: list[float]) -> str:
-        lo, hi = min(values), max(values)
-        return f"{lo:g}" if lo == hi else f"{lo:g}..{hi:g}"
-
-    params = f"Kp {gain(setup['kp'])}  Kd {gain(setup['kd'])}"
-    extras = [value if isinstance(value, str) else f"{axis} {value:g}"
-              for axis, value in rec["values"].items() if axis not in ("kp", "kd")]
-    if extras:
-        params += "  " + "  ".join(extras)
-    return rec["name"], params
-
-
-def _push_text(rec: "Recording") -> str:
-    f = np.asarray(rec["setup"]["push_force"], dtype=float)
-    if f[0] == 0 and f[1] == 0:  # vertical: magnitude and an arrow
-        return f"PUSH {abs(f[2]):g} N {'↓' if f[2] < 0 else '↑'}"
-    return f"PUSH {float(np.linalg.norm(f)):g} N"
 
 
 def write_effects(
@@ -807,7 +502,7 @@ def write_run_effects(run_dir: str | os.PathLike[str], max_cells: int = 6, fps: 
 
         header = list(rows[0])
         try:
-            (best,) = _native.best_rows(header, [[r[h] for h in header] for r in rows], "last_1s_std_mm")
+            (best,) = _native.best_rows(header, [[r[h] for h in header] for r in rows], DEFAULT_METRIC)
         except _native.PupperError:  # a replicated run ranks by a statistic: none named here
             best = None
         if best is not None:

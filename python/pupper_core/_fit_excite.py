@@ -1,0 +1,186 @@
+"""`pupper excite` (``pupper_core._fit`` re-exports it): an excitation to
+play on the robot hung in the air, per joint group a multisine or chirp
+around the rest pose, inside the joint ranges and under velocity and torque
+limits, with holds between, and the nominal model's response to it, in the
+joint-log format."""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings as _warnings
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pupper_core._fit_robot import Robot, load_robot, simulate, suspended_spec
+from pupper_core._fit_terms import GROUPS, MAX_LOG_SECONDS, FitError
+from pupper_core._joint_log import LogError, check_gains, write_log
+from pupper_core._public import exported_from
+from pupper_core._signals import _stop_on_signals
+
+
+def _multisine(t: np.ndarray, band: tuple[float, float], count: int, rng: np.random.Generator) -> np.ndarray:
+    f = np.geomspace(band[0], band[1], count)
+    # Schroeder-like phases keep the crest factor low; a random offset per joint
+    k = np.arange(1, count + 1)
+    phase = -np.pi * k * (k - 1) / count + rng.uniform(0, 2 * np.pi)
+    s = np.sin(2 * np.pi * f[:, None] * t[None, :] + phase[:, None]).sum(0)
+    return np.asarray(s / np.max(np.abs(s)))
+
+
+def _chirp(t: np.ndarray, band: tuple[float, float]) -> np.ndarray:
+    f0, f1 = band
+    span = t[-1] if t[-1] > 0 else 1.0
+    r = (f1 / f0) ** (1 / span)
+    return np.asarray(np.sin(2 * np.pi * f0 * (r ** t - 1) / math.log(r)))
+
+
+@exported_from("pupper_core._fit")
+def excite(model: str | os.PathLike[str] = "pupper_v3", *, out: str | os.PathLike[str] = "excite.csv",
+           kp: float | None = None, kd: float | None = None, seconds: float = 8.0, hold: float = 1.0,
+           amplitude: float = 0.3, signal: str = "multisine", band: Sequence[float] = (0.3, 6.0),
+           max_velocity: float = 8.0, seed: int = 0, force: bool = False) -> Path:
+    """Writes an excitation to play on the robot and the nominal model's
+    response to it, in the joint-log format; returns the file's path. Gains
+    past the explicit PD's stability bound are said as a warning."""
+    path, notes = _excite(model, out=out, kp=kp, kd=kd, seconds=seconds, hold=hold, amplitude=amplitude,
+                          signal=signal, band=band, max_velocity=max_velocity, seed=seed, force=force)
+    for note in notes:
+        _warnings.warn(note, stacklevel=2)
+    return path
+
+
+def _excite(model: str | os.PathLike[str], *, out: str | os.PathLike[str], kp: float | None, kd: float | None,
+            seconds: float, hold: float, amplitude: float, signal: str, band: Sequence[float],
+            max_velocity: float, seed: int, force: bool) -> tuple[Path, list[str]]:
+    """`excite`, and its notes."""
+    robot = load_robot(model)
+    out = _excite_out(out, force)
+    lo, hi = _excite_options(robot, signal, band, seconds, hold, amplitude, max_velocity)
+    gains_kp, gains_kd = _excite_gains(robot, kp, kd)
+    notes = _stability_notes(robot, gains_kp, gains_kd)
+    with _stop_on_signals("excite"):
+        times, targets = _excite_targets(robot, gains_kp, signal, (lo, hi), seconds, hold, amplitude,
+                                         max_velocity, seed)
+        spec = suspended_spec(robot, gains_kp, gains_kd)
+        sens = simulate(spec, robot, times, targets)
+        if not np.all(np.isfinite(sens)):
+            raise FitError(f"the model diverges at kp {gains_kp.max():g}, kd {gains_kd.max():g}: its response "
+                           "is not finite; lower the gains (pupper gains --kp KP --kd KD shows the bound)")
+        nu = len(robot.actuators)
+        write_log(out, times, robot.actuators, target=targets, q=sens[:, :nu], qd=sens[:, nu:2 * nu],
+                  tau=sens[:, 2 * nu:], kp=gains_kp, kd=gains_kd,
+                  note=f"pupper excite {signal} {lo:g}-{hi:g} Hz; q, qd, tau: the nominal model's response")
+    return out, notes
+
+
+def _excite_out(out: str | os.PathLike[str], force: bool) -> Path:
+    path = Path(out)
+    if path.is_dir():
+        raise FitError(f"--out {path} is a directory: give a file path (e.g. {path / 'excite.csv'})")
+    if path.exists() and not force:
+        raise FitError(f"{path} exists: give another --out, or --force to overwrite it")
+    parent = path.parent
+    if not parent.is_dir():
+        raise FitError(f"--out {path}: its directory {parent} does not exist: create it "
+                       f"(mkdir -p {parent}) or give another --out")
+    return path
+
+
+def _number(name: str, v: Any) -> float:
+    """A flag's number; the CLI passes NaN and infinity as null."""
+    if v is None or not isinstance(v, (int, float)) or not math.isfinite(v):
+        # the CLI passes NaN and infinity alike, as null
+        raise FitError(f"--{name} {'(nan or inf)' if v is None else v} is not a finite number: give e.g. "
+                       f"--{name} {dict(seconds=8, hold=1, amplitude=0.3, band='0.3,6').get(name, 8)}")
+    return float(v)
+
+
+def _excite_options(robot: Robot, signal: str, band: Sequence[float], seconds: float, hold: float,
+                    amplitude: float, max_velocity: float) -> tuple[float, float]:
+    """Checks excite's options; returns the band."""
+    if signal not in ("multisine", "chirp"):
+        raise FitError(f"--signal {signal} is unknown: use multisine or chirp")
+    lo, hi = (_number("band", b) for b in band)
+    if not (0 < lo < hi < 0.5 / robot.timestep / 4):
+        raise FitError(f"--band {lo:g},{hi:g} Hz is not 0 < F0 < F1 below a quarter of the "
+                       f"Nyquist rate ({0.125 / robot.timestep:g} Hz): give e.g. 0.3,6")
+    for name, v in (("seconds", seconds), ("amplitude", amplitude), ("max-velocity", max_velocity)):
+        if not _number(name, v) > 0:
+            raise FitError(f"--{name} {v} must be > 0")
+    if not _number("hold", hold) >= 0:
+        raise FitError(f"--hold {hold} must be >= 0")
+    groups = len([g for g in GROUPS if g in robot.groups] or ["joint"])
+    total = hold + groups * (seconds + hold)
+    if total > MAX_LOG_SECONDS:
+        most = max((MAX_LOG_SECONDS - hold) / groups - hold, 0.0)
+        raise FitError(f"--seconds {seconds:g} --hold {hold:g} make a {total:.4g} s log ({groups} joint "
+                       f"groups), past the {MAX_LOG_SECONDS:g} s fit takes: give --seconds of at most "
+                       f"{math.floor(most * 10) / 10:g} (8 is the default)")
+    return lo, hi
+
+
+def _excite_gains(robot: Robot, kp: float | None, kd: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """The gains to excite at: --kp/--kd, else the model's own."""
+    n = len(robot.actuators)
+    for key, v in (("kp", kp), ("kd", kd)):
+        if v is not None:
+            try:
+                check_gains([float(v)], key, f"--{key} {v:g}", "")
+            except LogError as e:
+                raise FitError(str(e)) from None
+    gains_kp = np.full(n, float(kp)) if kp is not None else robot.own_kp
+    gains_kd = np.full(n, float(kd)) if kd is not None else robot.own_kd
+    if np.isnan(gains_kp).any() or np.isnan(gains_kd).any() or (gains_kp <= 0).any() or (gains_kd < 0).any():
+        raise FitError("the model's actuators have no PD gains of their own: give --kp and --kd")
+    return gains_kp, gains_kd
+
+
+def _stability_notes(robot: Robot, kp: np.ndarray, kd: np.ndarray) -> list[str]:
+    """A note when the gains lie past the stability bound of an explicitly
+    integrated PD at the timestep (pupper gains' margin, 1 or more)."""
+    from pupper_core import _native
+
+    g = _native.gains(str(robot.file), kp=float(kp.max()), kd=float(kd.max()), bandwidth=None,
+                      damping=0.7, pose=None)
+    worst = max(g.get("joints", []), key=lambda j: float(j.get("stability_margin", 0.0)), default=None)
+    if worst is None or not float(worst["stability_margin"]) >= 1:
+        return []
+    return [f"kp {kp.max():g}, kd {kd.max():g} lie past the stability bound of an explicitly integrated PD "
+            f"at the timestep (worst: {worst['actuator']}, margin {float(worst['stability_margin']):.3g}): "
+            "the nominal response in the log may chatter at the torque limit or diverge; "
+            f"`pupper gains --kp {kp.max():g} --kd {kd.max():g}` shows the bound per joint"]
+
+
+def _excite_targets(robot: Robot, gains_kp: np.ndarray, signal: str, band: tuple[float, float], seconds: float,
+                    hold: float, amplitude: float, max_velocity: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The excitation's times and targets: per joint group a multisine or
+    chirp inside the ranges and the speed and torque limits, with holds."""
+    dt = robot.timestep
+    rng = np.random.default_rng(seed)
+    groups = [g for g in GROUPS if g in robot.groups] or ["joint"]
+    n_seg = int(round(seconds / dt))
+    n_hold = int(round(hold / dt))
+    total = n_hold + len(groups) * (n_seg + n_hold)
+    times = np.arange(total + 1) * dt
+    targets = np.tile(robot.rest, (total + 1, 1))
+    ts = np.arange(n_seg) * dt
+    taper = np.minimum(1.0, np.minimum(ts, ts[-1] - ts) / 0.5) if n_seg > 1 else np.ones(1)
+    taper = 0.5 - 0.5 * np.cos(np.pi * taper)
+    for gi, g in enumerate(groups):
+        start = n_hold + gi * (n_seg + n_hold)
+        for a in (i for i, x in enumerate(robot.groups) if x == g or g == "joint"):
+            s = (_multisine(ts, band, 8, rng) if signal == "multisine" else _chirp(ts, band)) * taper
+            speed = np.max(np.abs(np.diff(s))) / dt
+            amp = min(amplitude, max_velocity / max(speed, 1e-9))
+            rng_a = robot.ranges[robot.actuators[a]]
+            if rng_a is not None:
+                amp = min(amp, robot.rest[a] - rng_a[0] - 0.05, rng_a[1] - robot.rest[a] - 0.05)
+            if gains_kp[a] > 0 and math.isfinite(robot.limits[a]):
+                # the PD's stiffness alone may ask 80 % of the motor's torque
+                amp = min(amp, 0.8 * robot.limits[a] / gains_kp[a])
+            targets[start:start + n_seg, a] = robot.rest[a] + max(amp, 0.0) * s
+    return times, targets

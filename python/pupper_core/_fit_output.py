@@ -1,0 +1,211 @@
+"""A fit's run directory (``pupper_core._fit`` writes it): fit.csv,
+residuals.csv, warnings.csv, calibrated.xml, manifest.json and the plots,
+written beside it and moved in whole."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pupper_core._fit_problem import FitResult, _Problem, _Solution
+from pupper_core._fit_robot import Robot, _history_samples
+from pupper_core._fit_sysid import _predictions
+from pupper_core._fit_terms import NOISE_FLOOR, SCALE_NUMERIC, FitError
+
+
+def _write_run(out: Path, res: FitResult, pb: _Problem, sol: _Solution, model: Any, names: list[str], per: str,
+               force: bool, plot: bool) -> None:
+    """The run directory, written beside it first and moved in at the end:
+    a run stopped or failing while it writes leaves the directory as it was
+    (a --force run's earlier files too), or none if it made it."""
+    made = not out.exists()
+    stage = out.parent / f".{out.name}.partial{os.getpid()}"
+    try:
+        shutil.rmtree(stage, ignore_errors=True)
+        stage.mkdir(parents=True)
+        _write(stage, res, pb, sol.x, model, names, per)
+        if plot:
+            _plot(stage, pb, sol)
+        out.mkdir(parents=True, exist_ok=True)
+        for f in sorted(stage.rglob("*")):
+            if f.is_file():
+                dest = out / f.relative_to(stage)
+                dest.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(f, dest)
+        from pupper_core import _report
+
+        _report.report(out)
+    except BaseException as e:
+        if made:
+            shutil.rmtree(out, ignore_errors=True)
+        if isinstance(e, OSError):
+            raise FitError(f"cannot write the run directory {out} ({e.strerror or e}): check the path, its "
+                           "permissions and the free space") from None
+        raise
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, names: list[str], per: str) -> None:
+    import mujoco
+
+    from pupper_core._files import atomic_write
+
+    robot, logs = pb.robot, pb.logs
+
+    def table(tmp: Path) -> None:
+        with tmp.open("w", newline="", errors="surrogateescape") as f:
+            w = csv.writer(f, lineterminator="\n")
+            w.writerow(["parameter", "actuators", "nominal", "fitted", "low95", "high95", "unit"])
+            for r in res.table:
+                w.writerow([r["parameter"], r["actuators"], repr(r["nominal"]), repr(r["fitted"]),
+                            repr(r["low95"]), repr(r["high95"]), r["unit"]])
+
+    atomic_write(out / "fit.csv", table)
+
+    def residuals(tmp: Path) -> None:
+        with tmp.open("w", newline="", errors="surrogateescape") as f:
+            w = csv.writer(f, lineterminator="\n")
+            w.writerow(["log", "actuator", "rms_before_rad", "rms_after_rad"])
+            for lg in logs:
+                for k, a in enumerate(res.actuators):
+                    w.writerow([lg.path.name, a, repr(res.rms_before[lg.path.name][k]),
+                                repr(res.rms_after[lg.path.name][k])])
+
+    atomic_write(out / "residuals.csv", residuals)
+    _write_warnings(out, res)
+    xml = _calibrated_xml(robot, pb.labels, x)
+    atomic_write(out / "calibrated.xml", lambda tmp: _write_text(tmp, xml))
+    manifest = {
+        "kind": "fit",
+        "command": "fit",
+        "inputs": {"model": str(model), "logs": [{"path": str(lg.path), "sha256": lg.sha256} for lg in logs],
+                   "params": names, "per": per},
+        "fit": {r["parameter"]: {"nominal": r["nominal"], "fitted": r["fitted"], "low95": r["low95"],
+                                 "high95": r["high95"], "unit": r["unit"]} for r in res.table},
+        "rms_before_rad": res.rms_before, "rms_after_rad": res.rms_after,
+        "warnings": res.warnings, "seconds": res.seconds,
+        "intervals": {"noise_floor": dict(zip(("angle_rad", "velocity_rad_s", "torque_nm"), NOISE_FLOOR)),
+                      "floored": res.floored},
+        "versions": {"mujoco": mujoco.__version__, "pupper": _version()},
+    }
+    atomic_write(out / "manifest.json", lambda tmp: _write_text(tmp, json.dumps(manifest, indent=2) + "\n"))
+
+
+def _write_text(path: Path, text: str) -> None:
+    # a log's name that is not UTF-8 keeps its bytes
+    path.write_text(text, errors="surrogateescape")
+
+
+def _write_warnings(out: Path, res: FitResult) -> None:
+    """warnings.csv: one row per warning (the parameter it is about, if
+    one), only when there are any (a stale one from --force goes)."""
+    from pupper_core._files import atomic_write
+
+    path = out / "warnings.csv"
+    if not res.warnings:
+        path.unlink(missing_ok=True)
+        return
+    names = sorted((r["parameter"] for r in res.table), key=len, reverse=True)
+
+    def write(tmp: Path) -> None:
+        with tmp.open("w", newline="", errors="surrogateescape") as f:
+            w = csv.writer(f, lineterminator="\n")
+            w.writerow(["parameter", "warning"])
+            for text in res.warnings:
+                w.writerow([next((n for n in names if text.startswith(n)), ""), text])
+
+    atomic_write(path, write)
+
+
+def _calibrated_xml(robot: Robot, labels: list[tuple[str, str, list[int], float]], x: np.ndarray) -> str:
+    """The whole robot with the fitted values, written through MjSpec."""
+    import mujoco
+
+    spec = mujoco.MjSpec.from_file(str(robot.file))
+    # assets stay where the original's are
+    base = robot.file.parent
+    spec.meshdir = str((base / spec.meshdir).resolve()) if spec.meshdir else str(base)
+    spec.texturedir = str((base / spec.texturedir).resolve()) if spec.texturedir else str(base)
+    if robot.fixed_base:
+        # the model fitted had its base welded: so has its calibration
+        for j in [j for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]:
+            spec.delete(j)
+        for k in list(spec.keys):
+            spec.delete(k)
+    scales: dict[tuple[str, int], float] = {}
+    n = _history_samples(robot)
+    for (name, kind, members, _), v in zip(labels, x):
+        for i in members:
+            if kind in ("armature", "frictionloss"):
+                setattr(spec.joint(robot.joints[i]), kind, float(v))
+            elif kind == "damping":
+                spec.joint(robot.joints[i]).damping[0] = float(v)
+            elif kind == "delay":
+                act = spec.actuator(robot.actuators[i])
+                act.delay = float(v)
+                act.nsample = n
+                act.interp = 1
+            else:
+                scales[(kind, i)] = float(v)
+    for (kind, i), v in sorted(scales.items()):
+        spec.add_numeric(name=SCALE_NUMERIC.format(kind=kind, actuator=robot.actuators[i]), data=[v])
+    spec.modelname = f"{spec.modelname}_calibrated" if spec.modelname else "calibrated"
+    return str(spec.to_xml())
+
+
+def _version() -> str:
+    from pupper_core import _native
+
+    return str(_native.__version__)
+
+
+def _plot(out: Path, pb: _Problem, sol: _Solution) -> list[Path]:
+    """Per log, measured against simulated angle of each fitted joint, at
+    the nominal and the fitted values."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from pupper_core._files import atomic_write
+
+    kept = pb.kept
+    nu = len(kept)
+    first = _predictions(sol.residual_fn, pb.pdict, pb.x_nominal)
+    last = _predictions(sol.residual_fn, sol.params, sol.x)
+    (out / "plots").mkdir(exist_ok=True)
+    wrote = []
+    for lg, (t, me, p0), (_, _, p1) in zip(pb.logs, first, last):
+        cols = 4 if nu >= 4 else nu
+        rows = math.ceil(nu / cols)
+        fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 2.4 * rows), sharex=True, squeeze=False)
+        for k in range(nu):
+            # the predictions' first columns are the fitted joints' angles
+            ax = axes[k // cols][k % cols]
+            ax.plot(t, me[:, k], color="black", lw=1.0, label="measured")
+            ax.plot(t, p0[:, k], color="tab:gray", lw=0.8, ls="--", label="nominal model")
+            ax.plot(t, p1[:, k], color="tab:orange", lw=0.8, label="fitted model")
+            r0 = np.sqrt(np.mean((me[:, k] - p0[:, k]) ** 2)) * 1e3
+            r1 = np.sqrt(np.mean((me[:, k] - p1[:, k]) ** 2)) * 1e3
+            ax.set_title(f"{pb.robot.actuators[kept[k]]}: RMS {r0:.2f} → {r1:.2f} mrad", fontsize=8)
+            ax.tick_params(labelsize=7)
+        axes[0][0].legend(fontsize=7, loc="upper right")
+        for ax in axes[-1]:
+            ax.set_xlabel("time (s)", fontsize=8)
+        for row in axes:
+            row[0].set_ylabel("angle (rad)", fontsize=8)
+        fig.suptitle(f"{lg.path.name}: measured against simulated joint angle, before and after the fit", fontsize=10)
+        fig.tight_layout()
+        path = out / "plots" / f"fit_{lg.path.stem}.png"
+        atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=90))
+        plt.close(fig)
+        wrote.append(path)
+    return wrote

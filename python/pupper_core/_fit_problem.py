@@ -1,0 +1,236 @@
+"""A fit's data (``pupper_core._fit`` solves it): the logs read and
+checked, the problem they set (sysid's sequences, the parameters at their
+nominal values, the signals compared), where the fit ended, and its result."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pupper_core._fit_robot import Robot, initial_state, suspended_spec
+from pupper_core._fit_sysid import _held, _modifier
+from pupper_core._fit_terms import MAX_LOG_SECONDS, PARAMS, STILL_RAD, FitError
+from pupper_core._joint_log import JointLog, LogError, read_log
+
+
+@dataclass
+class FitResult:
+    """What `fit` found: ``table`` is fit.csv's rows; ``rms_before`` and
+    ``rms_after`` the RMS angle error (rad) of each log, per actuator."""
+
+    table: list[dict[str, Any]]
+    rms_before: dict[str, list[float]]
+    rms_after: dict[str, list[float]]
+    out: Path | None
+    seconds: float
+    warnings: list[str] = field(default_factory=list)
+    #: the actuators fitted (a joint that never moves is left out)
+    actuators: list[str] = field(default_factory=list)
+    #: the intervals assume NOISE_FLOOR: the residual was below it (noise-free logs)
+    floored: bool = False
+
+    def value(self, name: str) -> float:
+        return next(float(r["fitted"]) for r in self.table if r["parameter"] == name)
+
+    def interval(self, name: str) -> tuple[float, float]:
+        r = next(r for r in self.table if r["parameter"] == name)
+        return float(r["low95"]), float(r["high95"])
+
+
+@dataclass
+class _Problem:
+    """A fit set up: the logs as sysid sequences, what is fitted, the
+    parameters at their nominal values and what was left out (said)."""
+
+    robot: Robot
+    logs: list[JointLog]
+    sequences: list[Any]
+    pdict: Any
+    labels: list[tuple[str, str, list[int], float]]
+    x_nominal: np.ndarray
+    #: the enabled sensors, as indices into (angles, velocities, torques) x actuators
+    sensors: list[int]
+    gains: dict[int, tuple[np.ndarray, np.ndarray]]
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def kept(self) -> list[int]:
+        """The actuators whose angle is fitted."""
+        nu = len(self.robot.actuators)
+        return [s for s in self.sensors if s < nu]
+
+
+@dataclass
+class _Solution:
+    """Where the fit ended: the values, the interval half-widths (NaN where
+    not meaningful), the correlations, the RMS angle errors."""
+
+    x: np.ndarray
+    half: np.ndarray
+    corr: np.ndarray | None
+    residual_fn: Any
+    params: Any
+    before: list[list[float]]
+    after: list[list[float]]
+    floored: bool
+    warnings: list[str]
+
+
+def _read_logs(paths: Sequence[str | os.PathLike[str]], robot: Robot) -> list[JointLog]:
+    """Reads and checks every log, and refuses the same log given twice."""
+    read: list[JointLog] = []
+    for p in paths:
+        try:
+            lg = read_log(Path(p), robot.ranges)
+        except LogError as e:
+            raise FitError(str(e)) from None
+        _check_log(lg, robot)
+        twin = next((x for x in read if x.sha256 == lg.sha256), None)
+        if twin is not None:
+            # a copy adds no information, yet would narrow every interval
+            raise FitError(f"{lg.path} has the same content as {twin.path} (sha256 {lg.sha256[:12]}): "
+                           "give each log once")
+        read.append(lg)
+    return read
+
+
+def _check_log(lg: JointLog, robot: Robot) -> None:
+    missing = [a for a in robot.actuators if a not in lg.actuators]
+    if missing:
+        raise FitError(f"{lg.path}: column '{missing[0]}.target' is missing: a log must cover "
+                       f"every actuator of the model ({len(robot.actuators)})")
+    if lg.base != "suspended":
+        raise FitError(f"{lg.path}: '# base: {lg.base}': fit replays logs of the robot hung in "
+                       "the air (base: suspended); standing logs are not supported yet")
+    if lg.duration <= PARAMS["delay"][2] * 4:
+        raise FitError(f"{lg.path}: the log spans {lg.duration:g} s, too short for the delay "
+                       f"range (0 to {PARAMS['delay'][2]:g} s): log at least a few seconds")
+    dts = np.diff(lg.times)
+    if np.max(np.abs(dts - dts.mean())) > 1e-6 * max(dts.mean(), 1e-9) + 1e-9:
+        raise FitError(f"{lg.path}: samples are not evenly spaced in time: resample the log "
+                       "to a fixed rate")
+    spacing = float(dts.mean())
+    # samples a second or more apart, which in ms would be a servo's rate
+    ms = (f" (its samples are {spacing:g} apart: the time column looks like milliseconds; divide it "
+          "by 1000)") if 1e-4 <= spacing / 1000 <= 0.1 and spacing >= 0.5 else ""
+    if lg.duration > MAX_LOG_SECONDS:
+        raise FitError(f"{lg.path}: the log spans {lg.duration:.4g} s, past the {MAX_LOG_SECONDS:g} s "
+                       f"fit takes{ms}: times are in s; split a longer recording")
+    order = _order(lg, robot)
+    hz = robot.natural_hz(lg.kp[order])
+    k = int(np.argmax(hz))
+    if 1 / spacing < 2 * hz[k]:
+        # the samples cannot show a motion faster than half their rate
+        raise FitError(f"{lg.path}: sampled at {1 / spacing:.3g} Hz, too slow for the joints' dynamics{ms}: "
+                       f"at the log's kp {lg.kp[order][k]:g} {robot.actuators[k]} swings at {hz[k]:.3g} Hz, "
+                       f"past half the sample rate; log at {10 * hz[k]:.0f} Hz or more")
+
+
+def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], per: str) -> _Problem:
+    nu = len(robot.actuators)
+    has_tau = all(lg.tau is not None for lg in read)
+    has_qd = all(lg.qd is not None for lg in read)
+    sensors, warnings = _enabled_sensors(robot, read, has_qd, has_tau)
+    # one spec per gain setting: its actuators run at the logged gains
+    specs: dict[tuple[bytes, bytes], Any] = {}
+    gains: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    sequences = []
+    for li, lg in enumerate(read):
+        order = _order(lg, robot)
+        kp, kd = lg.kp[order], lg.kd[order]
+        key = (kp.tobytes(), kd.tobytes())
+        if key not in specs:
+            spec = suspended_spec(robot, kp, kd)
+            specs[key] = spec
+            gains[id(spec)] = (kp, kd)
+        spec = specs[key]
+        # the model steps at its own timestep; sysid resamples the logged
+        # targets to it and the predictions to the log's times
+        m = spec.compile()
+        t = lg.times - lg.times[0]
+        target = lg.target[:, order]
+        q = lg.q[:, order]
+        cols = [q, lg.qd[:, order] if lg.qd is not None and has_qd else np.zeros_like(q),
+                lg.tau[:, order] if lg.tau is not None and has_tau else np.zeros_like(q)]
+        y = np.hstack(cols)
+        # the start: where the robot rests when the log begins on a hold
+        # (the mean of its first samples, less noise than one)
+        held = int(np.argmax(np.any(target != target[0], axis=1))) or len(target)
+        n0 = max(1, min(held, round(0.01 / float(np.mean(np.diff(t))))))
+        q0 = q[:n0].mean(axis=0) if held >= n0 and not has_qd else q[0]
+        qd0 = cols[1][0] if has_qd else np.zeros(nu)
+        x0 = initial_state(m, robot, q0, qd0, target[0])
+        control = sysid.TimeSeries.from_control_names(*_held(t, target, m.opt.timestep), m)
+        measured = sysid.TimeSeries.from_names(t, y, m)
+        sequences.append(sysid.ModelSequences(f"log{li}", spec, lg.path.stem, x0, control, measured))
+    kept = {s for s in sensors if s < nu}
+    pdict, labels, x_nominal = _parameters(sysid, robot, names, per, gains, kept, warnings)
+    return _Problem(robot, read, sequences, pdict, labels, x_nominal, sensors, gains, warnings)
+
+
+def _order(lg: JointLog, robot: Robot) -> list[int]:
+    """A log's columns in the model's actuator order."""
+    return [lg.actuators.index(a) for a in robot.actuators]
+
+
+def _enabled_sensors(robot: Robot, read: list[JointLog], has_qd: bool,
+                     has_tau: bool) -> tuple[list[int], list[str]]:
+    """The signals the fit compares: a joint whose angle never moves shows
+    nothing (and sysid, which divides each signal by its size, would divide
+    by zero), so it is left out, as is a velocity or torque column that is
+    all zero; each is said. Refuses a fit with nothing left."""
+    nu = len(robot.actuators)
+    warnings: list[str] = []
+    still: dict[int, JointLog] = {}
+    for lg in read:
+        for k, c in enumerate(_order(lg, robot)):
+            if k not in still and float(np.ptp(lg.q[:, c])) <= STILL_RAD:
+                still[k] = lg
+    for k, lg in sorted(still.items()):
+        warnings.append(f"{robot.actuators[k]} never moves in {lg.path.name} (its angle stays at "
+                        f"{lg.q[0, _order(lg, robot)[k]]:.6g} rad): left out of the fit")
+    if len(still) == nu:
+        raise FitError(f"no joint moves in {', '.join(sorted({lg.path.name for lg in still.values()}))} "
+                       "(every angle column is constant): nothing to fit; log a run where the joints "
+                       "move (pupper excite writes its targets)")
+    sensors = [k for k in range(nu) if k not in still]
+    for block, fld, on in ((1, "qd", has_qd), (2, "tau", has_tau)):
+        for k in (k for k in range(nu) if on and k not in still):
+            zero = next((lg for lg in read if not np.any(getattr(lg, fld)[:, _order(lg, robot)[k]])), None)
+            if zero is not None:
+                warnings.append(f"{zero.path.name}: column '{robot.actuators[k]}.{fld}' is all zero: left "
+                                "out of the fit (drop the column if the servo does not report it)")
+            else:
+                sensors.append(block * nu + k)
+    return sensors, warnings
+
+
+def _parameters(sysid: Any, robot: Robot, names: list[str], per: str, gains: dict[int, tuple[np.ndarray, np.ndarray]],
+                kept: set[int], warnings: list[str]) -> tuple[Any, list[tuple[str, str, list[int], float]], np.ndarray]:
+    """The parameters at their nominal values (the vector returned, before
+    sysid moves those on a bound inside for its start)."""
+    pdict = sysid.ParameterDict()
+    nominal = {"armature": robot.armature, "damping": robot.damping, "frictionloss": robot.frictionloss}
+    labels: list[tuple[str, str, list[int], float]] = []
+    for kind in names:
+        for suffix, members in robot.members(per):
+            if not kept.intersection(members):
+                warnings.append(f"{kind + suffix} is not fitted: none of its joints moves")
+                continue
+            if kind in nominal:
+                values = nominal[kind][members]
+                nom = float(values[0]) if np.all(values == values[0]) else float(np.mean(values))
+            else:
+                nom = 1.0 if "scale" in kind else 0.0
+            _, lo, hi = PARAMS[kind]
+            modifier = _modifier(kind, members, robot, gains)
+            pdict.add(sysid.Parameter(kind + suffix, nom, lo, max(hi, 4 * nom), modifier=modifier))
+            labels.append((kind + suffix, kind, members, nom))
+    x_nominal = pdict.as_vector().copy()
+    pdict.move_off_bounds()
+    return pdict, labels, x_nominal

@@ -1,0 +1,149 @@
+"""A fit through `mujoco.sysid` (``pupper_core._fit`` runs it): loading
+it, the parameters' modifiers of the model, the residual and its
+predictions, the weights that whiten it, and the residual its intervals
+are taken from."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from pupper_core._fit_robot import Robot
+from pupper_core._fit_terms import NOISE_FLOOR, FitError
+
+
+def _sysid() -> Any:
+    sysid: Any
+    try:
+        import scipy  # noqa: F401  (sysid's own imports hide a missing one)
+        from mujoco import sysid
+    except ImportError:
+        sysid = None
+    if sysid is None or not hasattr(sysid, "optimize"):
+        raise FitError("pupper fit needs mujoco.sysid's dependencies: install the extra with "
+                       "`make setup PUPPER_EXTRAS=fit` (or pip install 'pupper_core[fit]')")
+    import logging
+
+    logging.getLogger("absl").setLevel(logging.ERROR)
+    return sysid
+
+
+def _held(t: np.ndarray, target: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Targets logged slower than the physics, as a servo holds them: each
+    one until the next (sysid would interpolate between them)."""
+    period = float(np.mean(np.diff(t)))
+    if period <= dt * (1 + 1e-9):
+        return t, target
+    tc = np.arange(0.0, t[-1] + dt / 2, dt)
+    idx = np.searchsorted(t, tc + 1e-9 * dt, side="right") - 1
+    return tc, target[np.clip(idx, 0, len(t) - 1)]
+
+
+def _modifier(kind: str, members: list[int], robot: Robot, gains: dict[int, tuple[np.ndarray, np.ndarray]]) -> Any:
+    def apply(spec: Any, p: Any) -> None:
+        v = float(p.value[0])
+        for i in members:
+            if kind in ("armature", "damping", "frictionloss"):
+                j = spec.joint(robot.joints[i])
+                if kind == "damping":
+                    j.damping[0] = v
+                else:
+                    setattr(j, kind, v)
+            elif kind == "delay":
+                spec.actuator(robot.actuators[i]).delay = v
+            else:
+                kp, kd = gains[id(spec)]
+                act = spec.actuator(robot.actuators[i])
+                if kind == "kp_scale":
+                    act.gainprm[0] = kp[i] * v
+                    act.biasprm[1] = -kp[i] * v
+                else:
+                    act.biasprm[2] = -kd[i] * v
+    return apply
+
+
+def _residual_fn(sysid: Any, sequences: list[Any], enabled: list[Any], weights: np.ndarray | None) -> Any:
+    def rollout(**kw: Any) -> Any:
+        # mujoco.rollout's sensordata row k is the state before step k (time
+        # k dt); sysid labels it one step later: put it back
+        trajs = sysid.sysid_rollout(kw["models"], kw["datas"], kw["control_signal"], kw["initial_states"],
+                                    kw["rollout_signal_mapping"], kw["rollout_state_mapping"], kw["ctrl_mapping"])
+        dt = kw["models"][0].opt.timestep
+        return [tr.replace(sensordata=sysid.TimeSeries(tr.sensordata.times - dt, tr.sensordata.data,
+                                                       tr.sensordata.signal_mapping)) for tr in trajs]
+
+    return sysid.build_residual_fn(models_sequences=sequences, custom_rollout=rollout,
+                                   enabled_observations=enabled, sensor_weights=weights)
+
+
+#: Each log's replay: its times, the measured and the predicted signals.
+Predictions = list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+def _predictions(residual_fn: Any, params: Any, x: np.ndarray) -> Predictions:
+    """(times, measured, predicted) of every log at parameters ``x``."""
+    p = params.copy()
+    p.update_from_vector(x)
+    _, preds, meas = residual_fn(x, p, return_pred_all=True)
+    out = []
+    for pr, me in zip(preds, meas):
+        pt, mt = pr[0], me[0]
+        pred = np.stack([np.interp(mt.times, pt.times, pt.data[:, k]) for k in range(mt.data.shape[1])], axis=1)
+        out.append((mt.times, mt.data, pred))
+    return out
+
+
+def _rms(preds: Predictions, sensors: list[int], nu: int) -> list[list[float]]:
+    """Each log's RMS angle error per fitted actuator (the predictions'
+    columns are the enabled sensors, angles first)."""
+    cols = [p for p, s in enumerate(sensors) if s < nu]
+    return [[float(v) for v in np.sqrt(np.mean((me[:, cols] - pr[:, cols]) ** 2, axis=0))]
+            for _, me, pr in preds]
+
+
+def _whitening(residual_fn: Any, opt: Any, nu: int, sensors: list[int]) -> np.ndarray:
+    """Weights that make each kind of signal (angle, velocity, torque)
+    count by its own noise, estimated from the fit's residual."""
+    preds = _predictions(residual_fn, opt, opt.as_vector())
+    # by position among the enabled sensors (a dict would be read by the
+    # model's sensor index)
+    weights = np.ones(len(sensors))
+    for block in range(3):
+        # the predictions' columns are the enabled sensors, in order
+        cols = [p for p, s in enumerate(sensors) if s // nu == block]
+        if not cols:
+            continue
+        err = np.concatenate([(me[:, cols] - pr[:, cols]).ravel() for _, me, pr in preds])
+        sigma = max(float(np.std(err)), 1e-12)
+        for p in cols:
+            # sysid divides each column by its norm / sqrt(2): undo that, divide by sigma
+            norm = np.linalg.norm(np.concatenate([me[:, p] for _, me, _ in preds])) / np.sqrt(2)
+            weights[p] = float(norm / sigma) if norm > 0 else 1.0
+    return weights
+
+
+def _interval_residuals(r_star: list[np.ndarray], preds: Predictions,
+                        weights: np.ndarray | None, sensors: list[int], nu: int) -> tuple[list[np.ndarray], bool]:
+    """The residual the intervals' pooled variance is taken from: sysid's
+    own, unless a kind of signal's RMS error lies below its NOISE_FLOOR (a
+    noise-free log), where that kind counts at the floor instead."""
+    low = set()
+    for block in range(3):
+        cols = [p for p, s in enumerate(sensors) if s // nu == block]
+        if cols:
+            err = np.concatenate([(me[:, cols] - pr[:, cols]).ravel() for _, me, pr in preds])
+            if math.sqrt(float(np.mean(err ** 2))) < NOISE_FLOOR[block]:
+                low.add(block)
+    if not low:
+        return r_star, False
+    # sysid divides each signal by its norm / sqrt(2) and multiplies by its weight
+    total = 0.0
+    for _, me, pr in preds:
+        for p, s in enumerate(sensors):
+            scale = (1.0 if weights is None else float(weights[p])) * math.sqrt(2) / float(np.linalg.norm(me[:, p]))
+            e2 = len(me) * NOISE_FLOOR[s // nu] ** 2 if s // nu in low else float(np.sum((me[:, p] - pr[:, p]) ** 2))
+            total += scale ** 2 * e2
+    size = sum(int(np.size(r)) for r in r_star)
+    return [np.full(size, math.sqrt(total / size))], True

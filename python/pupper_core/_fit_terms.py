@@ -1,0 +1,52 @@
+"""What `pupper fit`'s words mean (``pupper_core._fit`` runs the fit): the
+fittable parameters with their units and bounds, the limits a log and a
+fit keep to, the files a fit writes, and the error bad input gets."""
+
+from __future__ import annotations
+
+from pupper_core._native import ConfigError
+from pupper_core._public import exported_from
+
+#: Each fittable quantity: unit, lower bound, upper bound (None: from the nominal).
+PARAMS: dict[str, tuple[str, float, float]] = {
+    "armature": ("kg·m²", 0.0, 0.05),
+    "damping": ("N·m·s/rad", 0.0, 1.0),
+    "frictionloss": ("N·m", 0.0, 1.0),
+    "kp_scale": ("", 0.2, 5.0),
+    "kd_scale": ("", 0.2, 5.0),
+    "delay": ("s", 0.0, 0.05),
+}
+DEFAULT_PARAMS = ("armature", "damping", "frictionloss", "kp_scale", "kd_scale", "delay")
+GROUPS = ("haa", "hfe", "kfe")
+PER = ("all", "group", "joint")
+#: The custom numeric a calibrated model keeps a gain scale in, per actuator.
+SCALE_NUMERIC = "pupper:{kind}:{actuator}"
+#: The longest log (s) fit takes and excite writes: an excitation is seconds
+#: to a minute; a longer time axis is in other units (ms) or several runs.
+MAX_LOG_SECONDS = 600.0
+#: The least residual noise the intervals assume, per kind of signal (angle
+#: rad, velocity rad/s, torque N·m): finer than any servo reports (a 16-bit
+#: encoder alone quantises to 2.8e-5 rad RMS), so a real log is never
+#: floored, while a noise-free (simulated) log gets the intervals a
+#: near-perfect sensor would, not the simulator's round-off.
+NOISE_FLOOR = (1e-5, 1e-3, 1e-4)
+#: An angle column that changes by no more than this (rad) never moves.
+STILL_RAD = 1e-9
+#: A correlation past which two parameters are said to be confounded
+#: (damping and kd scale, which angles alone show only as a sum: 0.95).
+CONFOUNDED = 0.99
+#: A fit may allocate at most this fraction of the machine's memory.
+MEMORY_FRACTION = 0.5
+#: A fit's peak memory over its rollouts' state and sensors (measured 1.0 to
+#: 2.5 times: sysid copies them as it resamples).
+MEMORY_COPIES = 2.5
+#: The files a fit writes in its run directory (and removes if it stops).
+RUN_FILES = ("fit.csv", "residuals.csv", "calibrated.xml", "manifest.json", "warnings.csv", "report.html")
+
+
+
+@exported_from("pupper_core._fit")
+class FitError(ConfigError, ValueError):
+    """Bad input to `fit` or `excite`: one line naming the problem and the fix."""
+
+    kind = "config"

@@ -1,0 +1,234 @@
+"""How pupper's figures look (``pupper_core.plots`` draws them): labels
+with units, fonts and sizes, a figure made without pyplot (shown once in
+IPython), numbers as the cells and ticks write them, the key line under a
+ranked figure, and a figure saved whole."""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Iterator, Sequence
+
+from pupper_core._files import atomic_write
+from pupper_core._public import exported_from
+
+if TYPE_CHECKING:  # pragma: no cover
+    import numpy as np
+    from matplotlib.figure import Figure
+
+#: Human labels with units.
+LABELS: dict[str, str] = {
+    "kp": "Kp (N·m/rad)",
+    "kd": "Kd (N·m·s/rad)",
+    "push_force": "push force, world z (N)",
+    "max_torque": "torque limit (N·m)",
+    "friction": "sliding friction μ",
+    "timestep": "timestep (s)",
+    "leg_scale": "leg length scale (×)",
+    "torso_mass_scale": "torso mass scale (×)",
+    "final_z": "final base height (m)",
+    "last_1s_std_mm": "base-height std, last 1 s (mm)",
+    "push_dip_mm": "push dip of base height (mm)",
+    "settle_time_s": "settle time after push (s)",
+    "max_tilt_deg": "max tilt (°)",
+    "peak_torque": "peak joint torque (N·m)",
+    "saturation_frac": "fraction of torque samples saturated",
+    "tracking_rms": "joint tracking RMS error (rad)",
+    "event_time": "fall / divergence time (s)",
+    "sag_mm": "sag under the load (mm)",
+    "compliance_mm_per_n": "sag per newton of load (mm/N)",
+    "sway_mm": "sideways sway after the shove (mm)",
+    "recovery_s": "recovery after the shove (s)",
+    "copper_w": "copper loss (W)",
+}
+SHORT: dict[str, str] = {
+    "kp": "Kp",
+    "kd": "Kd",
+    "push_force": "push",
+    "max_torque": "τmax",
+    "friction": "μ",
+    "timestep": "dt",
+    "leg_scale": "leg×",
+    "torso_mass_scale": "torso×",
+}
+DPI = 120
+_RC = {
+    "font.size": 11,
+    "axes.titlesize": 12,
+    "axes.labelsize": 11,
+    "xtick.labelsize": 10,
+    "ytick.labelsize": 10,
+    "legend.fontsize": 9,
+    "figure.titlesize": 13,
+    "axes.grid": False,
+}
+_BAD_GREY = "#c8c8c8"
+_FELL = "#f6c9b8"
+
+
+def _ensure_backend() -> None:
+    """Selects Agg when no backend was chosen and there is no display."""
+    import matplotlib
+
+    if os.environ.get("MPLBACKEND"):
+        return
+    chosen = getattr(matplotlib.rcParams, "_get_backend_or_none", lambda: "?")()
+    headless = not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    if chosen is None and headless and sys.platform.startswith("linux"):
+        matplotlib.use("Agg")
+
+
+@contextmanager
+def _style() -> Iterator[None]:
+    _ensure_backend()
+    import matplotlib
+
+    with matplotlib.rc_context(_RC):
+        yield
+
+
+def _new_figure(figsize: tuple[float, float]) -> "Figure":
+    from matplotlib.figure import Figure
+
+    _ipython_display()
+    return Figure(figsize=figsize, dpi=DPI, layout="constrained")
+
+
+_ipython_done = False
+
+
+def _ipython_display() -> None:
+    """In IPython/Jupyter, lets a returned Figure show as a PNG (once).
+
+    Our figures are made without pyplot (so nothing piles up in its registry);
+    IPython only knows how to show a Figure once matplotlib's inline support
+    registered a formatter, so register one when none is there.
+    """
+    global _ipython_done
+    if _ipython_done or "IPython" not in sys.modules:
+        return
+    _ipython_done = True
+    try:
+        from IPython import get_ipython
+        from matplotlib.figure import Figure
+
+        ip = get_ipython()
+        if ip is None:
+            return
+        fmt = ip.display_formatter.formatters["image/png"]
+        try:
+            fmt.lookup_by_type(Figure)
+            return  # inline backend (or the user) already handles figures
+        except KeyError:
+            pass
+
+        def png(fig: "Figure") -> bytes:
+            import io
+
+            buf = io.BytesIO()
+            fig.savefig(buf, format="png", dpi=fig.dpi)
+            return buf.getvalue()
+
+        fmt.for_type(Figure, png)
+    except Exception:  # noqa: BLE001 - display is a nicety, never an error
+        pass
+
+
+@exported_from("pupper_core.plots")
+def label_of(column: str) -> str:
+    """Axis/colorbar label with units for a summary column (statistics over
+    replicates, ``mean:M`` and ``p95:M``, say so)."""
+    stat, sep, metric = column.partition(":")
+    if sep and stat in ("mean", "p95"):
+        word = "mean" if stat == "mean" else ("worst-side 95th percentile" if metric != "final_z" else "5th percentile")
+        return f"{LABELS.get(metric, metric)}, {word} over replicates"
+    if column == "failure_fraction":
+        return "share of replicates that fell or diverged"
+    return LABELS.get(column, column)
+
+
+def _fmt(v: Any) -> str:
+    """An axis value as a label: at most 3 significant digits (a log
+    range's 22.8943 reads 22.9)."""
+    if isinstance(v, str):
+        return v
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return str(v)
+    if math.isnan(f):
+        return "—"
+    return f"{f:.3g}"
+
+
+#: Below this a *_mm metric is no difference at all (the ranking's tie, 1 µm).
+MM_RESOLUTION = 0.001
+
+
+def _cell_text(v: float, metric: str) -> str:
+    """A heatmap cell's number, one format per metric: millimetres to the
+    micrometre ("<0.001" below it: nanometres are no result), fractions in
+    percent, others to 3 significant digits."""
+    name = metric.split(":")[-1]
+    if name.endswith("_mm"):
+        if abs(v) < MM_RESOLUTION:
+            return "<0.001"
+        return f"{v:.3f}" if abs(v) < 10 else f"{v:.1f}"
+    if name.endswith("_frac") or name == "failure_fraction":
+        return f"{v * 100:.1f}%"
+    return f"{v:.3g}"
+
+
+def _ink(rgba: Sequence[float]) -> str:
+    """The text colour that reads on a cell of colour ``rgba``: black on a
+    light one, white on a dark one."""
+    lum = 0.299 * rgba[0] + 0.587 * rgba[1] + 0.114 * rgba[2]
+    return "black" if lum > 0.55 else "white"
+
+
+def _key_line(best_word: str, status: np.ndarray, metric: str = "last_1s_std_mm") -> str:
+    """'★ = lowest …' plus the colours used for fallen / diverged cells; the
+    tie rule as the Rust core applies it to ``metric`` (0.001 mm on a
+    millimetre column, exact equality on others)."""
+    tie = "ties within 0.001 mm" if metric.split(":")[-1].endswith("_mm") else "equal values"
+    parts = [f"★ = {best_word} among cells that stood below 5 % saturation ({tie}: the smaller dip)"
+             if best_word == "lowest" else f"★ = {best_word} among cells that stood"]
+    if (status == "fell").any():
+        parts.append("pink = fell")
+    if (status == "diverged").any():
+        parts.append("grey = diverged")
+    return " · ".join(parts)
+
+
+def _wrap_parts(text: str, width_in: float, fontsize: float = 11.0) -> str:
+    """Breaks a ' · '-separated line so it fits ``width_in`` inches."""
+    limit = max(30, int(width_in * 72 / (0.55 * fontsize)))
+    lines: list[str] = []
+    cur = ""
+    for part in text.split(" · "):
+        cand = part if not cur else f"{cur} · {part}"
+        if len(cand) > limit and cur:
+            lines.append(cur)
+            cur = part
+        else:
+            cur = cand
+    if cur:
+        lines.append(cur)
+    # a part longer than the line breaks between words
+    import textwrap
+
+    return "\n".join(w for line in lines for w in (textwrap.wrap(line, limit) or [line]))
+
+
+def _say_setting(fig: "Figure", what: str) -> None:
+    """What was run, in small grey type below the figure (its title says
+    what is shown)."""
+    fig.supxlabel(_wrap_parts(what, fig.get_figwidth(), 8), fontsize=8, color="#555555")
+
+
+def _save(fig: "Figure", path: Path) -> Path:
+    atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=DPI))
+    return path
