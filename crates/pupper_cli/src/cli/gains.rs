@@ -91,17 +91,13 @@ impl GainsArgs {
             _ => None,
         };
         let mut r = api::gains(&self.model.source()?, pose, ask, self.integrator.as_deref())?;
-        if self.motor.is_some() || self.sensing_delay.is_some() {
-            let sensing = self.sensing_delay.unwrap_or(0.0);
-            if !(sensing.is_finite() && sensing >= 0.0) {
-                return Err(Error::Config(format!(
-                    "--sensing-delay {sensing} must be a number of seconds >= 0"
-                )));
-            }
-            let motor =
-                pupper_core::plan::motor::Motor::parse(self.motor.as_deref().unwrap_or(""))?;
-            let timestep = r.timestep;
-            r = r.with_feedback(motor.feedback(sensing, timestep));
+        let timestep = r.timestep;
+        if let Some(fb) = pupper_core::plan::motor::feedback_of(
+            self.motor.as_deref(),
+            self.sensing_delay,
+            timestep,
+        )? {
+            r = r.with_feedback(fb);
         }
         if self.json {
             outln!("{}", print::json(&r)?);

@@ -52,6 +52,25 @@ fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }
 
+/// The feedback path a firmware spec (`--motor`) and a sensing delay ask
+/// for, at physics step `dt`; None when neither is given (no margins).
+pub fn feedback_of(
+    motor: Option<&str>,
+    sensing: Option<f64>,
+    dt: f64,
+) -> Result<Option<crate::math::margins::Feedback>> {
+    if motor.is_none() && sensing.is_none() {
+        return Ok(None);
+    }
+    let sensing = sensing.unwrap_or(0.0);
+    if !(sensing.is_finite() && sensing >= 0.0) {
+        return Err(Error::Config(format!(
+            "--sensing-delay {sensing} must be a number of seconds >= 0"
+        )));
+    }
+    Ok(Some(Motor::parse(motor.unwrap_or(""))?.feedback(sensing, dt)))
+}
+
 impl Motor {
     /// What this firmware puts in a joint's feedback path, measurements
     /// `sensing` s old, the physics stepping at `dt`: the sensing delay

@@ -43,7 +43,7 @@ pub(crate) fn pose<'py>(
 /// Gains for a bandwidth, or given gains' margins per joint (what `pupper
 /// gains --json` prints), as a dict.
 #[pyfunction]
-#[pyo3(signature = (model=PathBuf::from("pupper_v3"), *, kp=None, kd=None, bandwidth=None, damping=0.7, pose=None, integrator=None))]
+#[pyo3(signature = (model=PathBuf::from("pupper_v3"), *, kp=None, kd=None, bandwidth=None, damping=0.7, pose=None, integrator=None, motor=None, sensing_delay=None))]
 // a keyword per option, as Python calls it
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn gains<'py>(
@@ -55,6 +55,8 @@ pub(crate) fn gains<'py>(
     damping: f64,
     pose: Option<Vec<f64>>,
     integrator: Option<String>,
+    motor: Option<String>,
+    sensing_delay: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
     use pupper_core::robot::gains::Ask;
     let ask = match (bandwidth, kp, kd) {
@@ -68,10 +70,13 @@ pub(crate) fn gains<'py>(
         }
     };
     let source = ModelSource::parse(&model.to_string_lossy()).map_err(to_py)?;
-    to_dict(
-        py,
-        &api::gains(&source, pose, ask, integrator.as_deref()).map_err(to_py)?,
-    )
+    let mut r = api::gains(&source, pose, ask, integrator.as_deref()).map_err(to_py)?;
+    let fb = pupper_core::plan::motor::feedback_of(motor.as_deref(), sensing_delay, r.timestep)
+        .map_err(to_py)?;
+    if let Some(fb) = fb {
+        r = r.with_feedback(fb);
+    }
+    to_dict(py, &r)
 }
 
 /// Stand report (what `pupper stand --json` prints), as a dict. Keyword
