@@ -68,7 +68,9 @@ pub fn feedback_of(
             "--sensing-delay {sensing} must be a number of seconds >= 0"
         )));
     }
-    Ok(Some(Motor::parse(motor.unwrap_or(""))?.feedback(sensing, dt)))
+    Ok(Some(
+        Motor::parse(motor.unwrap_or(""))?.feedback(sensing, dt),
+    ))
 }
 
 impl Motor {

@@ -9,7 +9,7 @@ use pyo3::types::{PyDict, PyList};
 
 use super::model::LoadedModel;
 use super::python::{PyResultExt, py_err};
-use super::setup::{StartStates, prepare_model};
+use super::setup::{StartStates, actuator_params, colliding_geoms, prepare_model, scale_masses};
 use pupper_core::error::{Error, Result};
 use pupper_core::plan::mode::Mode;
 use pupper_core::plan::schedule::InitialState;
@@ -492,106 +492,11 @@ fn model_key(mode: Mode, c: &CellSetup, nu: usize) -> Vec<u64> {
     key
 }
 
-/// Actuator `a`'s gain and bias parameters: the PD of servo mode, a direct
-/// torque input in torque mode, both times the motor's gain factor.
-pub(super) fn actuator_params(mode: Mode, c: &CellSetup, a: usize) -> ([f64; 3], [f64; 3]) {
-    let g = c.gain(a);
-    match mode {
-        // g = 1 gives the nominal values exactly (1 * x == x)
-        Mode::Servo => (
-            [g * c.kp(a), 0.0, 0.0],
-            [0.0, -(g * c.kp(a)), -(g * c.kd(a))],
-        ),
-        Mode::Torque => ([g, 0.0, 0.0], [0.0, 0.0, 0.0]),
-    }
-}
-
-/// Scales a compiled body's torso mass and inertia, and its thigh and calf
-/// ones (bodies two or more levels below the base), then recomputes what
-/// the compiler derives from masses (`mj_setConst`, and the mean inertia
-/// and mass as the compiler sums them), so the model equals one compiled
-/// with those masses.
-pub(super) fn scale_masses(
-    mj: &super::python::Mujoco<'_>,
-    m: &Bound<'_, PyAny>,
-    data: &Bound<'_, PyAny>,
-    base: usize,
-    c: &CellSetup,
-) -> PyResult<()> {
-    scale_body_masses(mj, m, data, base, c.torso_mass_factor, c.leg_mass_factor)
-}
-
-/// Multiplies the base's mass and inertia by `torso`, and those of the
-/// bodies two or more levels below it (thighs, calves, feet) by `legs`,
-/// then recomputes what MuJoCo derives from them.
-pub(super) fn scale_body_masses(
-    mj: &super::python::Mujoco<'_>,
-    m: &Bound<'_, PyAny>,
-    data: &Bound<'_, PyAny>,
-    base: usize,
-    torso: f64,
-    legs: f64,
-) -> PyResult<()> {
-    let parent: Vec<usize> = m
-        .getattr("body_parentid")?
-        .call_method0("tolist")?
-        .extract()?;
-    let mass = m.getattr("body_mass")?.cast_into::<PyArray1<f64>>()?;
-    let inertia = m.getattr("body_inertia")?.cast_into::<PyArray2<f64>>()?;
-    {
-        let (mut mass, mut inertia) = (mass.readwrite(), inertia.readwrite());
-        let (mut mass, mut inertia) = (mass.as_array_mut(), inertia.as_array_mut());
-        for b in 0..parent.len() {
-            // levels below the base, if b is the base or under it
-            let (mut at, mut depth) = (b, 0usize);
-            while at != base && at != 0 {
-                at = parent[at];
-                depth += 1;
-            }
-            let f = match (at == base, depth) {
-                (true, 0) => torso,
-                (true, d) if d >= 2 => legs,
-                _ => continue,
-            };
-            mass[b] *= f;
-            for j in 0..3 {
-                inertia[[b, j]] *= f;
-            }
-        }
-    }
-    mj.module.getattr("mj_setConst")?.call1((m, data))?;
-    let m0: Vec<f64> = m.getattr("dof_M0")?.call_method0("tolist")?.extract()?;
-    let masses: Vec<f64> = mass.call_method0("tolist")?.extract()?;
-    let stat = m.getattr("stat")?;
-    let sum = |xs: &[f64]| xs.iter().fold(0.0, |acc, x| acc + x);
-    stat.setattr("meaninertia", sum(&m0) / m0.len().max(1) as f64)?;
-    stat.setattr(
-        "meanmass",
-        sum(&masses[1..]) / (masses.len() - 1).max(1) as f64,
-    )?;
-    Ok(())
-}
-
 fn expand3<'py>(batch: &Bound<'py, PyAny>, field: &str) -> Result<Bound<'py, PyArray3<f64>>> {
     batch
         .call_method1("expand", (field,))
         .and_then(|a| a.cast_into::<PyArray3<f64>>().map_err(PyErr::from))
         .internal()
-}
-
-/// Geoms that take part in contacts (the feet and the floor, in Pupper).
-pub(super) fn colliding_geoms(model: &Bound<'_, PyAny>) -> PyResult<Vec<usize>> {
-    let ct: Vec<i64> = model
-        .getattr("geom_contype")?
-        .call_method0("tolist")?
-        .extract()?;
-    let ca: Vec<i64> = model
-        .getattr("geom_conaffinity")?
-        .call_method0("tolist")?
-        .extract()?;
-    Ok((0..ct.len())
-        .filter(|&g| ct[g] != 0 || ca[g] != 0)
-        .collect())
 }
 
 fn set_model_params(

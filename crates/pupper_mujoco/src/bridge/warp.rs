@@ -11,10 +11,11 @@ use numpy::{PyArray1, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyList;
 
-use super::cpu::{actuator_params, colliding_geoms, scale_body_masses};
 use super::model::LoadedModel;
 use super::python::{PyResultExt, exception_name, python_message};
-use super::setup::{StartStates, prepare_model};
+use super::setup::{
+    StartStates, actuator_params, colliding_geoms, prepare_model, scale_body_masses,
+};
 use pupper_core::error::{Error, Result};
 use pupper_core::plan::backend::ActuatorPd;
 use pupper_core::plan::mode::Mode;
