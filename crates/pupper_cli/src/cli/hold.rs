@@ -122,18 +122,11 @@ pub(super) fn run(a: HoldArgs, stop: &'static AtomicBool) -> Result<u8> {
         .unwrap_or_else(|| baseline.experiment.plan().default_metric().to_string());
     run_job(
         Job {
-            spec: a.spec()?,
-            baseline,
             resume_alone: a.grid.grid.is_empty(),
-            out: a.output.out,
-            resume: a.run.resume,
             preset: Some("hold".into()),
-            quiet: a.run.quiet,
-            json: a.run.json,
             plot: a.plot,
-            render: false,
             rule: Some(best::Rule::new(&metric, &[])),
-            lab: false,
+            ..Job::new(a.spec()?, baseline, a.output.out, &a.run)
         },
         stop,
     )

@@ -135,18 +135,10 @@ pub(super) fn run(a: ResponseArgs, stop: &'static AtomicBool) -> Result<u8> {
     )?;
     run_job(
         Job {
-            spec: a.spec()?,
-            baseline,
             resume_alone: a.grid.grid.is_empty(),
-            out: a.output.out,
-            resume: a.run.resume,
             preset: Some("response".into()),
-            quiet: a.run.quiet,
-            json: a.run.json,
             plot: a.plot,
-            render: false,
-            rule: None,
-            lab: false,
+            ..Job::new(a.spec()?, baseline, a.output.out, &a.run)
         },
         stop,
     )

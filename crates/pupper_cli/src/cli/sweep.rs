@@ -148,6 +148,32 @@ pub(super) struct Job {
     pub(super) lab: bool,
 }
 
+impl Job {
+    /// A job with the flags every run command shares (`-o`, `--resume`,
+    /// `-q`, `--json`) and nothing else asked for.
+    pub(super) fn new(
+        spec: SweepSpec,
+        baseline: SweepSpec,
+        out: Option<PathBuf>,
+        run: &RunArgs,
+    ) -> Job {
+        Job {
+            spec,
+            baseline,
+            resume_alone: false,
+            out,
+            resume: run.resume.clone(),
+            preset: None,
+            quiet: run.quiet,
+            json: run.json,
+            plot: false,
+            render: false,
+            rule: None,
+            lab: false,
+        }
+    }
+}
+
 /// `pupper sweep`.
 pub(super) fn run(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
     // no --rank: chosen in run_job, once the run's config is known
