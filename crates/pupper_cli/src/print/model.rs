@@ -261,40 +261,33 @@ pub fn gains(r: &pupper_core::robot::gains::GainsReport) -> String {
             format!("{}", Sig(m))
         }
     };
+    let row = |label: String, f: &pupper_core::robot::gains::Figures| {
+        format!(
+            "{:<16} {:>12} {:>10} {:>10} {:>11} {:>9} {:>10}{}",
+            label,
+            format!("{:.3e}", f.inertia),
+            Sig(f.kp).to_string(),
+            Sig(f.kd).to_string(),
+            Sig(f.natural_hz).to_string(),
+            Sig(f.damping_ratio).to_string(),
+            flag(f.stability_margin),
+            if looped {
+                margins(f.phase_margin_deg, f.gain_margin_db)
+            } else {
+                String::new()
+            }
+        )
+    };
     for g in &r.groups {
         let _ = writeln!(
             s,
-            "{:<16} {:>12} {:>10} {:>10} {:>11} {:>9} {:>10}",
-            format!("{} ({})", g.group, g.joints),
-            format!("{:.3e}", g.inertia),
-            Sig(g.kp).to_string(),
-            Sig(g.kd).to_string(),
-            Sig(g.natural_hz).to_string(),
-            Sig(g.damping_ratio).to_string(),
-            flag(g.stability_margin)
+            "{}",
+            row(format!("{} ({})", g.group, g.joints), &g.figures)
         );
-        if looped {
-            s.pop();
-            let _ = writeln!(s, "{}", margins(g.phase_margin_deg, g.gain_margin_db));
-        }
     }
     let _ = writeln!(s);
     for j in &r.joints {
-        let _ = writeln!(
-            s,
-            "{:<16} {:>12} {:>10} {:>10} {:>11} {:>9} {:>10}",
-            j.actuator,
-            format!("{:.3e}", j.inertia),
-            Sig(j.kp).to_string(),
-            Sig(j.kd).to_string(),
-            Sig(j.natural_hz).to_string(),
-            Sig(j.damping_ratio).to_string(),
-            flag(j.stability_margin)
-        );
-        if looped {
-            s.pop();
-            let _ = writeln!(s, "{}", margins(j.phase_margin_deg, j.gain_margin_db));
-        }
+        let _ = writeln!(s, "{}", row(j.actuator.clone(), &j.figures));
     }
     let _ = writeln!(
         s,

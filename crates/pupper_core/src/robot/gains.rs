@@ -9,11 +9,9 @@ use crate::math::margins::Feedback;
 use crate::math::response::{gains_for, natural, pd_margin};
 use crate::robot::model::ModelInfo;
 
-/// One actuated joint's figures.
+/// What gains do to a joint (or a group, on its mean inertia).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct JointGains {
-    pub actuator: String,
-    pub group: String,
+pub struct Figures {
     /// Joint-space inertia diagonal at the pose, armature included (kg·m²).
     pub inertia: f64,
     pub kp: f64,
@@ -32,23 +30,40 @@ pub struct JointGains {
     pub gain_margin_db: Option<f64>,
 }
 
+impl Figures {
+    /// The figures of `kp`, `kd` on `inertia` with this stability margin
+    /// (no loop margins until a firmware is given).
+    fn new(inertia: f64, kp: f64, kd: f64, stability_margin: f64) -> Figures {
+        let (natural_hz, damping_ratio) = natural(inertia, kp, kd);
+        Figures {
+            inertia,
+            kp,
+            kd,
+            natural_hz,
+            damping_ratio,
+            stability_margin,
+            phase_margin_deg: None,
+            gain_margin_db: None,
+        }
+    }
+}
+
+/// One actuated joint's figures.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JointGains {
+    pub actuator: String,
+    pub group: String,
+    #[serde(flatten)]
+    pub figures: Figures,
+}
+
 /// A joint group's gains: for a bandwidth, on the group's mean inertia.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct GroupGains {
     pub group: String,
     pub joints: usize,
-    pub inertia: f64,
-    pub kp: f64,
-    pub kd: f64,
-    pub natural_hz: f64,
-    pub damping_ratio: f64,
-    pub stability_margin: f64,
-    /// With a firmware ([`GainsReport::with_feedback`]): the loop's phase
-    /// margin (deg) and gain margin (dB); a group's, its worst joint's.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub phase_margin_deg: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub gain_margin_db: Option<f64>,
+    #[serde(flatten)]
+    pub figures: Figures,
 }
 
 /// What `pupper gains` reports.
@@ -80,8 +95,9 @@ impl GainsReport {
                 .map_or((f64::NAN, f64::NAN), |m| (m.phase_deg, m.gain_db))
         };
         for j in &mut self.joints {
-            let (pm, gm) = margins(j.inertia, j.kp, j.kd);
-            (j.phase_margin_deg, j.gain_margin_db) = (Some(pm), Some(gm));
+            let f = &mut j.figures;
+            let (pm, gm) = margins(f.inertia, f.kp, f.kd);
+            (f.phase_margin_deg, f.gain_margin_db) = (Some(pm), Some(gm));
         }
         for g in &mut self.groups {
             let worst = |f: &dyn Fn(&JointGains) -> Option<f64>| {
@@ -91,8 +107,8 @@ impl GainsReport {
                     .filter_map(f)
                     .fold(f64::INFINITY, f64::min)
             };
-            g.phase_margin_deg = Some(worst(&|j| j.phase_margin_deg));
-            g.gain_margin_db = Some(worst(&|j| j.gain_margin_db));
+            g.figures.phase_margin_deg = Some(worst(&|j| j.figures.phase_margin_deg));
+            g.figures.gain_margin_db = Some(worst(&|j| j.figures.gain_margin_db));
         }
         self.feedback = Some(fb);
         self
@@ -142,7 +158,6 @@ pub fn report(
                 .collect();
             let i = members.iter().sum::<f64>() / members.len().max(1) as f64;
             let (kp, kd) = gains_of(i);
-            let (natural_hz, damping_ratio) = natural(i, kp, kd);
             // the group's gains on its heaviest and lightest joint: the
             // lightest is the first past the bound
             let margin = members
@@ -152,14 +167,7 @@ pub fn report(
             GroupGains {
                 group: g.clone(),
                 joints: members.len(),
-                inertia: i,
-                kp,
-                kd,
-                natural_hz,
-                damping_ratio,
-                stability_margin: margin,
-                phase_margin_deg: None,
-                gain_margin_db: None,
+                figures: Figures::new(i, kp, kd, margin),
             }
         })
         .collect::<Vec<_>>();
@@ -172,20 +180,17 @@ pub fn report(
                 Ask::Bandwidth { .. } => groups
                     .iter()
                     .find(|x| x.group == g)
-                    .map_or((0.0, 0.0), |x| (x.kp, x.kd)),
+                    .map_or((0.0, 0.0), |x| (x.figures.kp, x.figures.kd)),
             };
-            let (natural_hz, damping_ratio) = natural(inertia[a], kp, kd);
             JointGains {
                 actuator: info.actuators[a].name.clone(),
                 group: g,
-                inertia: inertia[a],
-                kp,
-                kd,
-                natural_hz,
-                damping_ratio,
-                stability_margin: pd_margin(inertia[a], kp, kd, timestep, implicit),
-                phase_margin_deg: None,
-                gain_margin_db: None,
+                figures: Figures::new(
+                    inertia[a],
+                    kp,
+                    kd,
+                    pd_margin(inertia[a], kp, kd, timestep, implicit),
+                ),
             }
         })
         .collect();

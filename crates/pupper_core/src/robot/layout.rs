@@ -149,17 +149,13 @@ pub(crate) mod tests {
         // actuators in reverse joint order
         let actuators = (0..legs * 3)
             .rev()
-            .map(|i| ActuatorInfo {
-                name: format!("a{i}"),
-                joint: Some(1 + i),
-                gainprm: [5.0, 0.0, 0.0],
-                biasprm: [0.0, -5.0, -0.1],
-                forcerange: Some([-3.0, 3.0]),
-                ctrlrange: None,
-                gear: 1.0,
-                delay: 0.0,
-                gain_scale: [1.0, 1.0],
-                winding: None,
+            .map(|i| {
+                ActuatorInfo::for_test(
+                    format!("a{i}"),
+                    Some(1 + i),
+                    [5.0, 0.0, 0.0],
+                    [0.0, -5.0, -0.1],
+                )
             })
             .collect();
         ModelInfo::for_test("test", joints, actuators)

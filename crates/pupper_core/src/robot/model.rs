@@ -157,6 +157,31 @@ pub struct JointInfo {
 }
 
 #[cfg(test)]
+impl ActuatorInfo {
+    /// A test actuator on joint `joint` with these gain and bias
+    /// parameters, clipped at 3 N·m.
+    pub(crate) fn for_test(
+        name: String,
+        joint: Option<usize>,
+        gainprm: [f64; 3],
+        biasprm: [f64; 3],
+    ) -> ActuatorInfo {
+        ActuatorInfo {
+            name,
+            joint,
+            gainprm,
+            biasprm,
+            forcerange: Some([-3.0, 3.0]),
+            ctrlrange: None,
+            gear: 1.0,
+            delay: 0.0,
+            gain_scale: [1.0, 1.0],
+            winding: None,
+        }
+    }
+}
+
+#[cfg(test)]
 impl ModelInfo {
     /// A test model of these joints (a free base first) and actuators.
     pub(crate) fn for_test(
@@ -254,39 +279,30 @@ fn is_earth(v: &[f64; 3]) -> bool {
     *v == EARTH
 }
 
-/// A custom numeric that declares a motor constant (`pupper:kt:ACT`, N·m/A,
-/// or `pupper:resistance:ACT`, Ω), checked: `Some((0 for kt or 1 for the
-/// resistance, actuator index, value))`, or None for another numeric. A
-/// constant is one finite number above 0.
-pub fn motor_constant(
-    numeric: &str,
-    values: &[f64],
-    actuators: &[ActuatorInfo],
-    model: &str,
-) -> Result<Option<(usize, usize, f64)>> {
-    ActuatorNumeric {
-        kinds: ["kt:", "resistance:"],
-        what: "a motor constant",
-        rule: "a number > 0".into(),
-        fits: |v| v > 0.0,
-    }
-    .read(numeric, values, actuators, model)
-}
+/// The custom numerics that declare a motor's constants
+/// (`pupper:kt:ACT`, N·m/A, and `pupper:resistance:ACT`, Ω): kind 0 the
+/// torque constant, 1 the resistance; each one finite number above 0.
+pub const MOTOR_CONSTANT: ActuatorNumeric = ActuatorNumeric {
+    kinds: ["kt:", "resistance:"],
+    what: "a motor constant",
+    rule: "a number > 0",
+    fits: |v| v > 0.0,
+};
 
 /// A family of custom numerics `pupper:KIND:ACTUATOR` holding one number
 /// about an actuator: its two kinds, what it is and the rule its value
 /// follows (in words and as a check of a finite value).
-struct ActuatorNumeric {
+pub struct ActuatorNumeric {
     kinds: [&'static str; 2],
     what: &'static str,
-    rule: String,
+    rule: &'static str,
     fits: fn(f64) -> bool,
 }
 
 impl ActuatorNumeric {
     /// `Some((kind index, actuator index, value))` for a numeric of this
     /// family, None for another; a bad one is a one-line model error.
-    fn read(
+    pub fn read(
         &self,
         numeric: &str,
         values: &[f64],
@@ -339,25 +355,16 @@ pub fn scale_numeric(kind: &str, actuator: &str) -> String {
     format!("pupper:{kind}:{actuator}")
 }
 
-/// A custom numeric that scales a gain (`pupper:kp_scale:ACT`,
-/// `pupper:kd_scale:ACT`), checked: `Some((0 for kp or 1 for kd, actuator
-/// index, scale))`, or None for a numeric that is not a gain scale. A scale
-/// is one finite number in (0, 100]: zero or below would flip or remove the
-/// servo, and the run would print `ok` for a robot that no servo holds.
-pub fn gain_scale(
-    numeric: &str,
-    values: &[f64],
-    actuators: &[ActuatorInfo],
-    model: &str,
-) -> Result<Option<(usize, usize, f64)>> {
-    ActuatorNumeric {
-        kinds: ["kp_scale:", "kd_scale:"],
-        what: "a gain scale",
-        rule: format!("a number in (0, {MAX_GAIN_SCALE}]; refit the model or remove it"),
-        fits: |v| v > 0.0 && v <= MAX_GAIN_SCALE,
-    }
-    .read(numeric, values, actuators, model)
-}
+/// The custom numerics that scale a gain (`pupper:kp_scale:ACT`,
+/// `pupper:kd_scale:ACT`): kind 0 kp, 1 kd. A scale is one finite number
+/// in (0, [`MAX_GAIN_SCALE`]]: zero or below would flip or remove the servo,
+/// and the run would print `ok` for a robot that no servo holds.
+pub const GAIN_SCALE: ActuatorNumeric = ActuatorNumeric {
+    kinds: ["kp_scale:", "kd_scale:"],
+    what: "a gain scale",
+    rule: "a number in (0, 100]; refit the model or remove it",
+    fits: |v| v > 0.0 && v <= MAX_GAIN_SCALE,
+};
 
 /// The largest gain scale a model may declare: a fit that lands past it has
 /// found no servo but a different robot.
@@ -597,23 +604,18 @@ impl ModelInfo {
 mod tests {
     use super::*;
 
+    #[test]
+    fn the_gain_scale_rule_names_the_largest_scale() {
+        // one home for the bound: the words an error shows say the constant
+        assert!(GAIN_SCALE.rule.contains(&format!("(0, {MAX_GAIN_SCALE}]")));
+    }
+
     fn actuator(name: &str) -> ActuatorInfo {
-        ActuatorInfo {
-            name: name.into(),
-            joint: Some(0),
-            gainprm: [5.0, 0.0, 0.0],
-            biasprm: [0.0, -5.0, -0.1],
-            forcerange: None,
-            ctrlrange: None,
-            gear: 1.0,
-            delay: 0.0,
-            gain_scale: [1.0, 1.0],
-            winding: None,
-        }
+        ActuatorInfo::for_test(name.into(), Some(0), [5.0, 0.0, 0.0], [0.0, -5.0, -0.1])
     }
 
     fn check(numeric: &str, values: &[f64]) -> Result<Option<(usize, usize, f64)>> {
-        gain_scale(numeric, values, &[actuator("a"), actuator("knee")], "m.xml")
+        GAIN_SCALE.read(numeric, values, &[actuator("a"), actuator("knee")], "m.xml")
     }
 
     #[test]

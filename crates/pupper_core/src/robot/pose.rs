@@ -343,18 +343,12 @@ mod tests {
                     range: Some(range),
                     body: joints.len() + 1,
                 });
-                actuators.push(ActuatorInfo {
-                    name: format!("{n}_{side}"),
-                    joint: Some(joints.len() - 1),
-                    gainprm: [1.0, 0.0, 0.0],
-                    biasprm: [0.0; 3],
-                    forcerange: Some([-3.0, 3.0]),
-                    ctrlrange: None,
-                    gear: 1.0,
-                    delay: 0.0,
-                    gain_scale: [1.0, 1.0],
-                    winding: None,
-                });
+                actuators.push(ActuatorInfo::for_test(
+                    format!("{n}_{side}"),
+                    Some(joints.len() - 1),
+                    [1.0, 0.0, 0.0],
+                    [0.0; 3],
+                ));
             }
             legs.push(LegInfo {
                 name: format!("leg_{side}"),

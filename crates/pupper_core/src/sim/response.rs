@@ -25,21 +25,16 @@ pub struct JointProbe {
 }
 
 impl JointProbe {
-    pub fn new(
-        actuator: usize,
-        replicate: usize,
-        qpos: usize,
-        limit: f64,
-        hold: f64,
-        dt: f64,
-    ) -> Self {
+    /// The probe of actuator `a` excited in the simulation starting at `s`,
+    /// its signal after `hold` s.
+    pub fn new(s: &crate::sim::probe::Start<'_>, a: usize, hold: f64) -> Self {
         JointProbe {
-            actuator,
-            replicate,
-            qpos,
-            limit,
+            actuator: a,
+            replicate: s.replicate,
+            qpos: s.layout.act_qpos[a],
+            limit: s.limits[a],
             hold,
-            dt,
+            dt: s.dt,
             t: Vec::new(),
             y: Vec::new(),
             peak: 0.0,

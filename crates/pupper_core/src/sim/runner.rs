@@ -191,14 +191,7 @@ impl Pace {
 /// The registry: the probe of a simulation of `cfg`'s experiment kind.
 fn probe(cfg: &SweepConfig, s: &Start<'_>) -> Box<dyn Probe> {
     match (&cfg.experiment, s.excited) {
-        (Experiment::Response(e), Some(a)) => Box::new(JointProbe::new(
-            a,
-            s.replicate,
-            s.layout.act_qpos[a],
-            s.limits[a],
-            e.hold,
-            s.dt,
-        )),
+        (Experiment::Response(e), Some(a)) => Box::new(JointProbe::new(s, a, e.hold)),
         (Experiment::Hold(l), _) => Box::new(HoldProbe::new(
             StandProbe::new(Recorder::new(s.schedule, s.dt, s.stance)),
             l,

@@ -6,8 +6,8 @@ use pyo3::prelude::*;
 use super::python::{Mujoco, PyResultExt};
 use pupper_core::error::{Error, Result};
 use pupper_core::robot::model::{
-    ActuatorInfo, JointInfo, KeyframeInfo, LegInfo, ModelInfo, ModelSource, SensorInfo, gain_scale,
-    motor_constant,
+    ActuatorInfo, GAIN_SCALE, JointInfo, KeyframeInfo, LegInfo, MOTOR_CONSTANT, ModelInfo,
+    ModelSource, SensorInfo,
 };
 
 impl<'py> Mujoco<'py> {
@@ -170,12 +170,12 @@ impl<'py> Mujoco<'py> {
             let name = self.name_of(model, "mjOBJ_NUMERIC", n)?;
             let values = &data[adr[n] as usize..(adr[n] + size[n]) as usize];
             if let Some((k, actuator, scale)) =
-                gain_scale(&name, values, actuators, &source.display())?
+                GAIN_SCALE.read(&name, values, actuators, &source.display())?
             {
                 actuators[actuator].gain_scale[k] = scale;
             }
             if let Some((k, actuator, v)) =
-                motor_constant(&name, values, actuators, &source.display())?
+                MOTOR_CONSTANT.read(&name, values, actuators, &source.display())?
             {
                 motor[actuator][k] = Some(v);
             }
