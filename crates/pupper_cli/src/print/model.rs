@@ -203,6 +203,27 @@ pub fn pose(p: &pupper_core::robot::pose::StandPose) -> String {
     s
 }
 
+/// The loop margins' columns, when a firmware is given: below 0 deg the
+/// loop is unstable.
+fn margins(pm: Option<f64>, gm: Option<f64>) -> String {
+    match (pm, gm) {
+        (Some(pm), Some(gm)) => format!(
+            " {:>9} {:>9}",
+            if pm < 0.0 {
+                format!("{pm:.0} UNST")
+            } else {
+                format!("{pm:.0}")
+            },
+            if gm.is_finite() {
+                format!("{gm:.1}")
+            } else {
+                "inf".into()
+            }
+        ),
+        _ => String::new(),
+    }
+}
+
 /// `pupper gains`: a line per joint group, then per joint.
 pub fn gains(r: &pupper_core::robot::gains::GainsReport) -> String {
     let mut s = String::new();
@@ -238,22 +259,6 @@ pub fn gains(r: &pupper_core::robot::gains::GainsReport) -> String {
     }
     let _ = writeln!(s, "{}", head.trim_end());
     // the loop's margins, when a firmware is given: below 0 deg is unstable
-    let margins = |pm: Option<f64>, gm: Option<f64>| match (pm, gm) {
-        (Some(pm), Some(gm)) => format!(
-            " {:>9} {:>9}",
-            if pm < 0.0 {
-                format!("{pm:.0} UNST")
-            } else {
-                format!("{pm:.0}")
-            },
-            if gm.is_finite() {
-                format!("{gm:.1}")
-            } else {
-                "inf".into()
-            }
-        ),
-        _ => String::new(),
-    };
     let flag = |m: f64| {
         if m >= 1.0 {
             format!("{} PAST", Sig(m))
