@@ -252,11 +252,21 @@ def pose(model: str | os.PathLike[str] = "pupper_v3", variant: Variant = "origin
 @exported_from("pupper_core")
 def tune(space: Sequence[str] | Mapping[str, Any], **options: Any) -> Any:
     """Search gains (or any grid axis) with Optuna's ask/tell, a generation
-    of ``batch`` trials per batch of cells, as `pupper tune` does: see
-    ``help(pupper_core._tune.tune)`` for the keywords (objective, trials or
-    budget, batch, sampler, seed, aggregate, out, resume) and the sweep's
-    options. Needs the tune extra (Optuna); returns a TuneResult (the study,
-    its trials as trials.csv has them, the best trial or Pareto front)."""
+    of ``batch`` trials per batch of cells, as `pupper tune` does.
+
+    ``space``: ``["kp=5:200:log", "kd=0.05:10:log"]`` (``:int`` for
+    integers, ``A|B`` for choices). Keywords: ``objective`` (a summary.csv
+    column, or several for a Pareto front; default last_1s_std_mm),
+    ``maximize``, ``trials`` or ``budget`` (cell-steps), ``batch`` (8),
+    ``sampler`` (tpe, cmaes, gp, random), ``seed``, ``aggregate`` over
+    replicates (mean, p95, worst, fail-rate), ``halving`` (successive
+    halving over replicates), ``out``, ``resume``, ``force``,
+    ``progress``; any other keyword is the sweep's (model, mode, kp, kd,
+    seconds, replicates, randomize, motor, ...). A trial that fell,
+    diverged, saturated or lies past the stability bound is told a
+    penalty and is never a best. Needs the tune extra (Optuna); returns a
+    TuneResult (the study, its trials as trials.csv has them, the best
+    trial or Pareto front, ``to_pandas()``)."""
     from pupper_core import _tune
 
     return _tune.tune(space, **options)
@@ -267,8 +277,11 @@ def excite(model: str | os.PathLike[str] = "pupper_v3", **options: Any) -> Any:
     """Write an excitation to play on the robot hung in the air (per joint
     group a multisine or chirp inside the ranges, with holds) and the nominal
     model's response, in the joint-log format, as `pupper excite` does;
-    returns the file's path. Keywords: out, kp, kd, signal, band, seconds,
-    hold, amplitude, max_velocity, seed, force (``help(pupper_core._fit.excite)``)."""
+    returns the file's path. Keywords: ``out`` (excite.csv), ``kp``,
+    ``kd`` (the gains the log is recorded at), ``signal`` (multisine or
+    chirp), ``band`` (Hz, default 0.3–6), ``seconds`` (8),
+    ``hold`` (s between groups), ``amplitude`` (rad), ``max_velocity``
+    (rad/s), ``seed``, ``force`` (overwrite)."""
     from pupper_core import _fit
 
     return _fit.excite(model, **options)
