@@ -284,3 +284,27 @@ def test_the_plots_put_a_grid_behind_the_search(run, tmp_path):
     trials = T.trials_figure(tmp_path / "s", tmp_path / "grid")
     mesh = [c for c in trials.axes[0].collections if c.__class__.__name__ == "QuadMesh"]
     assert len(mesh) == 1 and mesh[0].get_array().size == 16
+
+
+def test_a_best_on_the_edge_of_the_space_is_said():
+    kp, kd = T.parse_space(["kp=5:120:log", "kd=0.1:2"])
+    # 5 % of the log span from the top: 120 * (5/120)**0.05 = 102.4
+    assert kp.edge(110.0) == "the largest" and kp.edge(100.0) is None
+    assert kp.edge(5.5) == "the smallest" and kd.edge(0.19) == "the smallest" and kd.edge(0.3) is None
+    line = T.edge_line([kp, kd], {"kp": 110.0, "kd": 1.0})
+    assert line is not None and "kp 110, the largest of kp=5:120:log" in line and "kd" not in line
+    assert T.edge_line([kp, kd], {"kp": 50.0, "kd": 1.0}) is None
+
+
+def test_the_cli_says_when_its_best_is_on_the_edge(tmp_path, pupper_bin):
+    """Stiffer tracks better: the search's best drifts to the top of kp; the
+    line appears exactly when the best trial (trials.csv) lies within 5 %."""
+    out = tmp_path / "t"
+    args = [str(pupper_bin), "tune", "--space", "kp=2:60:log", "--objective", "tracking_rms",
+            "--trials", "16", "--batch", "8", "--seconds", "1.5", "--no-push", "--kd", "0.3", "-q", "-o", str(out)]
+    p = subprocess.run(args, capture_output=True, text=True, env=clean_env(), timeout=300)
+    assert p.returncode == 0, p.stderr
+    best = json.loads((out / "best.json").read_text())
+    kp = best["params"]["kp"] if "params" in best else best[0]["params"]["kp"]
+    on_edge = kp >= 60 * (2 / 60) ** 0.05
+    assert ("lies on the edge of the searched range" in p.stdout) == on_edge, (kp, p.stdout)

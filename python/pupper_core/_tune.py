@@ -210,6 +210,17 @@ def _resume_args(a: dict[str, Any]) -> dict[str, Any]:
             "objective": inputs["objectives"], **kept}
 
 
+def edge_line(dims: Sequence[Dimension], params: Mapping[str, Any]) -> str | None:
+    """The line saying which of the best trial's values lie on the edge of
+    their searched range (within 5 % of its span from an end), or None."""
+    said = [f"{d.axis} {params[d.axis]:.6g}, {where} of {d.text()}"
+            for d in dims if d.axis in params and (where := d.edge(params[d.axis]))]
+    if not said:
+        return None
+    return ("the best trial lies on the edge of the searched range (" + "; ".join(said)
+            + "): the best may lie beyond it; widen --space there")
+
+
 def _cli(args_json: str) -> list[str]:
     """`pupper tune`: the CLI's parsed flags as JSON; prints the best trial(s)."""
     a = json.loads(args_json)
@@ -217,11 +228,14 @@ def _cli(args_json: str) -> list[str]:
     compare = a.pop("compare", None)
     if a.get("resume") and not a.get("space"):
         a = _resume_args(a)
-    res = tune(a.pop("space"), **a)
+    space = a.pop("space")
+    res = tune(space, **a)
     for b in res.best:
         params = "  ".join(f"{k} {v:.6g}" if isinstance(v, float) else f"{k} {v}" for k, v in b["params"].items())
         values = "  ".join(f"{o} {v:.6g}" for o, v in zip(b["objectives"], b["values"]))
         print(f"best (generation {b['generation']}, slot {b['slot']}): {params}  ->  {values}")
+    if len(res.best) == 1 and (edge := edge_line(parse_space(space), res.best[0]["params"])):
+        print(edge)
     if not res.best:
         print(_unranked(res))
     print(f"{len(res.trials)} trials, {res.cell_steps} cell-steps")

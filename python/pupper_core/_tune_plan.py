@@ -59,6 +59,11 @@ def _num(x: float) -> str:
     return short if float(short) == x else repr(float(x))
 
 
+#: How close to an end of a searched range (a share of its span) a best
+#: value is said to lie on its edge.
+EDGE = 0.05
+
+
 @dataclass(frozen=True)
 class Dimension:
     """One searched axis: a float range (log or linear), an int range, or choices."""
@@ -77,6 +82,22 @@ class Dimension:
         if self.integer:
             return d.IntDistribution(int(self.low), int(self.high), log=self.log)
         return d.FloatDistribution(self.low, self.high, log=self.log)
+
+    def edge(self, value: Any, fraction: float = EDGE) -> str | None:
+        """"the largest" or "the smallest" when ``value`` lies within
+        ``fraction`` of this range's span (on a log axis, of its log span)
+        from an end: the best may lie beyond what was searched. None inside,
+        and for choices."""
+        if self.choices or not isinstance(value, (int, float)) or self.high <= self.low:
+            return None
+        f = math.log if self.log else float
+        lo, hi, v = f(self.low), f(self.high), f(value)
+        span = hi - lo
+        if v >= hi - fraction * span:
+            return "the largest"
+        if v <= lo + fraction * span:
+            return "the smallest"
+        return None
 
     def text(self) -> str:
         if self.choices:
