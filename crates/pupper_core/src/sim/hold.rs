@@ -56,7 +56,6 @@ pub struct HoldProbe {
     full: f64,
     /// Each actuator's group, as an index into the group names.
     group_of: Vec<usize>,
-    groups: usize,
     /// Each actuator's `R / kt²` (W per (N·m)²), where declared.
     copper: Option<Vec<f64>>,
     z_free: Mean,
@@ -98,7 +97,6 @@ impl HoldProbe {
             shoved,
             full: load.full(),
             group_of,
-            groups: names.len(),
             copper,
             z_free: Mean::default(),
             z_loaded: Mean::default(),
@@ -160,17 +158,12 @@ impl Probe for HoldProbe {
         if inside(s.t, self.loaded) {
             self.z_loaded.add(z);
             self.y_loaded.add(y);
-            let mut sq = vec![0.0; self.groups];
-            let mut n = vec![0usize; self.groups];
+            // a group's actuators are a fixed set: the mean over its
+            // actuator-steps is the mean over steps of their mean, with no
+            // buffer per step
             for (a, &f) in s.act.iter().enumerate() {
                 let g = self.group_of.get(a).copied().unwrap_or(0);
-                sq[g] += f * f;
-                n[g] += 1;
-            }
-            for ((m, sq), n) in self.torque_sq.iter_mut().zip(sq).zip(n) {
-                if n > 0 {
-                    m.add(sq / n as f64);
-                }
+                self.torque_sq[g].add(f * f);
             }
             if let Some(c) = &self.copper {
                 self.copper_w
