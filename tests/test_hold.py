@@ -51,6 +51,8 @@ def test_sag_follows_the_spring_and_the_stiffest_cell_is_picked(run, tmp_path, w
     assert "kp12_kd0.5" in p.stdout and "stiffest cell lies on the edge" in p.stdout
     page = (tmp_path / "h" / "report.html").read_text()
     assert "pupper hold" in page and "compliance_mm_per_n" in page and "kp12_kd0.5" in page
+    # the page qualifies the pick as the CLI does: the stiffest kp searched
+    assert "kp12_kd0.5 lies on the edge of the searched grid (kp 12, the largest)" in page
 
 
 def test_twice_the_load_twice_the_sag_and_the_knees_carry_it(run, tmp_path):

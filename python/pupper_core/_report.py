@@ -302,6 +302,27 @@ def _best(run_dir: Path, kind: str = "sweep") -> tuple[str | None, str]:
     return str(b["id"]), rule
 
 
+def _edge(manifest: dict[str, Any], rows: list[dict[str, str]], best: str) -> str:
+    """The numeric axes on whose largest or smallest value the picked cell
+    lies, in a product grid (named cells one by one are no range), as the
+    CLI's line says them; "" when none."""
+    axes = [str(a.get("axis")) for a in manifest.get("config", {}).get("grid", {}).get("axes", [])]
+    values = {a: sorted({_num(r.get(a)) for r in rows}) for a in axes}
+    if not axes or math.prod(len(v) for v in values.values()) != len(rows):
+        return ""
+    row = next(r for r in rows if r.get("id") == best)
+    said = []
+    for a in axes:
+        v, vs = _num(row.get(a)), values[a]
+        if len(vs) < 2 or any(math.isnan(x) for x in vs):
+            continue
+        if v == vs[-1]:
+            said.append(f"{a} {row[a]}, the largest")
+        elif v == vs[0]:
+            said.append(f"{a} {row[a]}, the smallest")
+    return "; ".join(said)
+
+
 def response_pick(header: list[str], rows: list[dict[str, str]], group: str) -> dict[str, str] | None:
     """The response cell that settles soonest on a joint group: pupper's
     ranking rule (the Rust core's `best`) on settling_time_s.GROUP, judged
@@ -359,6 +380,11 @@ def _grid_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[st
     if not manifest.get("complete", True):
         warnings.append(f"the run is incomplete ({manifest.get('cells_done')} of {manifest.get('cells_total')} "
                         "cells): finish it with --resume")
+    if best and kind in ("sweep", "hold"):
+        edge = _edge(manifest, rows, best)
+        if edge:
+            warnings.append(f"the picked cell {best} lies on the edge of the searched grid ({edge}): "
+                            "the best may lie beyond it; widen the grid there")
     if best:
         row = next(r for r in rows if r.get("id") == best)
         # rounded to what a reader uses; every digit in the tooltip
