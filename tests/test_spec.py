@@ -15,7 +15,7 @@ pc = pytest.importorskip("pupper_core")
 
 STUB = Path(pc.__file__).parent / "_native.pyi"
 #: Spec fields that are CLI switches or arguments without a default value.
-NO_CLI_DEFAULT = {"out", "force", "resume", "trace", "stop_fallen", "sine", "pose", "max_torque",
+NO_CLI_DEFAULT = {"out", "force", "resume", "trace", "stop_fallen", "common_draws", "sine", "pose", "max_torque",
                   "randomize",  # repeatable: none unless given
                   "device", "chunk_cells",  # None: the backend's own (help says which)
                   "shard",  # none: the whole grid

@@ -187,6 +187,9 @@ class SweepOptions(SimOptions, total=False):
     randomize: Sequence[str]
     """`QUANTITY=DISTRIBUTION` specs as `pupper sweep --randomize` takes them:
     "torso_mass=±10%", "friction=0.5:1.2", "q_noise=N(0,0.002)", "delay=0:3"."""
+    common_draws: bool
+    """Every cell's replicate r is the same drawn robot (common random
+    numbers), so cells differ only by their settings."""
     backend: Literal["cpu", "warp"]
     """What steps the physics: "cpu" (MuJoCo, float64) or "warp" (MuJoCo
     Warp, float32; needs `pip install 'pupper_core[gpu]'`)."""

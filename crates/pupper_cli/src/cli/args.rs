@@ -220,6 +220,11 @@ pub(super) struct PopulationArgs {
     /// motor_noload=20:40 (rad/s). `+-10%` may stand for `±10%`.
     #[arg(long, value_name = "QUANTITY=DIST", allow_hyphen_values = true)]
     pub(super) randomize: Vec<String>,
+    /// Every cell's replicate r is the same robot (its draws keyed without the cell id):
+    /// common random numbers, so cells differ only by their settings. What `pupper
+    /// recommend` runs, so its card's numbers can be reproduced by a sweep.
+    #[arg(long)]
+    pub(super) common_draws: bool,
 }
 
 impl PopulationArgs {
@@ -228,6 +233,7 @@ impl PopulationArgs {
             replicates: self.replicates,
             seed: self.seed,
             randomize: self.randomize.clone(),
+            common_draws: self.common_draws,
             ..spec
         }
     }

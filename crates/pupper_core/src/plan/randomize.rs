@@ -307,6 +307,11 @@ pub struct Replicates {
     pub seed: u64,
     #[serde(default)]
     pub randomize: Vec<Randomize>,
+    /// Every cell's replicate r is the same robot (draws keyed without the
+    /// cell id): common random numbers, so cells differ only by their
+    /// settings and a comparison between them carries no draw noise.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub common_draws: bool,
 }
 
 impl Default for Replicates {
@@ -315,6 +320,7 @@ impl Default for Replicates {
             count: 1,
             seed: 0,
             randomize: Vec::new(),
+            common_draws: false,
         }
     }
 }
@@ -421,6 +427,7 @@ impl Replicates {
     /// Replicate `replicate` of the cell `cell_id`, for a model of `nu`
     /// actuators.
     pub fn draws(&self, cell_id: &str, replicate: u32, nu: usize) -> Draws {
+        let cell_id = self.key(cell_id);
         let mut d = Draws {
             torso_mass: 1.0,
             leg_mass: 1.0,
@@ -465,6 +472,11 @@ impl Replicates {
         d
     }
 
+    /// What a cell's draws are keyed by: its id, or nothing with common draws.
+    fn key<'a>(&self, cell_id: &'a str) -> &'a str {
+        if self.common_draws { "" } else { cell_id }
+    }
+
     /// The angle-noise stream of a replicate, when `q_noise` is randomized.
     pub fn noise(&self, cell_id: &str, replicate: u32) -> Option<Noise> {
         let r = self.get(Quantity::QNoise)?;
@@ -473,7 +485,7 @@ impl Replicates {
         };
         let normal = Normal::new(m, s).ok()?;
         Some(Noise {
-            rng: generator(self.seed, cell_id, replicate, Quantity::QNoise, 0),
+            rng: generator(self.seed, self.key(cell_id), replicate, Quantity::QNoise, 0),
             normal,
         })
     }
@@ -543,6 +555,7 @@ mod tests {
             count,
             seed: 1,
             randomize: specs.iter().map(|s| p(s)).collect(),
+            common_draws: false,
         };
         let e = |r: Replicates, mode, push, axes: &[&str]| {
             r.check(mode, push, axes).unwrap_err().to_string()
@@ -585,6 +598,7 @@ mod tests {
             .iter()
             .map(|s| p(s))
             .collect(),
+            common_draws: false,
         };
         assert_eq!(
             r.columns(2),
@@ -608,6 +622,25 @@ mod tests {
         assert_eq!((plain.torso_mass, plain.delay), (1.0, 0));
         assert!(plain.values.is_empty() && plain.motor_gain.is_empty());
         assert!(Replicates::default().noise("kp30", 0).is_none());
+    }
+
+    #[test]
+    fn common_draws_give_every_cell_the_same_robots() {
+        let mut r = Replicates {
+            count: 2,
+            seed: 5,
+            randomize: ["torso_mass=±10%", "q_noise=N(0,0.1)"]
+                .iter()
+                .map(|s| p(s))
+                .collect(),
+            common_draws: false,
+        };
+        assert_ne!(r.draws("kp30", 1, 2), r.draws("kp60", 1, 2));
+        r.common_draws = true;
+        assert_eq!(r.draws("kp30", 1, 2), r.draws("kp60", 1, 2));
+        assert_ne!(r.draws("kp30", 0, 2), r.draws("kp30", 1, 2));
+        let (mut a, mut b) = (r.noise("kp30", 1).unwrap(), r.noise("kp60", 1).unwrap());
+        assert_eq!(a.sample(), b.sample());
     }
 
     /// Mean and spread of 20 000 draws against the spec, with a fixed seed;

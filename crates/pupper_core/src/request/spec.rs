@@ -103,6 +103,9 @@ pub struct SweepSpec {
     pub seed: u64,
     /// `QUANTITY=DISTRIBUTION` specs (see `pupper sweep --help`).
     pub randomize: Vec<String>,
+    /// Every cell's replicate r is the same drawn robot (common random
+    /// numbers): cells then differ only by their settings.
+    pub common_draws: bool,
     /// What steps the physics: `cpu` (MuJoCo, float64) or `warp` (MuJoCo
     /// Warp, float32) on `device` (warp only; default cuda:0).
     pub backend: String,
@@ -166,6 +169,7 @@ impl Default for SweepSpec {
             replicates: 1,
             seed: 0,
             randomize: Vec::new(),
+            common_draws: false,
             backend: "cpu".into(),
             device: None,
             threads: 0,
@@ -327,6 +331,7 @@ impl SweepSpec {
                 count: self.replicates,
                 seed: self.seed,
                 randomize,
+                common_draws: self.common_draws,
             },
             backend: Backend::parse(&self.backend, self.device.as_deref())?,
             experiment,

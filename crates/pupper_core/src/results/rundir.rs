@@ -758,6 +758,7 @@ mod tests {
             count: 3,
             seed: 7,
             randomize: vec![crate::plan::randomize::Randomize::parse("friction=0.5:1.2").unwrap()],
+            common_draws: false,
         };
         let cells = c.grid.cells();
         let mut w = RunWriter::new(Some(&dir), Existing::Refuse, manifest(c.clone())).unwrap();
