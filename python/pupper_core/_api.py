@@ -273,6 +273,37 @@ def tune(space: Sequence[str] | Mapping[str, Any], **options: Any) -> Any:
 
 
 @exported_from("pupper_core")
+def recommend(model: str | os.PathLike[str] = "pupper_v3", **options: Any) -> Any:
+    """Gains per joint group to put on the robot, as `pupper recommend`
+    finds them: the lowest worst-side (95th percentile) push dip among
+    candidates that hold on every one of ``robots`` (32) robots drawn from
+    what the model does not know — none falls or saturates past
+    ``max_saturation`` (0.05), and each group's loop, as the firmware
+    ``motor`` ("rate=500,counts=16384") closes it on measurements
+    ``sensing_delay`` (0.002 s) old, keeps ``min_phase_margin`` (30°) and
+    ``min_gain_margin`` (6 dB) at the spread's worst corner.
+
+    Keywords: ``robots``, ``trials`` (48 candidates run on the robots),
+    ``batch`` (16), ``seed``, ``seconds`` (4), ``push_force``, ``motor``,
+    ``sensing_delay``, ``command_delay`` (s; shifts the step response,
+    leaves the margins alone), ``spread`` (``--randomize`` specs; default
+    torso ±15 %, legs ±10 %, motor gains ±10 %, friction 0.6-1.2, 1 mrad
+    encoder noise), ``from_fit`` (a `pupper fit` run directory: its
+    calibrated model and intervals), ``min_phase_margin``,
+    ``min_gain_margin``, ``max_saturation``, ``kp_max``, ``kd_max``,
+    ``joint_order`` (the YAML's actuator order), ``controller`` (its ROS 2
+    node, "neural_controller"), ``out`` (a run directory), ``force``,
+    ``progress``. Needs the tune extra (Optuna). Returns a Recommendation:
+    ``pick``, ``gains`` (group -> (kp, kd)), ``cards`` (a card per group:
+    margins, predicted step response, p95 push dip, torque headroom),
+    ``neighbours`` (why each lost), ``warnings``, ``yaml`` and ``mjcf``
+    (the exports' texts), ``candidates`` and ``to_pandas()``."""
+    from pupper_core import _recommend
+
+    return _recommend.recommend(model, **options)
+
+
+@exported_from("pupper_core")
 def excite(model: str | os.PathLike[str] = "pupper_v3", **options: Any) -> Any:
     """Write an excitation to play on the robot hung in the air (per joint
     group a multisine or chirp inside the ranges, with holds) and the nominal
@@ -405,6 +436,10 @@ def lazy_attribute(name: str) -> Any:
         from pupper_core._fit import FitError
 
         return FitError
+    if name == "RecommendError":
+        from pupper_core._recommend_plan import RecommendError
+
+        return RecommendError
     # plots and render import matplotlib / a GL context: only when used
     if name in ("plots", "render"):
         import importlib

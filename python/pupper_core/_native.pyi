@@ -171,6 +171,8 @@ def stand(**options: Unpack[SimOptions]) -> StandReport:
 def pose(model: str = ..., variant: str = ..., depth: float | None = ...) -> dict[str, Any]:
     """What `pupper pose --json` prints, as a dict."""
 
+def loop_margins(inertia: float, kp: float, kd: float, *, motor: str | None = ...,
+                 sensing_delay: float | None = ..., timestep: float) -> tuple[float, float]: ...
 def gains(model: str = ..., *, kp: float | None = ..., kd: float | None = ..., bandwidth: float | None = ...,
           damping: float = ..., pose: list[float] | None = ..., integrator: str | None = ...,
           motor: str | None = ..., sensing_delay: float | None = ...) -> dict[str, Any]:
@@ -233,6 +235,7 @@ def lab(
     replicates: int = ...,
     seed: int = ...,
     randomize: Sequence[str] = ...,
+    common_draws: bool = ...,
     backend: Literal["cpu", "warp"] = ...,
     device: str | None = ...,
     ray: str | None = ...,

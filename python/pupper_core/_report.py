@@ -213,7 +213,7 @@ def _table(header: list[str], rows: list[dict[str, str]], best: str | None, key:
 
 #: The kinds a manifest names (sweep, lab and response by the Rust core;
 #: tune and fit by their Python drivers).
-KINDS = ("sweep", "lab", "response", "hold", "tune", "fit")
+KINDS = ("sweep", "lab", "response", "hold", "tune", "fit", "recommend")
 
 
 def _kind(manifest: dict[str, Any]) -> str:
@@ -485,6 +485,38 @@ def _fit_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[str
     return parts
 
 
+def _recommend_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[str],
+                        rows: list[dict[str, str]], warnings: list[str]) -> list[str]:
+    """A recommendation: the answer first (a card per group), the rule and
+    why the neighbours lost, the exports, then every candidate."""
+    parts: list[str] = []
+    ch, cards = _read(d / "recommend.csv")
+    inp = manifest.get("inputs", {})
+    rule = (f"the lowest p95 push dip over {inp.get('robots')} drawn robots among gains that hold on every one: "
+            f"none fell, saturation under {100 * float(inp.get('max_saturation', 0.05)):g} % of steps, phase "
+            f"margin >= {inp.get('min_phase_margin_deg')}° and gain margin >= {inp.get('min_gain_margin_db')} dB "
+            f"for the loop the firmware ({inp.get('motor')}) closes with {inp.get('sensing_delay')} s of sensing "
+            "delay; push dips within 2 % tie, won by the faster slowest group")
+    if cards:
+        dip = _num(cards[0].get("p95_push_dip_mm", "nan"))
+        parts.append(f"<h2>The answer</h2><p>Put these gains on the robot (p95 push dip {dip:.3g} mm). "
+                     f"Rule: {html.escape(rule)}.</p>" + _table(ch, cards, None, key="group"))
+        parts.append(_bars([c["group"] for c in cards], [_num(c["phase_margin_deg"]) for c in cards],
+                           "phase margin at the worst corner (deg)"))
+    else:
+        parts.append(f"<h2>The answer</h2><p>No gains held every constraint. Rule: {html.escape(rule)}.</p>")
+    if manifest.get("neighbours"):
+        parts.append("<h2>Why the neighbours lost</h2><ul>"
+                     + "".join(f"<li>{html.escape(n)}</li>" for n in manifest["neighbours"]) + "</ul>")
+    if manifest.get("reproduce"):
+        parts.append("<h2>Reproduce the push dip</h2><pre>" + html.escape(manifest["reproduce"]) + "</pre>")
+    warnings.extend(manifest.get("warnings", []))
+    th, trials = _read(d / "trials.csv")
+    if trials:
+        parts.append("<h2>Candidates (trials.csv)</h2>" + _table(th, trials, None, key="trial"))
+    return parts
+
+
 #: The registry: each kind's sections of the page, between its warnings and
 #: its inputs.
 SECTIONS: dict[str, Sections] = {
@@ -494,6 +526,7 @@ SECTIONS: dict[str, Sections] = {
     "hold": _grid_sections,
     "tune": _tune_sections,
     "fit": _fit_sections,
+    "recommend": _recommend_sections,
 }
 
 

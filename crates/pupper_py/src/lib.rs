@@ -51,6 +51,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(model::stand, m)?)?;
     m.add_function(wrap_pyfunction!(model::pose, m)?)?;
     m.add_function(wrap_pyfunction!(model::gains, m)?)?;
+    m.add_function(wrap_pyfunction!(model::loop_margins, m)?)?;
     m.add_function(wrap_pyfunction!(progress::_shutdown, m)?)?;
     m.add_function(wrap_pyfunction!(runs::best_rows, m)?)?;
     m.add_function(wrap_pyfunction!(result::_result_from_state, m)?)?;

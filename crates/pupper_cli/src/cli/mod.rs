@@ -61,6 +61,7 @@ mod lab;
 mod merge;
 mod model;
 mod python;
+mod recommend;
 mod render;
 mod response;
 mod sweep;
@@ -73,6 +74,7 @@ use hold::HoldArgs;
 use lab::LabArgs;
 use merge::MergeArgs;
 use model::{BodyArgs, PoseArgs, StandArgs};
+use recommend::RecommendArgs;
 use render::RenderArgs;
 use response::ResponseArgs;
 use sweep::SweepArgs;
@@ -126,6 +128,11 @@ enum Command {
     /// of cells and tells the results, until --trials or --budget. The study lives in the run
     /// directory (study.db, trials.csv, best.json, pareto.csv for several objectives).
     Tune(Box<TuneArgs>),
+    /// Gains per joint group to put on the robot: the lowest worst-side push dip among gains
+    /// that hold on every robot drawn from what the model does not know (none falls or
+    /// saturates, each group's loop keeps its phase and gain margins as the firmware closes it),
+    /// searched with Optuna; a card per group, and the gains as a ROS 2 parameter file and MJCF.
+    Recommend(Box<RecommendArgs>),
     /// Write an excitation to play on the robot, hung in the air: per joint group a multisine
     /// or chirp around the rest pose (inside the joint ranges, under --max-velocity and the
     /// torque limit at the gains), with holds between; and the nominal model's response to it,
@@ -175,6 +182,7 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
         Command::Response(a) => response::run(*a, stop),
         Command::Hold(a) => hold::run(*a, stop),
         Command::Tune(a) => a.run(),
+        Command::Recommend(a) => a.run(),
         Command::Excite(a) => a.run(),
         Command::Report { dir } => {
             python::write_report(&dir)?;

@@ -90,12 +90,14 @@ pub const LAB_TUNE: PyCall = call("pupper_core._tune", "_lab_cli", &["args_json"
 pub const EXCITE: PyCall = call("pupper_core._fit", "_cli_excite", &["args_json"], &[]);
 /// `pupper fit`, its options as JSON.
 pub const FIT: PyCall = call("pupper_core._fit", "_cli_fit", &["args_json"], &[]);
+/// `pupper recommend`, its options as JSON; prints the card.
+pub const RECOMMEND: PyCall = call("pupper_core._recommend", "_cli", &["args_json"], &[]);
 /// A run directory's report.html, the directory's path as the hex of its
 /// bytes.
 pub const REPORT: PyCall = call("pupper_core._report", "_cli_hex", &["run_dir"], &[]);
 
 /// The table.
-pub const ALL: [PyCall; 11] = [
+pub const ALL: [PyCall; 12] = [
     WRITE_PLOTS,
     WRITE_LAB_EFFECTS,
     WRITE_RUN_EFFECTS,
@@ -106,6 +108,7 @@ pub const ALL: [PyCall; 11] = [
     LAB_TUNE,
     EXCITE,
     FIT,
+    RECOMMEND,
     REPORT,
 ];
 

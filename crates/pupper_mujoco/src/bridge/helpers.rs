@@ -105,6 +105,7 @@ pub fn call_helper(
                 } else if [
                     "TuneError",
                     "FitError",
+                    "RecommendError",
                     "LogError",
                     "ConfigError",
                     "OutputError",

@@ -79,6 +79,38 @@ pub(crate) fn gains<'py>(
     to_dict(py, &r)
 }
 
+/// The phase (deg) and gain (dB) margins of one joint's servo loop, as
+/// `gains(..., motor=, sensing_delay=)` computes them, from the joint's
+/// reflected inertia alone (no model loaded): what `recommend` checks for
+/// every candidate and drawn robot.
+#[pyfunction]
+#[pyo3(signature = (inertia, kp, kd, *, motor=None, sensing_delay=None, timestep))]
+pub(crate) fn loop_margins(
+    inertia: f64,
+    kp: f64,
+    kd: f64,
+    motor: Option<String>,
+    sensing_delay: Option<f64>,
+    timestep: f64,
+) -> PyResult<(f64, f64)> {
+    if !(inertia.is_finite() && inertia > 0.0 && timestep.is_finite() && timestep > 0.0) {
+        return Err(to_py(Error::Config(format!(
+            "loop_margins(inertia={inertia}, timestep={timestep}): give a positive inertia (kg·m²) and timestep (s)"
+        ))));
+    }
+    let fb = pupper_core::plan::motor::feedback_of(
+        Some(motor.as_deref().unwrap_or("")),
+        sensing_delay,
+        timestep,
+    )
+    .map_err(to_py)?
+    .unwrap_or_default();
+    Ok(fb
+        .servo(inertia, 0.0, kp, kd)
+        .margins()
+        .map_or((f64::NAN, f64::NAN), |m| (m.phase_deg, m.gain_db)))
+}
+
 /// Stand report (what `pupper stand --json` prints), as a dict. Keyword
 /// arguments are those of `sweep`; the grid and the push are ignored.
 #[pyfunction]

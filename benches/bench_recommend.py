@@ -1,0 +1,82 @@
+"""Benchmark: `pupper recommend` against a grid that answers the same question.
+
+Run from the repository root, after `make setup PUPPER_EXTRAS=tune`:
+
+    .venv/bin/python benches/bench_recommend.py              # defaults: 48 trials, an 8x8 grid per group
+    .venv/bin/python benches/bench_recommend.py --side 6     # a coarser grid
+
+The question is recommend's own: kp and kd per joint group on the built-in
+Pupper v3, 32 robots drawn from the default spread (common draws), the
+default firmware (rate=500,counts=16384, 2 ms sensing delay), every
+constraint on every robot (none falls, saturation under 5 %, each group's
+phase margin >= 30 deg and gain margin >= 6 dB at the spread's corners),
+the lowest p95 push dip winning. The grid: --side log-spaced kp x --side
+kd per group over recommend's ranges, each group's feasible (kp, kd) pairs
+kept (the margins are per group), and every combination of the groups'
+feasible pairs capped at --cap cells (an even subsample), run on the same
+robots in one sweep. Both answers' p95 push dip, cell-steps and wall time
+are printed, as a ratio, in this one process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import time
+
+import numpy as np
+
+import pupper_core as pc
+from pupper_core._recommend_plan import plan as make_plan
+from pupper_core._recommend_search import Candidate, best_of, check_margins, margins, simulate
+
+
+def grid_answer(side: int, cap: int) -> tuple[Candidate | None, int, float, int]:
+    """The grid's pick, its cell-steps, wall time and size."""
+    plan = make_plan()
+    started = time.perf_counter()
+    feasible: dict[str, list[tuple[float, float]]] = {}
+    for g in plan.groups:
+        pairs = [(float(f"{kp:.4g}"), float(f"{kd:.4g}")) for kp in np.geomspace(*g.kp_range, side)
+                 for kd in np.geomspace(*g.kd_range, side)]
+        # the margins are per group: a pair is kept where its group's loop holds
+        feasible[g.name] = [(kp, kd) for kp, kd in pairs
+                            if (m := margins(plan, g, kp, kd))[0] >= plan.min_phase_deg and m[1] >= plan.min_gain_db]
+    combos = list(itertools.product(*(feasible[g.name] for g in plan.groups)))
+    if len(combos) > cap:
+        combos = [combos[i] for i in np.linspace(0, len(combos) - 1, cap).round().astype(int)]
+    cands = [Candidate({g.name: pair for g, pair in zip(plan.groups, combo)}, number=i)
+             for i, combo in enumerate(combos)]
+    for c in cands:
+        check_margins(plan, c)
+    simulate(plan, cands, [plan.model], lambda s: None)
+    return best_of(plan, cands), sum(c.cell_steps for c in cands), time.perf_counter() - started, len(cands)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--side", type=int, default=8, help="grid points per axis per group")
+    ap.add_argument("--cap", type=int, default=512, help="most grid cells (an even subsample)")
+    ap.add_argument("--trials", type=int, default=48)
+    args = ap.parse_args()
+    started = time.perf_counter()
+    rec = pc.recommend(trials=args.trials, progress=False)
+    rec_wall = time.perf_counter() - started
+    rec_steps = sum(c.cell_steps for c in rec.candidates)
+    grid, grid_steps, grid_wall, n = grid_answer(args.side, args.cap)
+    print("run                       p95 push dip mm   cell-steps     wall s   gains (kp/kd haa, hfe, kfe)")
+
+    def row(name: str, c: Candidate | None, steps: int, wall: float) -> None:
+        gains = "  ".join(f"{c.gains[g][0]:.4g}/{c.gains[g][1]:.4g}" for g in ("haa", "hfe", "kfe")) if c else "-"
+        dip = f"{c.p95_dip_mm:.4f}" if c else "-"
+        print(f"{name:<25} {dip:>15} {steps:>12,} {wall:>10.1f}   {gains}")
+
+    row(f"recommend ({args.trials} trials)", rec.pick, rec_steps, rec_wall)
+    row(f"grid ({n} cells)", grid, grid_steps, grid_wall)
+    if rec.pick and grid:
+        print(f"recommend / grid: p95 dip {rec.pick.p95_dip_mm / grid.p95_dip_mm:.3f}, cell-steps "
+              f"{rec_steps / grid_steps:.3f}, wall {rec_wall / grid_wall:.3f}")
+
+
+if __name__ == "__main__":
+    main()

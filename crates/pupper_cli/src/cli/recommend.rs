@@ -1,0 +1,199 @@
+//! `pupper recommend`: gains per joint group to put on the robot, searched
+//! in Python (Optuna over the robots drawn from what the model does not
+//! know); this side hands it the flags as JSON.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use pupper_core::{Error, Result};
+
+use super::args::ModelArg;
+use super::python::python_command;
+use super::rundir_name;
+use crate::pyargs::PyArgs;
+use pupper_mujoco::bridge::calls;
+
+#[derive(Args, Debug)]
+#[command(
+    after_help = "What it answers: the kp and kd per joint group with the lowest worst-side \
+(95th percentile) push dip among gains that hold on EVERY drawn robot:
+  - no robot falls, diverges or lies past the stability bound of the PD;
+  - no robot saturates its torque limit on more than --max-saturation of its steps;
+  - each group's loop, as the firmware (--motor) closes it on measurements --sensing-delay old,
+    keeps --min-phase-margin and --min-gain-margin: the joint linearised at the stand pose (its
+    reflected inertia, kp + kd s, the feedback path's latency: sensing delay, half the update
+    period, the derivative's filter and differencing), checked at the spread's worst corners
+    (what the motors deliver of the gains, the joints' least and most inertia).
+A --command-delay is not in that loop: it leaves the margins alone and shows as a later step
+response. Push dips within 2 % are a tie, won by the candidate whose slowest group tracks fastest.
+
+The robots (default spread): torso mass ±15 %, leg masses ±10 %, motor gains ±10 % per joint,
+floor friction 0.6-1.2, 1 mrad of encoder noise, 0 to --sensing-delay of sensing latency; every
+candidate meets the same robots (common draws), so the card's numbers are reproduced by the sweep
+the manifest names. With --from-fit DIR the robot is the fit's calibrated model and the spread is
+its 95 % intervals: 8 joint models drawn inside them, the gain scales and the delay per robot.
+
+Writes, in the run directory: recommend.csv (a card per group: gains, margins, predicted step
+response, p95 push dip, torque headroom), trials.csv (every candidate), recommended.yaml (a ROS 2
+parameter file: joint_names, kps, kds for --controller in --joint-order), recommended.xml (the
+model with the gains in its actuators), report.html, manifest.json. Needs the tune extra (Optuna).
+
+Examples:
+  pupper recommend -o runs/rec
+  pupper recommend --motor rate=250,counts=16384 --sensing-delay 0.004 -o runs/rec_slow
+  pupper recommend --from-fit runs/fit --joint-order leg_front_r_1,leg_front_r_2,... -o runs/rec_fit"
+)]
+pub(super) struct RecommendArgs {
+    #[command(flatten)]
+    model: ModelArg,
+    /// Robots drawn per candidate (every constraint must hold on each).
+    #[arg(long, default_value_t = 32, value_name = "N")]
+    robots: u32,
+    /// Candidates run on the robots (those whose margins fail cost no simulation).
+    #[arg(long, default_value_t = 48, value_name = "N")]
+    trials: u32,
+    /// Candidates per generation, run as one batch.
+    #[arg(long, default_value_t = 16, value_name = "B")]
+    batch: u32,
+    /// Times the search's best may move to a better neighbour (a group's kp or kd x/÷ 1.25);
+    /// the last neighbours are scored either way, and the card says why each lost.
+    #[arg(long, default_value_t = 4, value_name = "N")]
+    polish: u32,
+    /// Seed of the robots' draws and of the search.
+    #[arg(long, default_value_t = 0, value_name = "S")]
+    seed: u64,
+    /// Simulated seconds per robot (the push comes at 2 s).
+    #[arg(
+        long,
+        default_value_t = 4.0,
+        value_name = "S",
+        allow_negative_numbers = true
+    )]
+    seconds: f64,
+    /// The push's vertical force (N) [default: sweep's].
+    #[arg(long, value_name = "N", allow_negative_numbers = true)]
+    push_force: Option<f64>,
+    /// The servo firmware, as --motor takes it (rate=HZ,filter=HZ,counts=N,noload=RAD_S).
+    #[arg(long, default_value = "rate=500,counts=16384", value_name = "SPEC")]
+    motor: String,
+    /// Age of the measurements the firmware's PD reads (s): in the loop margins, and drawn 0 to it
+    /// (whole physics steps) on the robots.
+    #[arg(
+        long,
+        default_value_t = 0.002,
+        value_name = "S",
+        allow_negative_numbers = true
+    )]
+    sensing_delay: f64,
+    /// Delay of the commanded target (s): the firmware's command delay; shifts the step response.
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        value_name = "S",
+        allow_negative_numbers = true
+    )]
+    command_delay: f64,
+    /// What differs between robots, as --randomize specs; repeat. Replaces the default spread.
+    #[arg(long, value_name = "QUANTITY=DIST", allow_hyphen_values = true)]
+    spread: Vec<String>,
+    /// A `pupper fit` run directory: its calibrated model is the robot, its intervals the spread.
+    #[arg(long, value_name = "DIR")]
+    from_fit: Option<PathBuf>,
+    /// Least phase margin of every group's loop on every robot (degrees).
+    #[arg(
+        long,
+        default_value_t = 30.0,
+        value_name = "DEG",
+        allow_negative_numbers = true
+    )]
+    min_phase_margin: f64,
+    /// Least gain margin of every group's loop on every robot (dB).
+    #[arg(
+        long,
+        default_value_t = 6.0,
+        value_name = "DB",
+        allow_negative_numbers = true
+    )]
+    min_gain_margin: f64,
+    /// Largest share of steps a robot may spend at its torque limit.
+    #[arg(
+        long,
+        default_value_t = 0.05,
+        value_name = "F",
+        allow_negative_numbers = true
+    )]
+    max_saturation: f64,
+    /// The motors' largest kp [default: the model's pupper:kp_max:ACT numerics, else 20x its own].
+    #[arg(long, value_name = "KP", allow_negative_numbers = true)]
+    kp_max: Option<f64>,
+    /// The motors' largest kd [default: the model's pupper:kd_max:ACT numerics, else 50x its own].
+    #[arg(long, value_name = "KD", allow_negative_numbers = true)]
+    kd_max: Option<f64>,
+    /// The controller's joint order for the YAML's kps/kds, comma-separated actuator names
+    /// [default: the model's actuators].
+    #[arg(long, value_name = "A,B,...")]
+    joint_order: Option<String>,
+    /// The ROS 2 node the YAML's parameters are for.
+    #[arg(long, default_value = "neural_controller", value_name = "NAME")]
+    controller: String,
+    /// Run directory (default runs/<time>-recommend).
+    #[arg(long, short = 'o', value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Overwrite --out.
+    #[arg(long)]
+    force: bool,
+    /// No line per generation.
+    #[arg(long, short = 'q')]
+    quiet: bool,
+}
+
+impl RecommendArgs {
+    pub(super) fn run(&self) -> Result<u8> {
+        // JSON writes NaN as null, which Python would read as "not given"
+        for (flag, v) in [
+            ("seconds", Some(self.seconds)),
+            ("sensing-delay", Some(self.sensing_delay)),
+            ("command-delay", Some(self.command_delay)),
+            ("min-phase-margin", Some(self.min_phase_margin)),
+            ("min-gain-margin", Some(self.min_gain_margin)),
+            ("max-saturation", Some(self.max_saturation)),
+            ("push-force", self.push_force),
+            ("kp-max", self.kp_max),
+            ("kd-max", self.kd_max),
+        ] {
+            if v.is_some_and(|v| !v.is_finite()) {
+                return Err(Error::Config(format!(
+                    "--{flag} is not a finite number: give a number"
+                )));
+            }
+        }
+        let out = self.out.clone().unwrap_or_else(|| rundir_name("recommend"));
+        let mut py = PyArgs::new();
+        let args = serde_json::json!({
+            "model": self.model.model,
+            "robots": self.robots,
+            "trials": self.trials,
+            "batch": self.batch,
+            "polish": self.polish,
+            "seed": self.seed,
+            "seconds": self.seconds,
+            "push_force": self.push_force,
+            "motor": self.motor,
+            "sensing_delay": self.sensing_delay,
+            "command_delay": self.command_delay,
+            "spread": if self.spread.is_empty() { None } else { Some(&self.spread) },
+            "from_fit": self.from_fit.as_ref().map(|d| py.path(d)),
+            "min_phase_margin": self.min_phase_margin,
+            "min_gain_margin": self.min_gain_margin,
+            "max_saturation": self.max_saturation,
+            "kp_max": self.kp_max,
+            "kd_max": self.kd_max,
+            "joint_order": self.joint_order,
+            "controller": self.controller,
+            "out": py.path(&out),
+            "force": self.force,
+            "progress": !self.quiet,
+        });
+        python_command(&calls::RECOMMEND, &py.text(&args))
+    }
+}

@@ -1,0 +1,190 @@
+"""`pupper recommend` (`pupper_core.recommend`): gains per joint group a
+robot owner can put on the robot. Every candidate must hold on every robot
+drawn from what the model does not know (none falls, none saturates past
+the limit, each group's loop keeps its phase and gain margins as the
+firmware closes it); among those, the lowest worst-side push dip wins.
+
+The inputs are in ``_recommend_plan``, the search in ``_recommend_search``,
+the card and the files in ``_recommend_card``; this module runs it and is
+the CLI's entry.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pupper_core._recommend_card import Card, card_of, print_card, write_outputs, write_trials
+from pupper_core._recommend_plan import Plan, RecommendError, plan as make_plan
+from pupper_core._recommend_search import Candidate, best_of, robot_model_files, search
+from pupper_core._recommend_search import polish as polish_pick
+
+__all__ = ["recommend", "Recommendation", "RecommendError"]
+
+
+@dataclass
+class Recommendation:
+    """What `recommend` found: the pick (None when no candidate held every
+    constraint), its card per group, every candidate, the run directory."""
+
+    pick: Candidate | None
+    cards: list[Card]
+    candidates: list[Candidate]
+    plan: Plan
+    out: Path | None
+    yaml: str = ""
+    mjcf: str = ""
+    neighbours: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def gains(self) -> dict[str, tuple[float, float]]:
+        """The recommended (kp, kd) per joint group; empty without a pick."""
+        return dict(self.pick.gains) if self.pick else {}
+
+    def to_pandas(self) -> Any:
+        """Every candidate as a pandas DataFrame (trials.csv's columns)."""
+        try:
+            import pandas as pd
+        except ImportError as e:
+            raise ImportError("Recommendation.to_pandas needs pandas: pip install pandas") from e
+        return pd.DataFrame([c.row(self.plan.groups) for c in self.candidates])
+
+    def __repr__(self) -> str:
+        if not self.pick:
+            return f"Recommendation(no pick over {len(self.candidates)} candidates)"
+        g = ", ".join(f"{k} kp {p:.4g} kd {d:.4g}" for k, (p, d) in self.pick.gains.items())
+        return f"Recommendation({g}; p95 push dip {self.pick.p95_dip_mm:.4g} mm on {self.plan.robots} robots)"
+
+
+def recommend(
+    model: str | os.PathLike[str] = "pupper_v3",
+    *,
+    robots: int = 32,
+    trials: int = 48,
+    batch: int = 16,
+    seed: int = 0,
+    seconds: float = 4.0,
+    push_force: float | None = None,
+    motor: str | None = None,
+    sensing_delay: float = 0.002,
+    command_delay: float = 0.0,
+    spread: Sequence[str] | None = None,
+    from_fit: str | os.PathLike[str] | None = None,
+    min_phase_margin: float = 30.0,
+    min_gain_margin: float = 6.0,
+    max_saturation: float = 0.05,
+    kp_max: float | None = None,
+    kd_max: float | None = None,
+    joint_order: Sequence[str] | str | None = None,
+    controller: str = "neural_controller",
+    polish: int = 4,
+    out: str | os.PathLike[str] | None = None,
+    force: bool = False,
+    progress: bool | Callable[[str], None] = True,
+) -> Recommendation:
+    """Gains per joint group (kp, kd) to put on the robot: the lowest
+    worst-side (95th percentile) push dip among candidates that hold on
+    every one of ``robots`` robots drawn from what the model does not know.
+
+    Constraints, each checked on every robot: none falls, diverges or lies
+    past the stability bound; none saturates its torque limit on more than
+    ``max_saturation`` of its steps; and each group's loop, as the firmware
+    ``motor`` (default ``rate=500,counts=16384``) closes it with
+    ``sensing_delay`` s old measurements (drawn 0 to it in whole steps on
+    the robots), keeps ``min_phase_margin`` degrees and ``min_gain_margin``
+    dB at the spread's worst corner (what the motors deliver of the gains,
+    the joints' least and most inertia). A ``command_delay`` (s) is not in
+    that loop: it shifts the predicted step response instead.
+
+    ``spread``: ``--randomize`` specs of what differs between robots
+    (default ``DEFAULT_SPREAD``: torso ±15 %, legs ±10 %, motor gains
+    ±10 %, floor friction 0.6-1.2, 1 mrad encoder noise); ``from_fit``: a
+    `pupper fit` run directory whose calibrated model is the robot and whose
+    intervals are the spread (8 joint models drawn inside them, the gain
+    scales and the fitted delay drawn per robot). The search's best then
+    moves to a better neighbour (a group's kp or kd ×/÷ 1.25) up to
+    ``polish`` times. The search spans each
+    group's own gains /10 to x20 (x50 for kd), capped by the model's
+    ``pupper:kp_max:ACT``/``pupper:kd_max:ACT`` numerics or ``kp_max``/``kd_max``.
+
+    ``out``: the run directory (recommend.csv: a card per group;
+    trials.csv; recommended.yaml: a ROS 2 parameter file with ``kps`` and
+    ``kds`` for ``controller`` in ``joint_order``; recommended.xml: the
+    model with the gains in its actuators; report.html; manifest.json).
+    """
+    say = _sayer(progress)
+    try:
+        import optuna  # noqa: F401  (the search's sampler)
+    except ImportError:
+        raise RecommendError("pupper recommend needs Optuna: install the extra with `make setup PUPPER_EXTRAS=tune` "
+                             "(or pip install 'pupper_core[tune]')") from None
+    p = make_plan(model, robots=robots, trials=trials, batch=batch, seed=seed, seconds=seconds,
+                  push_force=push_force, motor=motor, sensing_delay=sensing_delay, command_delay=command_delay,
+                  spread=spread, from_fit=from_fit, min_phase_margin=min_phase_margin,
+                  min_gain_margin=min_gain_margin, max_saturation=max_saturation, kp_max=kp_max, kd_max=kd_max,
+                  joint_order=joint_order, controller=controller, polish=polish)
+    out_dir = None if out is None else Path(out)
+    if out_dir is None:
+        with tempfile.TemporaryDirectory(prefix="pupper-recommend-") as tmp:
+            return _run(p, Path(tmp), say, keep=False)
+    from pupper_core._tune_study import _check_fresh, _locked
+
+    try:
+        _check_fresh(out_dir, force)
+    except ValueError as e:
+        raise RecommendError(str(e)) from None
+    made = not out_dir.exists()
+    try:
+        with _locked(out_dir):
+            return _run(p, out_dir, say, keep=True)
+    except BaseException:
+        if made and not (out_dir / "trials.csv").exists():
+            import shutil
+
+            shutil.rmtree(out_dir, ignore_errors=True)
+        raise
+
+
+def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommendation:
+    """The search, the polish, the card and the files."""
+    started = time.time()
+    models = robot_model_files(p, d / "robots")
+    every = search(p, models, say, lambda cands: write_trials(d, p, cands) if keep else None)
+    best = best_of(p, every)
+    rec = Recommendation(None, [], every, p, d if keep else None)
+    if best is not None:
+        pick, near = polish_pick(p, best, models, say, every)
+        rec.cards, rec.neighbours, rec.warnings, rec.pick = card_of(p, pick, near, d, say)
+    if keep:
+        write_trials(d, p, every)
+    rec.yaml, rec.mjcf = write_outputs(rec, d, keep, time.time() - started)
+    return rec
+
+
+def _sayer(progress: bool | Callable[[str], None]) -> Callable[[str], None]:
+    if callable(progress):
+        return progress
+    if progress:
+        return lambda s: print(s, file=sys.stderr, flush=True)
+    return lambda s: None
+
+
+def _cli(args_json: str) -> list[str]:
+    """`pupper recommend`: the CLI's parsed flags as JSON; prints the card."""
+    a = json.loads(args_json)
+    model = a.pop("model")
+    rec = recommend(model, **a)
+    print_card(rec)
+    sys.stdout.flush()
+    if rec.out is None:
+        return []
+    return [str(rec.out / f) for f in ("recommend.csv", "trials.csv", "recommended.yaml", "recommended.xml",
+                                       "report.html") if (rec.out / f).exists()]

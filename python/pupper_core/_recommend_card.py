@@ -1,0 +1,306 @@
+"""What `pupper recommend` shows and writes: a card per joint group (the
+gains, their margins, the predicted step response, the push dip, the
+torque headroom, why the neighbours lost), the candidates, the exports a
+robot takes (a ROS 2 parameter file, the MJCF with the gains in its
+actuators), the manifest and report.html."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import shlex
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from pupper_core._files import atomic_write, atomic_write_text
+from pupper_core._recommend_plan import Plan
+from pupper_core._recommend_search import OBJECTIVE, Candidate, better, gains_per_actuator, simulate, why_lost
+
+if TYPE_CHECKING:
+    from pupper_core._recommend import Recommendation
+
+#: Seconds at the stand pose before the predicted step (the softest gains
+#: take about a second to settle from where the robot starts).
+STEP_HOLD = 2.0
+#: A pick within this share of a range's log span from its end is said to
+#: lie on the edge of the searched range.
+EDGE = 0.05
+
+
+@dataclass
+class Card:
+    """One joint group's recommendation."""
+
+    group: str
+    kp: float
+    kd: float
+    phase_margin_deg: float
+    gain_margin_db: float
+    rise_time_s: float
+    overshoot_pct: float
+    settling_time_s: float
+    p95_push_dip_mm: float
+    p95_peak_torque: float
+    torque_limit: float
+    torque_headroom_pct: float
+
+
+def _step_response(plan: Plan, xml: Path) -> dict[str, dict[str, float]]:
+    """Each group's step response at the recommended gains on the nominal
+    robot hung in the air, through the firmware (its command delay too)."""
+    import warnings
+
+    from pupper_core._api import response
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        # a long hold: the softest group's landing transient is over before its step
+        res = response(model=str(xml), mode="torque", motor=plan.motor, hold=STEP_HOLD, seconds=STEP_HOLD + 2.5,
+                       progress=False)
+    return {g.name: {k: float(res.table[f"{k}.{g.name}"][0]) for k in ("rise_time_s", "overshoot_pct",
+                                                                       "settling_time_s")}
+            for g in plan.groups}
+
+
+def _limits(plan: Plan) -> dict[str, float]:
+    from pupper_core._api import info
+
+    def limit(a: dict[str, Any]) -> float:
+        # the force range, else (a motor) the control range, as the runs take it
+        r = a["forcerange"] or a["ctrlrange"]
+        return float(r[1]) if r else math.inf
+
+    acts = info(plan.model)["actuators"]
+    return {g.name: min(limit(dict(acts[a])) for a in g.actuators) for g in plan.groups}
+
+
+def _edges(plan: Plan, pick: Candidate) -> list[str]:
+    """A pick on the edge of its searched range, said."""
+    out = []
+    for g in plan.groups:
+        for axis, v, (lo, hi) in (("kp", pick.gains[g.name][0], g.kp_range), ("kd", pick.gains[g.name][1],
+                                                                             g.kd_range)):
+            span = math.log(hi / lo)
+            if math.log(hi / v) < EDGE * span:
+                out.append(f"{axis}.{g.name} {v:.4g} lies on the top edge of its searched range ({lo:.3g} to "
+                           f"{hi:.3g}): a stiffer setting may hold too; raise --{axis}-max if the motors allow it")
+            elif math.log(v / lo) < EDGE * span:
+                out.append(f"{axis}.{g.name} {v:.4g} lies on the bottom edge of its searched range ({lo:.3g} to "
+                           f"{hi:.3g}): nothing stiffer held every constraint")
+    return out
+
+
+def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], d: Path,
+            say: Callable[[str], None]) -> tuple[list[Card], list[str], list[str], Candidate]:
+    """The cards, why each neighbour lost, the warnings that qualify the
+    pick, and the pick as the card measured it."""
+    d.mkdir(parents=True, exist_ok=True)
+    xml = d / "recommended.xml"
+    atomic_write_text(xml, mjcf(plan, pick))
+    warnings = _edges(plan, pick)
+    reasons = [why_lost(plan, label, c, pick) for label, c in near]
+    winners = [label for label, c in near if c.feasible and better(plan, c, pick)]
+    if winners:
+        warnings.append(f"the polish made its last move with {len(winners)} neighbour(s) that would still win "
+                        f"({', '.join(winners)}): the pick may lie short of the best; raise --polish or --trials")
+    if not plan.fit_draws:
+        # the card's robots are the exported MJCF's: MjSpec writes numbers to
+        # six digits, which moves a chaotic push dip in its fourth
+        pick = _on_export(plan, pick, xml, say, warnings)
+    step = _step_response(plan, xml)
+    limits = _limits(plan)
+    cards = []
+    for g in plan.groups:
+        kp, kd = pick.gains[g.name]
+        lim = limits[g.name]
+        cards.append(Card(g.name, kp, kd, pick.phase_deg[g.name], pick.gain_db[g.name],
+                          step[g.name]["rise_time_s"], step[g.name]["overshoot_pct"],
+                          step[g.name]["settling_time_s"], pick.p95_dip_mm,
+                          pick.p95_peak_torque, lim, 100 * (1 - pick.p95_peak_torque / lim)))
+    return cards, reasons, warnings, pick
+
+
+def _on_export(plan: Plan, pick: Candidate, xml: Path, say: Callable[[str], None],
+               warnings: list[str]) -> Candidate:
+    """The pick run again on the exported MJCF at its own gains: what a
+    sweep on that file reproduces to the digit."""
+    again = Candidate(dict(pick.gains), dict(pick.phase_deg), dict(pick.gain_db), number=pick.number,
+                      stage=pick.stage)
+    simulate(plan, [again], [str(xml)], say, own_gains=True)
+    if again.failed:
+        warnings.append(f"on the exported MJCF the pick breaks a constraint ({again.failed}): the search's "
+                        f"robots held it; treat it as on the edge")
+        return pick
+    return again
+
+
+def mjcf(plan: Plan, pick: Candidate) -> str:
+    """The model with the recommended gains in its actuators (a PD servo:
+    gain kp, bias -kp·q - kd·q̇), written through MjSpec."""
+    import mujoco
+
+    spec = mujoco.MjSpec.from_file(plan.model) if Path(plan.model).is_file() else None
+    if spec is None:
+        from pupper_core.render import builtin_model_path
+
+        path = builtin_model_path(plan.model)
+        if path is None:
+            return ""
+        spec = mujoco.MjSpec.from_file(str(path))
+        base = path.parent
+    else:
+        base = Path(plan.model).parent
+    # assets stay where the original's are
+    spec.meshdir = str((base / spec.meshdir).resolve()) if spec.meshdir else str(base.resolve())
+    spec.texturedir = str((base / spec.texturedir).resolve()) if spec.texturedir else str(base.resolve())
+    for name, (kp, kd) in zip(plan.actuators, gains_per_actuator(plan, pick.gains)):
+        act = spec.actuator(name)
+        act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        act.gainprm[0] = kp
+        act.biasprm[0], act.biasprm[1], act.biasprm[2] = 0.0, -kp, -kd
+    spec.modelname = f"{spec.modelname}_recommended" if spec.modelname else "recommended"
+    return str(spec.to_xml())
+
+
+def ros2_yaml(plan: Plan, pick: Candidate) -> str:
+    """A ROS 2 parameter file: the controller's joint_names, kps and kds in
+    --joint-order."""
+    import yaml  # type: ignore[import-untyped]  # (PyYAML, with Optuna)
+
+    per = dict(zip(plan.actuators, gains_per_actuator(plan, pick.gains)))
+    doc = {plan.controller: {"ros__parameters": {
+        "joint_names": list(plan.joint_order),
+        "kps": [per[n][0] for n in plan.joint_order],
+        "kds": [per[n][1] for n in plan.joint_order],
+    }}}
+    head = (f"# pupper recommend: {plan.model}, {plan.robots} drawn robots, firmware {plan.motor or 'ideal'}, "
+            f"sensing delay {plan.sensing_delay:g} s\n")
+    return head + str(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=100))
+
+
+def reproduce(plan: Plan, d: Path) -> str:
+    """The sweep that gives the card's push dip again, to the digit."""
+    if plan.fit_draws:
+        return ""
+    args = ["pupper", "sweep", "--model", str(d / "recommended.xml"), "--mode", "torque", "--motor", plan.motor,
+            "--seconds", f"{plan.seconds:g}", "--replicates", str(plan.robots), "--seed", str(plan.seed),
+            "--common-draws"]
+    for r in plan.spread:
+        args += ["--randomize", r]
+    if plan.push_force is not None:
+        args += ["--push-force", f"{plan.push_force:g}"]
+    return shlex.join(args)
+
+
+def write_trials(d: Path, plan: Plan, cands: Sequence[Candidate]) -> None:
+    rows = [c.row(plan.groups) for c in cands]
+    if not rows:
+        return
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]), lineterminator="\n")
+            w.writeheader()
+            w.writerows(rows)
+
+    d.mkdir(parents=True, exist_ok=True)
+    atomic_write(d / "trials.csv", write)
+
+
+def write_outputs(rec: Recommendation, d: Path, keep: bool, wall: float) -> tuple[str, str]:
+    """recommend.csv, the exports, the manifest and report.html (with
+    `keep`); the YAML and MJCF texts."""
+    plan, pick = rec.plan, rec.pick
+    yaml_text = ros2_yaml(plan, pick) if pick else ""
+    xml_text = (d / "recommended.xml").read_text() if pick and (d / "recommended.xml").exists() else ""
+    if not keep:
+        return yaml_text, xml_text
+    if pick:
+        atomic_write_text(d / "recommended.yaml", yaml_text)
+
+        def cards(tmp: Path) -> None:
+            with open(tmp, "w", newline="") as f:
+                w = csv.DictWriter(f, fieldnames=list(asdict(rec.cards[0])), lineterminator="\n")
+                w.writeheader()
+                w.writerows(asdict(c) for c in rec.cards)
+
+        atomic_write(d / "recommend.csv", cards)
+    atomic_write_text(d / "manifest.json", json.dumps(_manifest(rec, wall), indent=1) + "\n")
+    from pupper_core import _report
+
+    _report.report(d)
+    return yaml_text, xml_text
+
+
+def _manifest(rec: Recommendation, wall: float) -> dict[str, Any]:
+    import mujoco
+
+    from pupper_core import __version__
+
+    pick = rec.pick
+    return {
+        "kind": "recommend",
+        "inputs": rec.plan.inputs(),
+        "pick": None if pick is None else {g: {"kp": kp, "kd": kd} for g, (kp, kd) in pick.gains.items()},
+        OBJECTIVE: None if pick is None else pick.p95_dip_mm,
+        "neighbours": rec.neighbours,
+        "warnings": rec.warnings,
+        "reproduce": reproduce(rec.plan, rec.out) if pick and rec.out else "",
+        "candidates": len(rec.candidates),
+        "cell_steps": sum(c.cell_steps for c in rec.candidates),
+        "complete": True,
+        "wall_seconds": round(wall, 3),
+        "pupper_version": __version__,
+        "mujoco_version": mujoco.__version__,
+    }
+
+
+def constraints_line(plan: Plan) -> str:
+    return (f"none fell, saturation under {100 * plan.max_saturation:g} % of steps, phase margin >= "
+            f"{plan.min_phase_deg:g}°, gain margin >= {plan.min_gain_db:g} dB (firmware {plan.motor or 'ideal'}, "
+            f"sensing delay {plan.sensing_delay:g} s)")
+
+
+def print_card(rec: Recommendation) -> None:
+    plan, pick = rec.plan, rec.pick
+    ran = [c for c in rec.candidates if c.robots]
+    steps = sum(c.cell_steps for c in rec.candidates)
+    if pick is None:
+        print(f"no gains held every constraint on all {plan.robots} robots ({constraints_line(plan)}): "
+              f"{len(rec.candidates)} candidates asked, {len(ran)} ran on the robots; most common reason: "
+              f"{_commonest(rec.candidates)}. Try a faster firmware (--motor rate=), less sensing delay, "
+              "or lower --min-phase-margin")
+        return
+    print(f"recommended gains, holding on each of {plan.robots} drawn robots: {constraints_line(plan)}")
+    head = ("group", "kp", "kd", "phase °", "gain dB", "rise s", "overshoot %", "settle s")
+    print("".join(f"{h:>12}" for h in head))
+    for c in rec.cards:
+        vals = (c.group, f"{c.kp:.4g}", f"{c.kd:.4g}", f"{c.phase_margin_deg:.1f}", f"{c.gain_margin_db:.1f}",
+                f"{c.rise_time_s:.3g}", f"{c.overshoot_pct:.3g}", f"{c.settling_time_s:.3g}")
+        print("".join(f"{v:>12}" for v in vals))
+    c0 = rec.cards[0]
+    print(f"p95 push dip {pick.p95_dip_mm:.4g} mm; peak torque p95 {pick.p95_peak_torque:.3g} N·m of "
+          f"{min(c.torque_limit for c in rec.cards):.3g} ({c0.torque_headroom_pct:.0f} % headroom); "
+          "step response: the nominal robot hung in the air")
+    if rec.neighbours:
+        print("why the neighbours lost:")
+        for r in rec.neighbours:
+            print(f"  {r}")
+    for w in rec.warnings:
+        print(f"warning: {w}")
+    polished = sum(1 for c in ran if c.stage == "polish")
+    print(f"{len(ran)} candidates on the robots ({len(rec.candidates)} asked, {polished} of them neighbours "
+          f"in the polish), {steps} cell-steps")
+
+
+def _commonest(cands: Sequence[Candidate]) -> str:
+    import re
+    from collections import Counter
+
+    # the reason without its numbers: "kfe phase margin N° < N°"
+    kinds = Counter(re.sub(r"\d+(\.\d+)?", "N", c.failed) for c in cands if c.failed)
+    return kinds.most_common(1)[0][0] if kinds else "none"

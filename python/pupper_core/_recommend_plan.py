@@ -1,0 +1,345 @@
+"""`pupper recommend`'s inputs, checked before anything runs: the model's
+joint groups and their own gains, the searched ranges, the robots drawn
+from what the model does not know, the firmware, the constraints.
+
+Everything model-specific comes from the model: the groups and each
+actuator's own gains (the search spans a decade below and a factor of 20
+above them, capped by the model's `pupper:kp_max:ACT` / `pupper:kd_max:ACT`
+custom numerics or --kp-max / --kd-max), its timestep and torque limits.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pupper_core._native import ConfigError
+
+#: The spread a robot owner's Pupper plausibly differs from its model by,
+#: when no fit says better: battery and payload, leg parts, what each motor
+#: delivers of its gains, the floor, and the encoder's noise (rad). The
+#: sensing latency (whole steps, from --sensing-delay) is added to it.
+DEFAULT_SPREAD = ("torso_mass=±15%", "leg_mass=±10%", "motor_gain=±10%", "friction=0.6:1.2",
+                  "q_noise=N(0,0.001)")
+#: The firmware: the PD updated at 500 Hz (Pupper v3's control rate) on a
+#: 14-bit encoder, its derivative the encoder's difference over a period.
+DEFAULT_MOTOR = "rate=500,counts=16384"
+#: Robots drawn from a fit's intervals: joint models, each run on an equal
+#: share of the robots.
+FIT_MODELS = 8
+#: A neighbour of the pick, per group: its kp or kd times or over this.
+NEIGHBOUR = 1.25
+
+
+class RecommendError(ConfigError, ValueError):
+    """Bad input to `recommend`: one line naming the problem and the fix."""
+
+
+@dataclass(frozen=True)
+class Group:
+    """A joint group: its actuators (indices in the model's order), the
+    searched ranges, its joints' reflected inertia (the smallest: the
+    loop with the least inertia crosses over highest)."""
+
+    name: str
+    actuators: tuple[int, ...]
+    kp_range: tuple[float, float]
+    kd_range: tuple[float, float]
+    #: the least and most reflected inertia its joints may have (kg·m²)
+    inertia: tuple[float, float]
+
+
+@dataclass
+class Plan:
+    model: str
+    actuators: list[str]
+    groups: list[Group]
+    timestep: float
+    motor: str
+    sensing_delay: float
+    command_delay: float
+    spread: list[str]
+    #: the least and most of a commanded kp and kd the motors deliver
+    kp_factors: tuple[float, float]
+    kd_factors: tuple[float, float]
+    robots: int
+    trials: int
+    batch: int
+    seed: int
+    seconds: float
+    push_force: float | None
+    min_phase_deg: float
+    min_gain_db: float
+    max_saturation: float
+    joint_order: list[str]
+    controller: str
+    #: how many times the pick may move to a better neighbour
+    polish: int = 4
+    from_fit: Path | None = None
+    #: the fitted values and intervals (rows of fit.csv)
+    fit_rows: list[dict[str, str]] = field(default_factory=list)
+    #: with a fit: each drawn joint model's values, (parameter, actuators, value)
+    fit_draws: list[list[tuple[str, list[str], float]]] = field(default_factory=list)
+
+    @property
+    def per_model(self) -> int:
+        """Robots per joint model: all on the one model, or an equal share
+        of each drawn from a fit."""
+        return self.robots // max(1, len(self.fit_draws))
+
+    def sweep_options(self) -> dict[str, Any]:
+        """The sweep every candidate runs: torque mode through the firmware,
+        the robots drawn alike for every candidate (common draws)."""
+        opts: dict[str, Any] = {"mode": "torque", "motor": self.motor, "seconds": self.seconds,
+                                "seed": self.seed, "randomize": list(self.spread), "common_draws": True}
+        if self.push_force is not None:
+            opts["push_force"] = self.push_force
+        return opts
+
+    def inputs(self) -> dict[str, Any]:
+        """What the manifest records."""
+        return {
+            "model": self.model, "robots": self.robots, "trials": self.trials, "batch": self.batch,
+            "seed": self.seed, "seconds": self.seconds, "push_force": self.push_force, "motor": self.motor,
+            "sensing_delay": self.sensing_delay, "command_delay": self.command_delay, "spread": self.spread,
+            "kp_factors": list(self.kp_factors), "kd_factors": list(self.kd_factors),
+            "inertia": {g.name: list(g.inertia) for g in self.groups}, "min_phase_margin_deg": self.min_phase_deg,
+            "min_gain_margin_db": self.min_gain_db, "max_saturation": self.max_saturation,
+            "ranges": {g.name: {"kp": list(g.kp_range), "kd": list(g.kd_range)} for g in self.groups},
+            "joint_order": self.joint_order, "controller": self.controller, "polish": self.polish,
+            "from_fit": None if self.from_fit is None else os.fspath(self.from_fit),
+            "fit_draws": [[[p, a, v] for p, a, v in d] for d in self.fit_draws],
+        }
+
+
+def _positive(name: str, v: float, flag: str, *, zero: bool = False) -> float:
+    ok = math.isfinite(v) and (v >= 0 if zero else v > 0)
+    if not ok:
+        raise RecommendError(f"{flag} {v} must be a number {'>= 0' if zero else '> 0'}: give {name}")
+    return float(v)
+
+
+def _relative(spread: Sequence[str], quantity: str) -> float:
+    """P/100 of a `QUANTITY=±P%` spec in the spread (0 when absent)."""
+    for s in spread:
+        m = re.fullmatch(rf"{quantity}=(?:±|\+-)([0-9.]+)%", s.strip())
+        if m:
+            return float(m.group(1)) / 100
+    return 0.0
+
+
+def _numerics(model: str) -> dict[str, float]:
+    """The model's `pupper:...` custom numerics, by name."""
+    from pupper_core.render import _load_model
+
+    m = _load_model(model)
+    out: dict[str, float] = {}
+    for i in range(m.nnumeric):
+        name = m.numeric(i).name
+        if name.startswith("pupper:") and m.numeric_size[i] >= 1:
+            out[name] = float(m.numeric_data[m.numeric_adr[i]])
+    return out
+
+
+def _groups(model: str, kp_max: float | None, kd_max: float | None, leg: float,
+            armature_low: Mapping[str, float]) -> tuple[list[str], list[Group], float]:
+    """The model's actuators, its joint groups with their searched ranges,
+    and its timestep."""
+    from pupper_core._api import gains, info
+
+    inf = info(model)
+    names = [str(a["name"]) for a in inf["actuators"]]
+    own_kp = [float(a["gainprm"][0]) for a in inf["actuators"]]
+    own_kd = [-float(a["biasprm"][2]) for a in inf["actuators"]]
+    rep = gains(model, kp=max(own_kp[0], 1e-3), kd=max(own_kd[0], 0.0))
+    numerics = _numerics(model)
+    members: dict[str, list[int]] = {}
+    lo_i: dict[str, float] = {}
+    hi_i: dict[str, float] = {}
+    for j in rep["joints"]:
+        a, g, inertia = names.index(j["actuator"]), str(j["group"]), float(j["inertia"])
+        members.setdefault(g, []).append(a)
+        # the links' part scales with leg mass; a fit's armature may be as
+        # low as its interval allows (armature_low: how much lower)
+        light = (inertia - armature_low.get(names[a], 0.0)) * (1 - leg)
+        lo_i[g] = min(lo_i.get(g, math.inf), max(light, 1e-9))
+        hi_i[g] = max(hi_i.get(g, 0.0), inertia * (1 + leg))
+    groups = []
+    for name, acts in members.items():
+        kp0 = max(own_kp[a] for a in acts)
+        kd0 = max(own_kd[a] for a in acts)
+        if not (kp0 > 0 and kd0 > 0):
+            raise RecommendError(f"the model's {name} actuators have no PD gains of their own (kp {kp0:g}, "
+                                 f"kd {kd0:g}): give --kp-max and --kd-max, the motors' limits")
+        caps_p = [numerics[f"pupper:kp_max:{names[a]}"] for a in acts if f"pupper:kp_max:{names[a]}" in numerics]
+        caps_d = [numerics[f"pupper:kd_max:{names[a]}"] for a in acts if f"pupper:kd_max:{names[a]}" in numerics]
+        hi_p = min([kp0 * 20, *caps_p, *([kp_max] if kp_max else [])])
+        hi_d = min([kd0 * 50, *caps_d, *([kd_max] if kd_max else [])])
+        lo_p, lo_d = min(kp0 / 10, hi_p / 2), min(kd0 / 10, hi_d / 2)
+        groups.append(Group(name, tuple(acts), (lo_p, hi_p), (lo_d, hi_d), (lo_i[name], hi_i[name])))
+    return names, groups, float(rep["timestep"])
+
+
+def _motor(motor: str | None, command_delay: float) -> str:
+    """The firmware spec with the command delay in it."""
+    spec = DEFAULT_MOTOR if motor is None else motor
+    if command_delay > 0:
+        if re.search(r"(^|,)\s*delay\s*=", spec):
+            raise RecommendError("--command-delay and --motor delay= both set the command delay: keep one")
+        spec = f"{spec},delay={command_delay:g}" if spec else f"delay={command_delay:g}"
+    return spec
+
+
+def _fit_rows(d: Path) -> list[dict[str, str]]:
+    f = d / "fit.csv"
+    if not (f.is_file() and (d / "calibrated.xml").is_file()):
+        raise RecommendError(f"--from-fit {d}: no fit there (fit.csv and calibrated.xml): give a `pupper fit` "
+                             "run directory")
+    with open(f, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _interval(r: Mapping[str, str], floor: float = 0.0) -> tuple[float, float]:
+    """A fit.csv row's 95 % interval, inside the parameter's physical bound
+    (the fitted value alone where the interval is not meaningful)."""
+    try:
+        a, b, v = float(r["low95"] or "nan"), float(r["high95"] or "nan"), float(r["fitted"])
+    except (KeyError, ValueError):
+        raise RecommendError(f"fit.csv row {dict(r)} is not a fit's: give a `pupper fit` run directory") from None
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return v, v
+    return max(a, floor), max(b, floor)
+
+
+def _scale_factors(rows: Sequence[Mapping[str, str]], parameter: str) -> tuple[float, float]:
+    """What the motors deliver of a gain, relative to the calibrated
+    model's fitted scale: the widest interval over the fit's rows."""
+    lo, hi = 1.0, 1.0
+    for r in rows:
+        if r.get("parameter") == parameter:
+            a, b = _interval(r, 1e-6)
+            v = float(r["fitted"])
+            lo, hi = min(lo, a / v), max(hi, b / v)
+    return lo, hi
+
+
+def _actuators_of(r: Mapping[str, str], names: Sequence[str]) -> list[str]:
+    listed = [a for a in re.split(r"[ ;|]+", r.get("actuators", "").strip()) if a]
+    return [a for a in listed if a in names] or list(names)
+
+
+def _fit_draws(rows: Sequence[Mapping[str, str]], names: Sequence[str],
+               seed: int) -> list[list[tuple[str, list[str], float]]]:
+    """FIT_MODELS joint models, each fitted joint parameter drawn uniformly
+    inside its interval (a generator per model, keyed by the seed)."""
+    import numpy as np
+
+    draws = []
+    for k in range(FIT_MODELS):
+        rng = np.random.default_rng([seed, k])
+        one = []
+        for r in rows:
+            if r.get("parameter") in ("armature", "damping", "frictionloss"):
+                a, b = _interval(r)
+                one.append((str(r["parameter"]), _actuators_of(r, names), float(rng.uniform(a, b))))
+        draws.append(one)
+    return draws
+
+
+def _armature_low(rows: Sequence[Mapping[str, str]], names: Sequence[str]) -> dict[str, float]:
+    """By how much each actuator's armature may lie below its fitted value."""
+    out: dict[str, float] = {}
+    for r in rows:
+        if r.get("parameter") == "armature":
+            a, _ = _interval(r)
+            for n in _actuators_of(r, names):
+                out[n] = max(out.get(n, 0.0), float(r["fitted"]) - a)
+    return out
+
+
+def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trials: int = 48, batch: int = 16,
+         seed: int = 0, seconds: float = 4.0, push_force: float | None = None, motor: str | None = None,
+         sensing_delay: float = 0.002, command_delay: float = 0.0, spread: Sequence[str] | None = None,
+         from_fit: str | os.PathLike[str] | None = None, min_phase_margin: float = 30.0,
+         min_gain_margin: float = 6.0, max_saturation: float = 0.05, kp_max: float | None = None,
+         kd_max: float | None = None, joint_order: Sequence[str] | str | None = None,
+         controller: str = "neural_controller", polish: int = 4) -> Plan:
+    """Every input checked, the model read; one line per mistake."""
+    if robots < 1 or trials < 1 or batch < 1:
+        raise RecommendError(f"robots {robots}, trials {trials}, batch {batch}: each must be a whole number >= 1")
+    if polish < 0:
+        raise RecommendError(f"--polish {polish} must be a whole number >= 0 (0: the search's pick, unmoved)")
+    _positive("the simulated seconds per robot, e.g. 4", seconds, "--seconds")
+    _positive("seconds of feedback latency, e.g. 0.002", sensing_delay, "--sensing-delay", zero=True)
+    _positive("seconds of command delay, e.g. 0.01", command_delay, "--command-delay", zero=True)
+    _positive("degrees, e.g. 30", min_phase_margin, "--min-phase-margin", zero=True)
+    _positive("decibels, e.g. 6", min_gain_margin, "--min-gain-margin", zero=True)
+    if not (0 < max_saturation <= 1):
+        raise RecommendError(f"--max-saturation {max_saturation} must lie in (0, 1]: a fraction of steps, e.g. 0.05")
+    for v, flag in ((kp_max, "--kp-max"), (kd_max, "--kd-max")):
+        if v is not None:
+            _positive("the motors' largest gain", v, flag)
+    fit_dir = None if from_fit is None else Path(from_fit)
+    rows: list[dict[str, str]] = []
+    if fit_dir is not None:
+        rows = _fit_rows(fit_dir)
+        model = fit_dir / "calibrated.xml"
+    model = os.fspath(model)
+    base = list(DEFAULT_SPREAD if spread is None else spread)
+    g, leg = _relative(base, "motor_gain"), _relative(base, "leg_mass")
+    kp_f, kd_f = _scale_factors(rows, "kp_scale"), _scale_factors(rows, "kd_scale")
+    if rows:
+        # the fit's gain scales stand for motor_gain: a draw within their interval
+        w = max(kp_f[1] - 1, 1 - kp_f[0], kd_f[1] - 1, 1 - kd_f[0])
+        base = [s for s in base if not s.strip().startswith("motor_gain=")]
+        if w > 1e-4:
+            base.append(f"motor_gain=±{100 * w:.4g}%")
+        g = 0.0
+        delays = [_interval(r) for r in rows if r.get("parameter") == "delay"]
+        # a delay interval of round-off around 0 (a noise-free fit) is no delay
+        if delays and max(b for _, b in delays) > 1e-9:
+            base.append(f"motor_delay={min(a for a, _ in delays):.6g}:{max(b for _, b in delays):.6g}")
+    from pupper_core._api import info
+
+    low = _armature_low(rows, [str(a["name"]) for a in info(model)["actuators"]])
+    names, groups, dt = _groups(model, kp_max, kd_max, leg, low)
+    motor_spec = _motor(motor, command_delay)
+    from pupper_core._native import loop_margins
+
+    loop_margins(1.0, 1.0, 0.1, motor=motor_spec, sensing_delay=sensing_delay, timestep=dt)  # checks the spec
+    steps = math.ceil(sensing_delay / dt - 1e-9)
+    if any(s.strip().startswith("delay=") for s in base):
+        raise RecommendError("the sensing latency is --sensing-delay (drawn 0 to it in whole steps): "
+                             "drop delay= from --spread")
+    drawn = base + ([f"delay=0:{steps}"] if steps else [])
+    kp_factors = (kp_f[0] * (1 - g), kp_f[1] * (1 + g))
+    kd_factors = (kd_f[0] * (1 - g), kd_f[1] * (1 + g))
+    if robots % max(1, FIT_MODELS if rows else 1):
+        raise RecommendError(f"--robots {robots}: with --from-fit the robots are {FIT_MODELS} drawn joint models "
+                             f"with an equal share each: give a multiple of {FIT_MODELS}")
+    order = _joint_order(joint_order, names)
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_/]*", controller):
+        raise RecommendError(f"--controller '{controller}' is not a ROS 2 node name: letters, digits, _ and /")
+    return Plan(model, names, groups, dt, motor_spec, sensing_delay, command_delay, drawn, kp_factors,
+                kd_factors, robots, trials, batch, seed, seconds, push_force, min_phase_margin, min_gain_margin,
+                max_saturation, order, controller, polish, fit_dir, rows,
+                _fit_draws(rows, names, seed) if rows else [])
+
+
+def _joint_order(order: Sequence[str] | str | None, names: list[str]) -> list[str]:
+    if order is None:
+        return list(names)
+    got = [s.strip() for s in (order.split(",") if isinstance(order, str) else order) if s.strip()]
+    unknown = [n for n in got if n not in names]
+    if unknown:
+        raise RecommendError(f"--joint-order names '{unknown[0]}', which is not an actuator of the model: "
+                             f"its actuators are {', '.join(names)}")
+    if len(set(got)) != len(got):
+        raise RecommendError("--joint-order names an actuator twice: name each once")
+    return got

@@ -1,0 +1,416 @@
+"""`pupper recommend`'s search: candidates are per-group (kp, kd); each is
+checked against the loop margins first (cheap: the linearised joint, no
+simulation), then run on every drawn robot at once (one sweep, the robots
+drawn alike for every candidate), and judged by its worst-side push dip
+under its constraints. Optuna's TPE (its constraints function, a sampler
+seeded per generation) asks; the best feasible candidate is then polished
+by its neighbours."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pupper_core._recommend_plan import NEIGHBOUR, Group, Plan
+
+#: What a candidate that cannot be ranked is told.
+PENALTY = 1e6
+#: The objective: the worst-side (95th percentile) push dip over the robots.
+OBJECTIVE = "p95_push_dip_mm"
+#: Push dips within this share of each other are a tie: the candidate
+#: whose slowest joint group tracks fastest (highest natural frequency,
+#: sqrt(kp/J)) wins, since the push barely tells some groups' gains apart.
+TIE = 0.02
+
+Gains = dict[str, tuple[float, float]]
+
+
+@dataclass
+class Candidate:
+    """One per-group setting of the gains and what it scored."""
+
+    gains: Gains
+    phase_deg: dict[str, float] = field(default_factory=dict)
+    gain_db: dict[str, float] = field(default_factory=dict)
+    #: the constraint it breaks first, in words; "" when it holds them all
+    failed: str = ""
+    p95_dip_mm: float = math.nan
+    fell: int = 0
+    robots: int = 0
+    max_saturation: float = math.nan
+    p95_peak_torque: float = math.nan
+    cell_steps: int = 0
+    number: int = -1
+    #: "search" (asked by the sampler) or "polish" (a neighbour of a pick)
+    stage: str = "search"
+
+    @property
+    def feasible(self) -> bool:
+        return not self.failed and math.isfinite(self.p95_dip_mm)
+
+    def value(self) -> float:
+        return self.p95_dip_mm if self.feasible else PENALTY
+
+    def row(self, groups: Sequence[Group]) -> dict[str, Any]:
+        out: dict[str, Any] = {"trial": self.number, "stage": self.stage}
+        for g in groups:
+            out[f"kp.{g.name}"], out[f"kd.{g.name}"] = self.gains[g.name]
+        for g in groups:
+            out[f"phase_margin_deg.{g.name}"] = self.phase_deg.get(g.name, math.nan)
+            out[f"gain_margin_db.{g.name}"] = self.gain_db.get(g.name, math.nan)
+        out.update({OBJECTIVE: self.p95_dip_mm, "fell": self.fell, "robots": self.robots,
+                    "max_saturation": self.max_saturation, "p95_peak_torque": self.p95_peak_torque,
+                    "cell_steps": self.cell_steps, "status": "ok" if self.feasible else self.failed})
+        return out
+
+
+def margins(plan: Plan, g: Group, kp: float, kd: float) -> tuple[float, float]:
+    """The worst phase (deg) and gain (dB) margin of a group's loop over the
+    spread's corners: what the motors deliver of kp and kd, the joints'
+    least and most inertia, the firmware's feedback path with the full
+    sensing delay. The loop sees kp/J and kd/J, so these corners bound it."""
+    from pupper_core._native import loop_margins
+
+    worst_p, worst_g = math.inf, math.inf
+    for fp in plan.kp_factors:
+        for fd in plan.kd_factors:
+            for inertia in g.inertia:
+                p, d = loop_margins(inertia, kp * fp, kd * fd, motor=plan.motor,
+                                    sensing_delay=plan.sensing_delay, timestep=plan.timestep)
+                worst_p, worst_g = min(worst_p, p), min(worst_g, d)
+    return worst_p, worst_g
+
+
+def check_margins(plan: Plan, c: Candidate) -> None:
+    """Fills the candidate's margins; says the first that falls short."""
+    for g in plan.groups:
+        kp, kd = c.gains[g.name]
+        pm, gm = margins(plan, g, kp, kd)
+        c.phase_deg[g.name], c.gain_db[g.name] = pm, gm
+        if not c.failed and not pm >= plan.min_phase_deg:
+            c.failed = f"{g.name} phase margin {pm:.1f}° < {plan.min_phase_deg:g}°"
+        elif not c.failed and not gm >= plan.min_gain_db:
+            c.failed = f"{g.name} gain margin {gm:.1f} dB < {plan.min_gain_db:g} dB"
+
+
+#: The grid a group's margin map is computed on (log kp x log kd).
+MAP_POINTS = 24
+
+
+@dataclass
+class Window:
+    """Where a group's margins hold: for each kp of a log grid, the kd
+    interval (log-interpolated edges) whose worst-corner margins meet the
+    limits; NaN where none does. Candidates are drawn inside it, so the
+    search spends no simulation on gains whose loop would not hold."""
+
+    kps: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+    def kp_span(self) -> tuple[float, float] | None:
+        ok = np.flatnonzero(np.isfinite(self.lo))
+        return None if ok.size == 0 else (float(self.kps[ok[0]]), float(self.kps[ok[-1]]))
+
+    def kd_span(self, kp: float) -> tuple[float, float]:
+        """The kd interval at kp (interpolated in log kp between rows that
+        have one)."""
+        ok = np.isfinite(self.lo)
+        x = np.log(self.kps[ok])
+        lo = float(np.exp(np.interp(math.log(kp), x, np.log(self.lo[ok]))))
+        hi = float(np.exp(np.interp(math.log(kp), x, np.log(self.hi[ok]))))
+        return lo, max(hi, lo)
+
+
+def _slack(plan: Plan, g: Group, kp: float, kd: float) -> float:
+    """How far inside its limits a group's loop is (> 0: both margins hold;
+    a decibel weighs as 5 degrees, only the sign and the zero matter)."""
+    pm, gm = margins(plan, g, kp, kd)
+    return min(pm - plan.min_phase_deg, 5 * (gm - plan.min_gain_db))
+
+
+def window(plan: Plan, g: Group) -> Window:
+    """The group's margin map on a MAP_POINTS² log grid, and each row's
+    kd interval, its edges where the slack crosses zero."""
+    kps = np.geomspace(*g.kp_range, MAP_POINTS)
+    kds = np.geomspace(*g.kd_range, MAP_POINTS)
+    lx = np.log(kds)
+    lo, hi = np.full(MAP_POINTS, np.nan), np.full(MAP_POINTS, np.nan)
+    for i, kp in enumerate(kps):
+        s = np.array([_slack(plan, g, float(kp), float(kd)) for kd in kds])
+        ok = np.flatnonzero(s > 0)
+        if ok.size == 0:
+            continue
+        a, b = ok[0], ok[-1]
+        # the crossing between a grid point that fails and one that holds
+        lo[i] = kds[a] if a == 0 else math.exp(np.interp(0.0, [s[a - 1], s[a]], [lx[a - 1], lx[a]]))
+        hi[i] = kds[b] if b == MAP_POINTS - 1 else math.exp(np.interp(0.0, [s[b + 1], s[b]], [lx[b + 1], lx[b]]))
+    return Window(kps, lo, hi)
+
+
+def _cell(plan: Plan, gains: Gains, name: str) -> dict[str, float | str]:
+    cell: dict[str, float | str] = {"name": name}
+    for g in plan.groups:
+        cell[f"kp.{g.name}"], cell[f"kd.{g.name}"] = gains[g.name]
+    return cell
+
+
+def simulate(plan: Plan, cands: Sequence[Candidate], robot_models: Sequence[str],
+             say: Callable[[str], None], own_gains: bool = False) -> None:
+    """Runs the candidates (margins already checked) on every drawn robot:
+    one sweep per joint model, the robots drawn alike for every candidate.
+    Fills each one's p95 dip, falls, saturation and peak torque."""
+    import warnings
+
+    from pupper_core._api import sweep
+
+    if not cands:
+        return
+    # own_gains: one candidate, the gains its model's actuators hold (an export)
+    cells: Any = None if own_gains else [_cell(plan, c.gains, f"c{i}") for i, c in enumerate(cands)]
+    dips: list[list[float]] = [[] for _ in cands]
+    peaks: list[list[float]] = [[] for _ in cands]
+    for model in robot_models:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            res = sweep(cells, model=model, replicates=plan.per_model, progress=False, **plan.sweep_options())
+        for w in caught:
+            say(f"note: {w.message}")
+        # one robot with nothing drawn is a plain sweep: its table is the robots'
+        reps = res.replicates if res.replicates is not None else res
+        for i, status, dip, sat, peak in zip(reps["index"], reps["status"], reps["push_dip_mm"],
+                                             reps["saturation_frac"], reps["peak_torque"]):
+            c = cands[int(i)]
+            c.robots += 1
+            if status not in ("ok", "saturated"):
+                c.fell += 1
+                continue
+            c.max_saturation = float(np.nanmax([c.max_saturation, float(sat)]))
+            dips[int(i)].append(float(dip))
+            peaks[int(i)].append(float(peak))
+        for i, steps in enumerate(res.cell_steps):
+            cands[i].cell_steps += int(steps or 0)
+    for c, d, p in zip(cands, dips, peaks):
+        c.p95_dip_mm = float(np.percentile(d, 95)) if d and all(math.isfinite(x) for x in d) else math.nan
+        c.p95_peak_torque = float(np.percentile(p, 95)) if p else math.nan
+        if c.fell:
+            c.failed = f"{c.fell} of {c.robots} robots fell, diverged or lay past the stability bound"
+        elif not c.max_saturation < plan.max_saturation:
+            c.failed = (f"saturated {100 * c.max_saturation:.1f} % of steps on its worst robot "
+                        f"(limit {100 * plan.max_saturation:g} %)")
+        elif not math.isfinite(c.p95_dip_mm):
+            c.failed = "no push dip measured (the run ends too early)"
+
+
+def _sampler(optuna: Any, seed: int, generation: int, batch: int) -> Any:
+    """TPE seeded from (seed, generation); each trial's constraint (set
+    with `Trial.set_constraint`) teaches it where the robots' limits hold."""
+    s = int.from_bytes(np.random.SeedSequence([seed, generation]).generate_state(1).tobytes()[:4], "little")
+    return optuna.samplers.TPESampler(seed=s, n_startup_trials=batch, multivariate=True)
+
+
+def rounded(kp: float, kd: float) -> tuple[float, float]:
+    """Gains as a robot's configuration holds them: four significant digits.
+    Every candidate is rounded so, so the numbers pupper reports are those of
+    the gains it exports."""
+    return float(f"{kp:.4g}"), float(f"{kd:.4g}")
+
+
+def _at(w: Window, kp: float, u: float) -> tuple[float, float]:
+    """The gains at kp and a share u of the kd interval there (in log kd)."""
+    lo, hi = w.kd_span(kp)
+    return rounded(kp, lo * (hi / lo) ** u)
+
+
+def _told(c: Candidate, plan: Plan, dists: Mapping[str, Any]) -> float:
+    """What the sampler is told: the push dip, tilted by up to TIE toward
+    the candidate whose softest group (its kp's place in its own searched
+    span, in log) is stiffest, as the pick's tie rule prefers."""
+    if not c.feasible:
+        return PENALTY
+    share = min((math.log(c.gains[g.name][0]) - math.log(dists[f"kp.{g.name}"].low))
+                / max(math.log(dists[f"kp.{g.name}"].high / dists[f"kp.{g.name}"].low), 1e-12)
+                for g in plan.groups)
+    return c.p95_dip_mm * (1 + TIE * (1 - min(max(share, 0.0), 1.0)))
+
+
+def search(plan: Plan, robot_models: Sequence[str], say: Callable[[str], None],
+           after_generation: Callable[[list[Candidate]], None]) -> list[Candidate]:
+    """Generations of `batch` candidates whose margins hold (those that do
+    not are told so at once, costing no simulation) until `trials` have
+    run on the robots. Every candidate asked, in order."""
+    from pupper_core._tune_plan import _optuna
+
+    optuna = _optuna()
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study = optuna.create_study(direction="minimize")
+    wins = {g.name: window(plan, g) for g in plan.groups}
+    dists = {}
+    for g in plan.groups:
+        span = wins[g.name].kp_span()
+        if span is None:
+            say(f"no gains of the {g.name} group keep its margins over the searched range "
+                f"(kp {g.kp_range[0]:.3g} to {g.kp_range[1]:.3g}, kd {g.kd_range[0]:.3g} to {g.kd_range[1]:.3g})")
+            return []
+        # a range of one point is no range: the window's own grid step
+        lo, hi = span if span[1] > span[0] else (span[0] / 1.1, span[0] * 1.1)
+        dists[f"kp.{g.name}"] = optuna.distributions.FloatDistribution(lo, hi, log=True)
+        dists[f"u.{g.name}"] = optuna.distributions.FloatDistribution(0.0, 1.0)
+    every: list[Candidate] = []
+    ran, generation = 0, 0
+    while ran < plan.trials:
+        study.sampler = _sampler(optuna, plan.seed, generation, plan.batch)
+        want = min(plan.batch, plan.trials - ran)
+        batch: list[tuple[Any, Candidate]] = []
+        for _ in range(want * 50):  # asks are cheap; a region with no margin yields nothing
+            t = study.ask(dists)
+            c = Candidate({g.name: _at(wins[g.name], t.params[f"kp.{g.name}"], t.params[f"u.{g.name}"])
+                           for g in plan.groups}, number=len(every))
+            every.append(c)
+            check_margins(plan, c)
+            if c.failed:  # an edge the map's interpolation put a hair outside
+                t.set_constraint("margins", 1.0)
+                t.set_constraint("robots", 1.0)
+                study.tell(t, PENALTY)
+                continue
+            batch.append((t, c))
+            if len(batch) == want:
+                break
+        if not batch:
+            break
+        simulate(plan, [c for _, c in batch], robot_models, say)
+        for t, c in batch:
+            t.set_constraint("margins", 0.0)
+            t.set_constraint("robots", 0.0 if c.feasible else 1.0)
+            study.tell(t, _told(c, plan, dists))
+        ran += len(batch)
+        generation += 1
+        after_generation(every)
+        best = best_of(plan, every)
+        say(f"generation {generation}: {ran} candidates on {plan.robots} robots"
+            + (f"; best p95 push dip {best.p95_dip_mm:.4g} mm" if best else "; none holds every constraint yet"))
+    return every
+
+
+def slowest_hz(plan: Plan, c: Candidate) -> float:
+    """The lowest natural frequency (Hz) of the candidate's groups."""
+    return min(math.sqrt(c.gains[g.name][0] / g.inertia[1]) / (2 * math.pi) for g in plan.groups)
+
+
+def better(plan: Plan, a: Candidate, b: Candidate) -> bool:
+    """Whether feasible `a` beats feasible `b`: a lower push dip by more than
+    TIE; within TIE, a faster slowest group; as fast, a lower push dip."""
+    if a.p95_dip_mm < b.p95_dip_mm * (1 - TIE):
+        return True
+    if a.p95_dip_mm > b.p95_dip_mm * (1 + TIE):
+        return False
+    fa, fb = slowest_hz(plan, a), slowest_hz(plan, b)
+    return fa > fb or (fa == fb and a.p95_dip_mm < b.p95_dip_mm)
+
+
+def best_of(plan: Plan, cands: Sequence[Candidate]) -> Candidate | None:
+    """The pick among candidates: those within TIE of the lowest push dip
+    tie; the fastest slowest group among them wins, then the lower dip,
+    then the one asked first."""
+    ok = [c for c in cands if c.feasible]
+    if not ok:
+        return None
+    low = min(c.p95_dip_mm for c in ok)
+    near = [c for c in ok if c.p95_dip_mm <= low * (1 + TIE)]
+    return max(near, key=lambda c: (slowest_hz(plan, c), -c.p95_dip_mm, -c.number))
+
+
+def neighbours(plan: Plan, pick: Candidate) -> list[tuple[str, Candidate]]:
+    """The pick with one group's kp or kd NEIGHBOUR times higher or lower,
+    inside the searched ranges: what the card says lost, and why."""
+    out = []
+    for g in plan.groups:
+        kp, kd = pick.gains[g.name]
+        for label, gk in ((f"kp.{g.name} ×{NEIGHBOUR:g}", rounded(kp * NEIGHBOUR, kd)),
+                          (f"kp.{g.name} ÷{NEIGHBOUR:g}", rounded(kp / NEIGHBOUR, kd)),
+                          (f"kd.{g.name} ×{NEIGHBOUR:g}", rounded(kp, kd * NEIGHBOUR)),
+                          (f"kd.{g.name} ÷{NEIGHBOUR:g}", rounded(kp, kd / NEIGHBOUR))):
+            if not (g.kp_range[0] <= gk[0] <= g.kp_range[1] and g.kd_range[0] <= gk[1] <= g.kd_range[1]):
+                continue
+            out.append((label, Candidate({**pick.gains, g.name: gk})))
+    return out
+
+
+def polish(plan: Plan, pick: Candidate, robot_models: Sequence[str], say: Callable[[str], None],
+           every: list[Candidate]) -> tuple[Candidate, list[tuple[str, Candidate]]]:
+    """Moves the pick to a better feasible neighbour while there is one (at
+    most `plan.polish` times); the final pick and its neighbours, each
+    scored (and appended to `every`)."""
+    near: list[tuple[str, Candidate]] = []
+    for r in range(plan.polish + 1):
+        near = neighbours(plan, pick)
+        for _, c in near:
+            c.number, c.stage = len(every), "polish"
+            every.append(c)
+            check_margins(plan, c)
+        simulate(plan, [c for _, c in near if not c.failed], robot_models, say)
+        won = best_of(plan, [pick] + [c for _, c in near])
+        if won is None or won is pick or r == plan.polish:
+            return pick, near
+        say(f"polish: a neighbour holds every constraint at a p95 push dip of {won.p95_dip_mm:.4g} mm "
+            f"(the pick's {pick.p95_dip_mm:.4g} mm), its slowest group at {slowest_hz(plan, won):.3g} Hz: moved there")
+        pick = won
+    return pick, near
+
+
+def why_lost(plan: Plan, label: str, c: Candidate, pick: Candidate) -> str:
+    """A neighbour's reason, in words."""
+    if c.failed:
+        return f"{label}: {c.failed}"
+    if better(plan, c, pick):
+        how = ("a lower push dip" if c.p95_dip_mm < pick.p95_dip_mm * (1 - TIE)
+               else "a tie on the push dip with a faster slowest group")
+        return (f"{label}: would win ({how}: {c.p95_dip_mm:.4g} mm against {pick.p95_dip_mm:.4g} mm); the polish "
+                "had made its last move (--polish), so the pick may lie short of the best")
+    if c.p95_dip_mm <= pick.p95_dip_mm * (1 + TIE):
+        fc, fp = slowest_hz(plan, c), slowest_hz(plan, pick)
+        if fc < fp:
+            return (f"{label}: p95 push dip {c.p95_dip_mm:.4g} mm ties the pick's {pick.p95_dip_mm:.4g} mm, and "
+                    f"its slowest group tracks slower ({fc:.3g} Hz against {fp:.3g})")
+        return (f"{label}: p95 push dip {c.p95_dip_mm:.4g} mm ties the pick's {pick.p95_dip_mm:.4g} mm "
+                "at the same slowest group, and is not lower")
+    return f"{label}: p95 push dip {c.p95_dip_mm:.4g} mm, above the pick's {pick.p95_dip_mm:.4g} mm"
+
+
+def robot_model_files(plan: Plan, out: Path) -> list[str]:
+    """The joint models the robots are drawn on: the model itself, or with
+    --from-fit one MJCF per draw of the fitted joint parameters (written
+    into out/robots/, kept: a sweep reproduces any robot from it)."""
+    if not plan.fit_draws:
+        return [plan.model]
+    import mujoco
+
+    out.mkdir(parents=True, exist_ok=True)
+    files = []
+    for k, draw in enumerate(plan.fit_draws):
+        spec = mujoco.MjSpec.from_file(plan.model)
+        for parameter, acts, v in draw:
+            for a in acts:
+                joint = spec.joint(spec.actuator(a).target)
+                if parameter == "damping":
+                    joint.damping[0] = v
+                else:
+                    setattr(joint, parameter, v)
+        path = out / f"robot_{k}.xml"
+        path.write_text(spec.to_xml())
+        files.append(str(path))
+    return files
+
+
+def gains_per_actuator(plan: Plan, gains: Mapping[str, tuple[float, float]]) -> list[tuple[float, float]]:
+    """Each actuator's (kp, kd), in the model's order."""
+    out = [(math.nan, math.nan)] * len(plan.actuators)
+    for g in plan.groups:
+        for a in g.actuators:
+            out[a] = gains[g.name]
+    return out
