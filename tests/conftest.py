@@ -76,6 +76,15 @@ def run(pupper_bin: Path, tmp_path: Path):
     return _run
 
 
+def assert_refused(p: subprocess.CompletedProcess[str], words: str, out: Path) -> None:
+    """A refused command line: exit 2, one line on stderr that says
+    ``words``, and nothing written at ``out``."""
+    assert p.returncode == 2, p.stderr
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0], p.stderr
+    assert not out.exists()
+
+
 def hidden(tmp_path: Path, *modules: str) -> dict[str, str]:
     """Environment in which importing `modules` fails (a sitecustomize puts
     None in sys.modules for them): a machine without an optional package."""

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import REPO, read_csv
+from conftest import REPO, assert_refused, read_csv
 
 pc = pytest.importorskip("pupper_core")
 
@@ -168,10 +168,7 @@ BAD = [
 def test_bad_input_is_one_line_exit_2_and_nothing_written(run, tmp_path, args, words):
     out = tmp_path / "never"
     p = run("response", *args, "-o", out)
-    assert p.returncode == 2, p.stderr
-    lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1 and words in lines[0], p.stderr
-    assert not out.exists()
+    assert_refused(p, words, out)
 
 
 def test_resume_after_a_kill_gives_the_uninterrupted_bytes(pupper_bin, tmp_path):

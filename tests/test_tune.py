@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import clean_env, read_csv
+from conftest import assert_refused, clean_env, read_csv
 
 pc = pytest.importorskip("pupper_core")
 pytest.importorskip("optuna")
@@ -135,10 +135,7 @@ BAD = [
 def test_bad_input_is_one_line_exit_2_and_nothing_written(run, tmp_path, args, words):
     out = tmp_path / "never"
     p = run("tune", *args, "-o", out)
-    assert p.returncode == 2, p.stderr
-    lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1 and words in lines[0], p.stderr
-    assert not out.exists()
+    assert_refused(p, words, out)
 
 
 def test_without_the_extra_one_line_names_it(tmp_path):
