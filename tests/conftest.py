@@ -11,6 +11,7 @@ import csv
 import io
 import os
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
@@ -74,6 +75,29 @@ def run(pupper_bin: Path, tmp_path: Path):
         return proc
 
     return _run
+
+
+def assert_refused(p: subprocess.CompletedProcess[str], words: str, out: Path) -> None:
+    """A refused command line: exit 2, one line on stderr that says
+    ``words``, and nothing written at ``out``."""
+    assert p.returncode == 2, p.stderr
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0], p.stderr
+    assert not out.exists()
+
+
+def wait_rows(path: Path, proc: subprocess.Popen, at_least: int, timeout: float = 120) -> int:
+    """Waits until the table at `path` (summary.csv, trials.csv) holds
+    `at_least` whole rows while `proc` runs; returns how many it holds."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, "the run ended before it could be stopped mid-way"
+        if path.exists():
+            rows = path.read_text().count("\n") - 1
+            if rows >= at_least:
+                return rows
+        time.sleep(0.05)
+    raise AssertionError(f"{path} never reached {at_least} rows")
 
 
 def hidden(tmp_path: Path, *modules: str) -> dict[str, str]:

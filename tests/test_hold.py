@@ -120,3 +120,16 @@ def test_python_hold_matches_the_cli_byte_for_byte(run, tmp_path):
     # a finished hold resumes to nothing left to do
     p = run("hold", "--resume", tmp_path / "cli", check=0)
     assert "nothing left to run" in p.stdout
+
+
+def test_shards_merge_into_the_whole_run(run, tmp_path):
+    """--shard I/N, a flag hold shares with sweep and response: each shard
+    runs its part of the grid, and `pupper merge` puts the whole together."""
+    run("hold", *GRID, "-q", "-o", tmp_path / "whole", check=0)
+    for i in (1, 2):
+        run("hold", *GRID, "--shard", f"{i}/2", "-q", "-o", tmp_path / f"s{i}", check=0)
+    _, rows = read_csv(tmp_path / "s1" / "summary.csv")
+    assert [r["id"] for r in rows] == ["kp3_kd0.5", "kp12_kd0.5"]
+    assert json.loads((tmp_path / "s1" / "manifest.json").read_text())["shard"]["index"] == 1
+    run("merge", tmp_path / "s1", tmp_path / "s2", "-o", tmp_path / "merged", check=0)
+    assert (tmp_path / "merged" / "summary.csv").read_bytes() == (tmp_path / "whole" / "summary.csv").read_bytes()

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import clean_env, read_csv
+from conftest import clean_env, read_csv, wait_rows
 
 # 48 cells of 10 s, 4 per chunk, one thread: ~10+ s on 2 cores, so a signal
 # sent after the first chunk lands mid-run.
@@ -163,15 +163,8 @@ def test_python_sweep_stops_cleanly_on_keyboard_interrupt(tmp_path: Path) -> Non
     import time
 
     proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 120
     summary = out / "summary.csv"
-    while time.monotonic() < deadline:
-        if summary.exists() and len(summary.read_text().splitlines()) >= 2:
-            break
-        if proc.poll() is not None:
-            break
-        time.sleep(0.05)
-    assert proc.poll() is None, proc.communicate()
+    wait_rows(summary, proc, 1)
     sent = time.monotonic()
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=30)

@@ -10,7 +10,7 @@ import warnings
 import pupper_core as pc
 import pytest
 
-from conftest import read_csv, same_files
+from conftest import assert_refused, read_csv, same_files
 
 GRID = {"kp": [30, 120], "kd": [0.5, 5]}
 
@@ -108,9 +108,7 @@ def test_response_sees_the_command_delay():
 def test_a_bad_motor_is_one_line_and_writes_nothing(run, tmp_path, args, words):
     out = tmp_path / "run"
     p = run("sweep", "-g", "kp=30", "--seconds", "1", "-q", "-o", out, *args, check=2)
-    lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1 and words in lines[0], p.stderr
-    assert not out.exists()
+    assert_refused(p, words, out)
 
 
 def test_the_manifest_keeps_the_motor_and_a_resume_matches_it(run, tmp_path):

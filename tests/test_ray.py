@@ -13,12 +13,11 @@ import json
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
-from conftest import clean_env, hidden, same_files
+from conftest import clean_env, hidden, same_files, wait_rows
 
 pytest.importorskip("ray", reason="the ray extra is not installed: make test installs it")
 
@@ -142,19 +141,6 @@ def test_ray_client_address(run, in_cluster, cluster, tmp_path):
     assert own_lines(p.stderr) == [], p.stderr
     run("sweep", *args, "-o", tmp_path / "local", check=0)
     same_files(tmp_path / "client", tmp_path / "local")
-
-
-def wait_rows(path: Path, proc: subprocess.Popen, at_least: int, timeout: float = 120) -> int:
-    """Waits until summary.csv holds `at_least` rows while `proc` runs."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        assert proc.poll() is None, "the sweep ended before it could be stopped mid-way"
-        if path.exists():
-            rows = path.read_text().count("\n") - 1
-            if rows >= at_least:
-                return rows
-        time.sleep(0.05)
-    raise AssertionError(f"{path} never reached {at_least} rows")
 
 
 # 128 cells of 4 s in tasks of 4 cells: long enough to stop mid-way

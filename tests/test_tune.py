@@ -8,12 +8,11 @@ import json
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
-from conftest import clean_env, read_csv
+from conftest import assert_refused, clean_env, read_csv, wait_rows
 
 pc = pytest.importorskip("pupper_core")
 pytest.importorskip("optuna")
@@ -94,12 +93,8 @@ def test_a_kill_and_resume_neither_repeat_nor_lose_a_trial(pupper_bin, run, tmp_
     cut = tmp_path / "cut"
     proc = subprocess.Popen([str(pupper_bin), *_args(cut)], env=clean_env(), cwd=tmp_path,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 120
     trials = cut / "trials.csv"
-    while time.monotonic() < deadline:
-        if trials.exists() and len(trials.read_text().splitlines()) > 8:
-            break
-        time.sleep(0.02)
+    wait_rows(trials, proc, 8)
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=60)
     kept = len(trials.read_text().splitlines()) - 1
@@ -135,10 +130,7 @@ BAD = [
 def test_bad_input_is_one_line_exit_2_and_nothing_written(run, tmp_path, args, words):
     out = tmp_path / "never"
     p = run("tune", *args, "-o", out)
-    assert p.returncode == 2, p.stderr
-    lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1 and words in lines[0], p.stderr
-    assert not out.exists()
+    assert_refused(p, words, out)
 
 
 def test_without_the_extra_one_line_names_it(tmp_path):

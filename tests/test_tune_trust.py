@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import clean_env
+from conftest import assert_refused, clean_env
 
 pc = pytest.importorskip("pupper_core")
 pytest.importorskip("optuna")
@@ -218,10 +218,7 @@ BAD = [
 def test_bad_input_is_refused_before_anything_is_written(run, tmp_path, args, words):
     out = tmp_path / "never"
     p = run("tune", *args, "--trials", "2", "--batch", "2", "--seconds", "1.5", "-o", out)
-    assert p.returncode == 2, p.stderr
-    lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1 and words in lines[0], p.stderr
-    assert not out.exists()
+    assert_refused(p, words, out)
 
 
 def test_what_only_the_model_refuses_leaves_no_directory_either(run, tmp_path):

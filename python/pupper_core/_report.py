@@ -18,7 +18,7 @@ import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, NamedTuple
 
 __all__ = ["report"]
 
@@ -353,13 +353,26 @@ def _response_best(header: list[str], rows: list[dict[str, str]]) -> str:
     return "".join(out)
 
 
-Sections = Callable[[Path, dict[str, Any], str, list[str], list[dict[str, str]], list[str]], list[str]]
+class Page(NamedTuple):
+    """What a kind's sections are drawn from: the run directory, its
+    manifest and kind, summary.csv, and the page's warnings (a section adds
+    its own)."""
+
+    dir: Path
+    manifest: dict[str, Any]
+    kind: str
+    header: list[str]
+    rows: list[dict[str, str]]
+    warnings: list[str]
 
 
-def _grid_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[str],
-                   rows: list[dict[str, str]], warnings: list[str]) -> list[str]:
+Sections = Callable[[Page], list[str]]
+
+
+def _grid_sections(page: Page) -> list[str]:
     """A run of the sweep runner (sweep, lab, response, hold): the pick, the
     plots of its kind, the table."""
+    d, manifest, kind, header, rows, warnings = page
     parts: list[str] = []
     best, rule = _best(d, kind) if kind in ("sweep", "lab", "hold") and rows else (None, "")
     if kind == "response" and rows:
@@ -443,12 +456,11 @@ def _grid_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[st
     return parts
 
 
-def _tune_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[str],
-                   rows: list[dict[str, str]], warnings: list[str]) -> list[str]:
+def _tune_sections(page: Page) -> list[str]:
     """A tune: the best objective against cell-steps, the best trial, the trials."""
     parts: list[str] = []
-    th, trials = _read(d / "trials.csv")
-    objs = [o for o in manifest.get("inputs", {}).get("objectives", []) if o in th]
+    th, trials = _read(page.dir / "trials.csv")
+    objs = [o for o in page.manifest.get("inputs", {}).get("objectives", []) if o in th]
     if trials and objs and "cell_steps" in th:
         spent, best_so_far, acc, cur = [], [], 0.0, math.inf
         for r in trials:
@@ -460,7 +472,7 @@ def _tune_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[st
             best_so_far.append(cur if math.isfinite(cur) else math.nan)
         parts.append("<h2>Plots</h2>" + _lines({"best so far": (spent, best_so_far)},
                                                "best objective against cell-steps spent", "cell-steps", objs[0]))
-    bj = d / "best.json"
+    bj = page.dir / "best.json"
     if bj.is_file():
         parts.append("<h2>Best trial</h2><pre>" + html.escape(bj.read_text()) + "</pre>")
     if trials:
@@ -468,20 +480,18 @@ def _tune_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[st
     return parts
 
 
-def _fit_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[str],
-                  rows: list[dict[str, str]], warnings: list[str]) -> list[str]:
+def _fit_sections(page: Page) -> list[str]:
     """A fit: the fitted parameters, the error before and after, its warnings."""
     parts: list[str] = []
-    fh, frows = _read(d / "fit.csv")
+    fh, frows = _read(page.dir / "fit.csv")
     parts.append("<h2>Fitted parameters (fit.csv)</h2>" + _table(fh, frows, None, key="parameter"))
-    rh, rrows = _read(d / "residuals.csv")
+    rh, rrows = _read(page.dir / "residuals.csv")
     if rrows:
         labels = [f"{r['log']} {r['actuator']}" for r in rrows]
         parts.append("<h2>Plots</h2>"
                      + _bars(labels, [_num(r["rms_before_rad"]) * 1e3 for r in rrows], "RMS angle error before (mrad)")
                      + _bars(labels, [_num(r["rms_after_rad"]) * 1e3 for r in rrows], "RMS angle error after (mrad)"))
-    for w in manifest.get("warnings", []):
-        warnings.append(w)
+    page.warnings.extend(page.manifest.get("warnings", []))
     return parts
 
 
@@ -544,7 +554,7 @@ def report(run_dir: str | os.PathLike[str]) -> Path:
     kind = _kind(manifest)
     warnings: list[str] = []
     header, rows = _read(d / "summary.csv")
-    parts = SECTIONS[kind](d, manifest, kind, header, rows, warnings)
+    parts = SECTIONS[kind](Page(d, manifest, kind, header, rows, warnings))
     files = sorted(p.relative_to(d).as_posix() for p in d.rglob("*")
                    if p.is_file() and not p.name.startswith(".") and p.name != "report.html")
     links = "".join(f'<li><a href="{html.escape(f)}">{html.escape(f)}</a></li>' for f in files)

@@ -24,6 +24,11 @@ pub(crate) fn to_dict<'py, T: serde::Serialize>(
         .call1((text,))
 }
 
+/// Whether keyword `k` is among `options`.
+pub(crate) fn given(options: Option<&Bound<'_, PyDict>>, k: &str) -> bool {
+    options.is_some_and(|o| o.contains(k).unwrap_or(false))
+}
+
 /// The spec from Python keyword arguments: their names are the fields of
 /// [`SweepSpec`] and what is not given keeps the spec's default. They cross
 /// as JSON (floats round-trip exactly), so a wrong type names its keyword.

@@ -11,6 +11,7 @@ use pyo3::types::{PyDict, PyList};
 
 use crate::error::{ConfigError, InternalError, to_py};
 use pupper_core::results::best;
+use pupper_core::results::output::Trace;
 use pupper_core::results::tables::NamedTable;
 use pupper_core::sim::metrics::METRIC_NAMES;
 
@@ -84,7 +85,7 @@ pub struct SweepResult {
 pub struct Parts<'a> {
     pub header: Vec<String>,
     pub rows: Vec<Vec<String>>,
-    pub traces: &'a [(String, Vec<(f64, f64)>)],
+    pub traces: &'a [Trace],
     pub out: Option<&'a Path>,
     pub complete: bool,
     pub wall_seconds: f64,
@@ -534,7 +535,7 @@ pub fn _result_from_state(py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult
     };
     let header: Vec<String> = get("header")?.extract()?;
     let rows: Vec<Vec<String>> = get("rows")?.extract()?;
-    let mut traces: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    let mut traces: Vec<Trace> = Vec::new();
     for (id, tz) in get("traces")?.cast_into::<PyDict>()?.iter() {
         let (t, z): (Vec<f64>, Vec<f64>) = tz.extract()?;
         traces.push((id.extract()?, t.into_iter().zip(z).collect()));

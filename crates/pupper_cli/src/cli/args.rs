@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use clap::{Args, ValueEnum};
 use pupper_core::Result;
 use pupper_core::plan::mode::Mode;
-use pupper_core::request::spec::{self, SweepSpec};
+use pupper_core::request::spec::{self, GridInput, SweepSpec};
 use pupper_core::robot::model::ModelSource;
 
 /// `--grid`, repeatable.
@@ -20,6 +20,13 @@ pub(super) struct GridArg {
         allow_hyphen_values = true
     )]
     pub(super) grid: Vec<String>,
+}
+
+impl GridArg {
+    /// The grid as the spec takes it.
+    pub(super) fn input(&self) -> GridInput {
+        GridInput::Specs(self.grid.clone())
+    }
 }
 
 #[derive(Args, Debug)]
@@ -264,6 +271,19 @@ pub(super) struct RunArgs {
     pub(super) quiet: bool,
 }
 
+impl RunArgs {
+    /// These flags over `spec`, with `trace`: the command's --trace, or its
+    /// plots, which draw the traces.
+    pub(super) fn apply(&self, trace: bool, spec: SweepSpec) -> SweepSpec {
+        SweepSpec {
+            trace,
+            trace_every: self.trace_every,
+            shard: self.shard.clone(),
+            ..spec
+        }
+    }
+}
+
 /// How a run's cells are batched: speed only, never the numbers.
 #[derive(Args, Debug)]
 pub(super) struct BatchArgs {
@@ -276,6 +296,16 @@ pub(super) struct BatchArgs {
     /// the numbers.
     #[arg(long, value_name = "N")]
     pub(super) chunk_cells: Option<usize>,
+}
+
+impl BatchArgs {
+    pub(super) fn apply(&self, spec: SweepSpec) -> SweepSpec {
+        SweepSpec {
+            threads: self.threads,
+            chunk_cells: self.chunk_cells,
+            ..spec
+        }
+    }
 }
 
 #[derive(Args, Debug)]
@@ -317,5 +347,26 @@ impl BackendArgs {
             ray: self.ray.clone(),
             ..spec
         }
+    }
+}
+
+/// How a run command's cells run, after its own flags: the run
+/// directory's life, the batches, the backend (last: the backend's help
+/// heading holds every option after it).
+#[derive(Args, Debug)]
+pub(super) struct RunnerArgs {
+    #[command(flatten)]
+    pub(super) run: RunArgs,
+    #[command(flatten)]
+    pub(super) batch: BatchArgs,
+    #[command(flatten)]
+    pub(super) backend: BackendArgs,
+}
+
+impl RunnerArgs {
+    /// These flags over `spec`, with `trace` as [`RunArgs::apply`] takes it.
+    pub(super) fn apply(&self, trace: bool, spec: SweepSpec) -> SweepSpec {
+        self.run
+            .apply(trace, self.batch.apply(self.backend.apply(spec)))
     }
 }

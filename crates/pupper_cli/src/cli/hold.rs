@@ -7,10 +7,10 @@ use std::sync::atomic::AtomicBool;
 use clap::Args;
 use pupper_core::Result;
 use pupper_core::request::hold::{HoldInput, seconds, spec};
-use pupper_core::request::spec::{GridInput, SweepSpec};
+use pupper_core::request::spec::SweepSpec;
 use pupper_core::results::best;
 
-use super::args::{BackendArgs, BatchArgs, GridArg, OutputArgs, RunArgs, SimArgs};
+use super::args::{GridArg, OutputArgs, RunnerArgs, SimArgs};
 use super::sweep::{Job, run_job};
 
 #[derive(Args, Debug)]
@@ -71,11 +71,7 @@ pub(super) struct HoldArgs {
     #[arg(long)]
     plot: bool,
     #[command(flatten)]
-    run: RunArgs,
-    #[command(flatten)]
-    batch: BatchArgs,
-    #[command(flatten)]
-    backend: BackendArgs,
+    runner: RunnerArgs,
 }
 
 impl HoldArgs {
@@ -91,16 +87,13 @@ impl HoldArgs {
 
     fn spec(&self) -> Result<SweepSpec> {
         let input = self.input();
+        let sim = self.sim.spec()?;
         let base = SweepSpec {
-            grid: GridInput::Specs(self.grid.grid.clone()),
+            grid: self.grid.input(),
             seconds: self.sim.seconds.unwrap_or_else(|| seconds(&input)),
-            threads: self.batch.threads,
-            chunk_cells: self.batch.chunk_cells,
             force: self.output.force,
             // the height plot draws the traces
-            trace: self.trace || self.plot,
-            trace_every: self.run.trace_every,
-            ..self.backend.apply(self.sim.spec()?)
+            ..self.runner.apply(self.trace || self.plot, sim)
         };
         Ok(spec(base, &input))
     }
@@ -126,7 +119,7 @@ pub(super) fn run(a: HoldArgs, stop: &'static AtomicBool) -> Result<u8> {
             preset: Some("hold".into()),
             plot: a.plot,
             rule: Some(best::Rule::new(&metric, &[])),
-            ..Job::new(a.spec()?, baseline, a.output.out, &a.run)
+            ..Job::new(a.spec()?, baseline, a.output.out, &a.runner.run)
         },
         stop,
     )

@@ -8,10 +8,17 @@ use pupper_mujoco::bridge::calls::{self, PyCall};
 /// A command whose work is in pupper's Python package: its flags as JSON
 /// to `module.func`, which returns the files it wrote (said on stderr).
 pub(super) fn python_command(call: &PyCall, args_json: &str) -> Result<u8> {
-    for p in bridge::call_helper(call, &[args_json.to_string()], &serde_json::json!({}))? {
+    write_files(call, args_json)?;
+    Ok(0)
+}
+
+/// Calls `call` with its one argument (a command's flags as JSON, or a run
+/// directory) and says each file it wrote on stderr.
+pub(super) fn write_files(call: &PyCall, arg: &str) -> Result<()> {
+    for p in bridge::call_helper(call, &[arg.to_string()], &serde_json::json!({}))? {
         eprintln!("wrote {p}");
     }
-    Ok(0)
+    Ok(())
 }
 
 /// Writes DIR/report.html. The path crosses as its bytes (hex), so a

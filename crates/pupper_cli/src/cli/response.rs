@@ -5,9 +5,9 @@ use std::sync::atomic::AtomicBool;
 
 use clap::Args;
 use pupper_core::Result;
-use pupper_core::request::spec::{GridInput, SweepSpec};
+use pupper_core::request::spec::SweepSpec;
 
-use super::args::{BackendArgs, BatchArgs, GridArg, OutputArgs, PopulationArgs, RunArgs, SimArgs};
+use super::args::{GridArg, OutputArgs, PopulationArgs, RunnerArgs, SimArgs};
 use super::sweep::{Job, run_job};
 
 #[derive(Args, Debug)]
@@ -73,11 +73,7 @@ pub(super) struct ResponseArgs {
     #[command(flatten)]
     output: OutputArgs,
     #[command(flatten)]
-    run: RunArgs,
-    #[command(flatten)]
-    batch: BatchArgs,
-    #[command(flatten)]
-    backend: BackendArgs,
+    runner: RunnerArgs,
     #[command(flatten)]
     population: PopulationArgs,
 }
@@ -94,20 +90,16 @@ impl ResponseArgs {
                 .map(pupper_core::request::response::parse_chirp)
                 .transpose()?,
         };
+        let sim = self.population.apply(self.sim.spec()?);
         let base = SweepSpec {
-            grid: GridInput::Specs(self.grid.grid.clone()),
+            grid: self.grid.input(),
             seconds: self
                 .sim
                 .seconds
                 .unwrap_or(pupper_core::request::response::SECONDS),
-            threads: self.batch.threads,
-            chunk_cells: self.batch.chunk_cells,
             force: self.output.force,
-            shard: self.run.shard.clone(),
             // the step plots draw the traces
-            trace: self.trace || self.plot,
-            trace_every: self.run.trace_every,
-            ..self.backend.apply(self.population.apply(self.sim.spec()?))
+            ..self.runner.apply(self.trace || self.plot, sim)
         };
         pupper_core::request::response::spec(
             base,
@@ -138,7 +130,7 @@ pub(super) fn run(a: ResponseArgs, stop: &'static AtomicBool) -> Result<u8> {
             resume_alone: a.grid.grid.is_empty(),
             preset: Some("response".into()),
             plot: a.plot,
-            ..Job::new(a.spec()?, baseline, a.output.out, &a.run)
+            ..Job::new(a.spec()?, baseline, a.output.out, &a.runner.run)
         },
         stop,
     )

@@ -17,9 +17,9 @@ use pupper_mujoco::api::{self, SweepOutcome, SweepRequest, SweepUi};
 use pupper_mujoco::bridge;
 
 use super::args::{
-    BackendArgs, BatchArgs, GridArg, OutputArgs, PopulationArgs, RunArgs, ScheduleArgs, SimArgs,
+    GridArg, OutputArgs, PopulationArgs, RunArgs, RunnerArgs, ScheduleArgs, SimArgs,
 };
-use super::python::write_report;
+use super::python::{write_files, write_report};
 use super::rundir_name;
 use crate::print;
 use pupper_mujoco::bridge::calls;
@@ -91,13 +91,9 @@ pub(super) struct SweepArgs {
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
     #[arg(long, default_value_t = pupper_core::results::best::MAX_SATURATION, value_name = "FRACTION")]
     max_saturation: f64,
-    #[command(flatten)]
-    run: RunArgs,
-    #[command(flatten)]
-    batch: BatchArgs,
     // last: their help headings would hold every option after them
     #[command(flatten)]
-    backend: BackendArgs,
+    runner: RunnerArgs,
     #[command(flatten)]
     population: PopulationArgs,
 }
@@ -106,24 +102,19 @@ impl SweepArgs {
     /// These arguments over the spec's defaults.
     fn spec(&self) -> Result<SweepSpec> {
         let sine = self.schedule.sine()?;
+        let sim = self
+            .schedule
+            .apply(sine, self.population.apply(self.sim.spec()?));
         Ok(SweepSpec {
             grid: match &self.preset {
                 Some(p) => GridInput::Preset(p.clone()),
-                None => GridInput::Specs(self.grid.grid.clone()),
+                None => self.grid.input(),
             },
-            // plots draw the base-z curves from the traces
-            trace: self.trace || self.plot,
-            trace_every: self.run.trace_every,
             stop_fallen: self.stop_fallen,
-            threads: self.batch.threads,
-            chunk_cells: self.batch.chunk_cells,
             max_cells: self.max_cells,
             force: self.output.force,
-            shard: self.run.shard.clone(),
-            ..self.schedule.apply(
-                sine,
-                self.backend.apply(self.population.apply(self.sim.spec()?)),
-            )
+            // plots draw the base-z curves from the traces
+            ..self.runner.apply(self.trace || self.plot, sim)
         })
     }
 }
@@ -188,10 +179,10 @@ pub(super) fn run(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
             baseline: SweepSpec::default(),
             resume_alone: a.grid.grid.is_empty() && a.preset.is_none(),
             out: a.output.out,
-            resume: a.run.resume,
+            resume: a.runner.run.resume,
             preset: a.preset,
-            quiet: a.run.quiet,
-            json: a.run.json,
+            quiet: a.runner.run.quiet,
+            json: a.runner.run.json,
             plot: a.plot,
             render: a.render,
             rule,
@@ -374,13 +365,7 @@ fn write_after(a: &Job, dir: &Path) -> Result<()> {
     let dir_s = dir.display().to_string();
     if a.plot {
         // the plots of the run's kind, as its manifest names it
-        for p in bridge::call_helper(
-            &calls::WRITE_PLOTS,
-            std::slice::from_ref(&dir_s),
-            &serde_json::json!({}),
-        )? {
-            eprintln!("wrote {p}");
-        }
+        write_files(&calls::WRITE_PLOTS, &dir_s)?;
     }
     if a.lab {
         // the bodies at their best gains, side by side: a PNG, and a GIF with --render
@@ -397,13 +382,7 @@ fn write_after(a: &Job, dir: &Path) -> Result<()> {
             Err(e) => return Err(e),
         }
     } else if a.render {
-        for p in bridge::call_helper(
-            &calls::WRITE_RUN_EFFECTS,
-            std::slice::from_ref(&dir_s),
-            &serde_json::json!({}),
-        )? {
-            eprintln!("wrote {p}");
-        }
+        write_files(&calls::WRITE_RUN_EFFECTS, &dir_s)?;
     }
     // the page a person opens: its path last (-q: written, not said)
     write_report(dir)?;

@@ -132,13 +132,10 @@ impl TuneArgs {
     fn options(&self) -> Result<serde_json::Map<String, Value>> {
         let sim = self.sim.spec()?;
         let sine = self.schedule.sine()?;
-        let spec = SweepSpec {
-            threads: self.batching.threads,
-            chunk_cells: self.batching.chunk_cells,
-            ..self
-                .schedule
-                .apply(sine, self.backend.apply(self.population.apply(sim)))
-        };
+        let spec = self.batching.apply(
+            self.schedule
+                .apply(sine, self.backend.apply(self.population.apply(sim))),
+        );
         let d = SweepSpec::default();
         let keep = [
             ("model", true),

@@ -17,7 +17,9 @@ const SHOWN: [(&str, &str); 6] = [
     ("copper_w", "copper W"),
 ];
 
-pub(super) fn table(o: &SweepOutcome) -> String {
+/// The table, and the line of the stiffest cell (by `metric`, the kind's
+/// own) when it lies on the edge of the searched gains.
+pub(super) fn table(o: &SweepOutcome, metric: &str) -> String {
     let col = |name: &str| o.header.iter().position(|h| h == name);
     let metrics_at = col("final_z").unwrap_or(o.header.len());
     let axes: Vec<usize> = (3..metrics_at).collect();
@@ -58,7 +60,7 @@ pub(super) fn table(o: &SweepOutcome) -> String {
         let _ = writeln!(s, "{}", line.trim_end());
     }
     // the stiffest cell on the edge of the searched gains says so
-    let rule = pupper_core::results::best::Rule::new("compliance_mm_per_n", &[]);
+    let rule = pupper_core::results::best::Rule::new(metric, &[]);
     if let Some(i) = pupper_core::results::best::best(&o.header, &o.rows, &rule)
         .ok()
         .and_then(|g| g.first().and_then(|g| g.best))

@@ -66,7 +66,7 @@ pub fn run_table(o: &SweepOutcome, e: &pupper_core::plan::experiment::Experiment
     match e {
         Experiment::Stand => sweep(o),
         Experiment::Response(_) => response(o),
-        Experiment::Hold(_) => hold::table(o),
+        Experiment::Hold(_) => hold::table(o, e.plan().default_metric()),
     }
 }
 

@@ -333,19 +333,6 @@ impl RunWriter {
         self.details.iter().position(|d| d.file == file)
     }
 
-    /// replicates.csv's header (empty for a plain sweep).
-    pub fn replicate_header(&self) -> &[String] {
-        match self.detail(REPLICATES) {
-            Some(k) => &self.details[k].header,
-            None => &[],
-        }
-    }
-
-    /// replicates.csv's rows so far, by cell then replicate.
-    pub fn replicate_rows(&self) -> Vec<Vec<String>> {
-        self.detail_table(REPLICATES).1
-    }
-
     /// Every table beside summary.csv: file name, header, rows so far.
     pub fn detail_tables(&self) -> Vec<NamedTable> {
         self.details
@@ -819,7 +806,11 @@ mod tests {
             reps.lines().take(7).collect::<Vec<_>>()
         );
         let back = crate::results::tables::read_run(&dir).unwrap();
-        assert_eq!((back.rows.len(), back.replicate_rows.len()), (3, 9));
+        let replicates = back.details.iter().find(|(f, _, _)| f == REPLICATES);
+        assert_eq!(
+            (back.rows.len(), replicates.map(|(_, _, r)| r.len())),
+            (3, Some(9))
+        );
         assert_eq!(names(&dir), [LOCK, MANIFEST, REPLICATES, SUMMARY]);
     }
 

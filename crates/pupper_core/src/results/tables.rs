@@ -8,7 +8,7 @@ use crate::error::Result;
 use crate::plan::config::SweepConfig;
 use crate::results::kinds;
 use crate::results::output::{
-    Detail, Manifest, REPLICATES, Trace, read_detail, read_manifest, read_rows, read_traces,
+    Detail, Manifest, Trace, read_detail, read_manifest, read_rows, read_traces,
 };
 use crate::sim::result::CellResult;
 
@@ -46,11 +46,7 @@ pub struct RunTables {
     /// summary.csv's rows in cell order.
     pub rows: Vec<Vec<String>>,
     /// (cell id, (t, z) samples) in cell order, for traced runs.
-    pub traces: Vec<(String, Vec<(f64, f64)>)>,
-    /// replicates.csv's header and rows (cell, then replicate order), for
-    /// replicated runs.
-    pub replicate_header: Vec<String>,
-    pub replicate_rows: Vec<Vec<String>>,
+    pub traces: Vec<Trace>,
     /// Every table beside summary.csv (replicates.csv too): file name,
     /// header, rows in cell order.
     pub details: Vec<NamedTable>,
@@ -97,14 +93,7 @@ pub fn read_run(dir: &Path) -> Result<RunTables> {
             (d.file.to_string(), d.header, kept)
         })
         .collect();
-    let (replicate_header, replicate_rows) = details
-        .iter()
-        .find(|(f, _, _)| f == REPLICATES)
-        .map(|(_, h, r)| (h.clone(), r.clone()))
-        .unwrap_or_default();
     Ok(RunTables {
-        replicate_header,
-        replicate_rows,
         details,
         header: header_of(&manifest.config),
         rows: rows.into_values().collect(),

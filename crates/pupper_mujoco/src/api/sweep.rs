@@ -11,7 +11,7 @@ use pupper_core::plan::backend::Backend;
 use pupper_core::plan::config::SweepConfig;
 use pupper_core::plan::grid::Cell;
 use pupper_core::request::spec::Sweep;
-use pupper_core::results::output::{Manifest, ModelRecord, ShardRecord};
+use pupper_core::results::output::{Manifest, ModelRecord, ShardRecord, Trace};
 use pupper_core::results::rundir::RunWriter;
 use pupper_core::robot::model::ModelInfo;
 use pupper_core::sim::cluster::{self, Address, Job};
@@ -36,10 +36,7 @@ pub struct SweepOutcome {
     pub header: Vec<String>,
     pub rows: Vec<Vec<String>>,
     /// Traces of the cells run now (id, samples), when asked for.
-    pub traces: Vec<(String, Vec<(f64, f64)>)>,
-    /// replicates.csv's header and rows, for a replicated sweep.
-    pub replicate_header: Vec<String>,
-    pub replicate_rows: Vec<Vec<String>>,
+    pub traces: Vec<Trace>,
     /// Every table beside summary.csv (replicates.csv; response.csv and
     /// bode.csv): file name, header, rows in cell order.
     pub details: Vec<NamedTable>,
@@ -362,8 +359,6 @@ fn outcome_of(
         header: writer.header().to_vec(),
         rows: writer.rows().cloned().collect(),
         traces: writer.traces().cloned().collect(),
-        replicate_header: writer.replicate_header().to_vec(),
-        replicate_rows: writer.replicate_rows(),
         details: writer.detail_tables(),
         cell_steps: writer
             .rows()

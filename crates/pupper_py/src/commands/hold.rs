@@ -6,11 +6,9 @@ use pyo3::types::PyDict;
 
 use pupper_core::plan::hold::{LOAD, RAMP, SHOVE, SHOVE_DURATION};
 use pupper_core::request::hold::{self as request, HoldInput};
-use pupper_core::request::spec::SweepSpec;
 use pupper_core::results::best;
 
-use super::sweep::run_spec;
-use crate::convert::{grid_from, out_from, spec_from};
+use super::sweep::{kind_spec, run_spec};
 use crate::result::SweepResult;
 
 /// `pupper_core.hold`: the hold experiment; `options` are the sweep
@@ -31,7 +29,6 @@ pub(crate) fn hold(
     shove_duration: f64,
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<SweepResult> {
-    let given = |k: &str| options.is_some_and(|o| o.contains(k).unwrap_or(false));
     let input = HoldInput {
         load,
         ramp,
@@ -39,14 +36,7 @@ pub(crate) fn hold(
         shove_at,
         shove_duration,
     };
-    let mut base = SweepSpec {
-        grid: grid_from(grid, None)?,
-        out: out_from(out)?,
-        ..spec_from(py, options)?
-    };
-    if !given("seconds") {
-        base.seconds = request::seconds(&input);
-    }
+    let base = kind_spec(py, grid, out, options, request::seconds(&input))?;
     let spec = request::spec(base, &input);
     let rule = best::Rule::new(spec.experiment.plan().default_metric(), &[]);
     run_spec(py, spec, progress, "python: pupper_core.hold", Some(&rule))

@@ -5,10 +5,9 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use pupper_core::request::response::{self as request, SignalInput};
-use pupper_core::request::spec::SweepSpec;
 
-use super::sweep::run_spec;
-use crate::convert::{grid_from, out_from, spec_from};
+use super::sweep::{kind_spec, run_spec};
+use crate::convert::given;
 use crate::error::to_py;
 use crate::result::SweepResult;
 
@@ -32,22 +31,21 @@ pub(crate) fn response(
     standing: bool,
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<SweepResult> {
-    let given = |k: &str| options.is_some_and(|o| o.contains(k).unwrap_or(false));
-    let mut base = SweepSpec {
-        grid: grid_from(grid, None)?,
-        out: out_from(out)?,
-        ..spec_from(py, options)?
-    };
-    if !given("seconds") {
-        base.seconds = request::SECONDS;
-    }
+    let base = kind_spec(py, grid, out, options, request::SECONDS)?;
     let input = SignalInput {
         kind: signal,
         amplitude,
         frequency,
         chirp,
     };
-    let spec =
-        request::spec(base, &input, hold, &joints, standing, given("keyframe")).map_err(to_py)?;
+    let spec = request::spec(
+        base,
+        &input,
+        hold,
+        &joints,
+        standing,
+        given(options, "keyframe"),
+    )
+    .map_err(to_py)?;
     run_spec(py, spec, progress, "python: pupper_core.response", None)
 }

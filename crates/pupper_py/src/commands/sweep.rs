@@ -9,7 +9,7 @@ use pupper_core::request::spec::SweepSpec;
 use pupper_core::results::best;
 use pupper_mujoco::api::{self, SweepRequest};
 
-use crate::convert::{grid_from, out_from, spec_from, to_dict};
+use crate::convert::{given, grid_from, out_from, spec_from, to_dict};
 use crate::error::{pythonic, to_py};
 use crate::progress::{Active, PyUi};
 use crate::result::{Parts, SweepResult};
@@ -30,12 +30,40 @@ pub(crate) fn sweep(
     progress: Option<Bound<'_, PyAny>>,
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<SweepResult> {
-    let spec = SweepSpec {
+    let spec = spec_of(py, grid, preset, out, options)?;
+    run_spec(py, spec, progress, "python: pupper_core.sweep", None)
+}
+
+/// The spec of a sweep-like command: its grid (or preset) and `out`, the
+/// other sweep keywords from `options`.
+fn spec_of(
+    py: Python<'_>,
+    grid: Option<&Bound<'_, PyAny>>,
+    preset: Option<String>,
+    out: Option<&Bound<'_, PyAny>>,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<SweepSpec> {
+    Ok(SweepSpec {
         grid: grid_from(grid, preset)?,
         out: out_from(out)?,
         ..spec_from(py, options)?
-    };
-    run_spec(py, spec, progress, "python: pupper_core.sweep", None)
+    })
+}
+
+/// The spec of an experiment kind's command (response, hold): as
+/// [`sweep`]'s, with the kind's own `seconds` unless the keywords give some.
+pub(crate) fn kind_spec(
+    py: Python<'_>,
+    grid: Option<&Bound<'_, PyAny>>,
+    out: Option<&Bound<'_, PyAny>>,
+    options: Option<&Bound<'_, PyDict>>,
+    seconds: f64,
+) -> PyResult<SweepSpec> {
+    let mut spec = spec_of(py, grid, None, out, options)?;
+    if !given(options, "seconds") {
+        spec.seconds = seconds;
+    }
+    Ok(spec)
 }
 
 /// Checks grid axis names as `--grid` does (GridError naming the known
