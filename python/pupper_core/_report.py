@@ -495,10 +495,10 @@ def _fit_sections(page: Page) -> list[str]:
     return parts
 
 
-def _recommend_sections(d: Path, manifest: dict[str, Any], kind: str, header: list[str],
-                        rows: list[dict[str, str]], warnings: list[str]) -> list[str]:
+def _recommend_sections(page: Page) -> list[str]:
     """A recommendation: the answer first (a card per group), the rule and
     why the neighbours lost, the exports, then every candidate."""
+    d, manifest, warnings = page.dir, page.manifest, page.warnings
     parts: list[str] = []
     ch, cards = _read(d / "recommend.csv")
     inp = manifest.get("inputs", {})
