@@ -26,7 +26,7 @@ pytest.importorskip("optuna")
 
 # a quick search: the Done-when's 32 robots per candidate, fewer candidates
 QUICK = ("--trials", "8", "--batch", "8", "--robots", "32", "--polish", "1")
-DOC_COMMAND = shlex.split(next(line for line in __doc__.splitlines() if "pupper recommend" in line))
+DOC_COMMAND = shlex.split(next(line for line in __doc__.splitlines() if line.strip().startswith("pupper recommend --")))
 
 
 def cards(d: Path) -> dict[str, dict[str, str]]:
@@ -108,6 +108,17 @@ def test_the_card_holds_every_constraint_on_every_robot(default_run):
                                   for g in c)]
     # the card's dip is the exported MJCF's (written to six digits): the search's within 1 %
     assert pick and float(pick[0]["p95_push_dip_mm"]) == pytest.approx(float(c["kfe"]["p95_push_dip_mm"]), rel=0.01)
+
+
+def test_the_docs_show_what_the_quick_answer_prints(default_run):
+    # docs/recommend.md shows this run's output (stdout, then the files said on stderr)
+    from conftest import REPO
+
+    page = (REPO / "docs" / "recommend.md").read_text()
+    shown = page.split("```text\n", 1)[1].split("```", 1)[0]
+    _, p = default_run
+    norm = lambda t: " ".join(t.split())  # noqa: E731
+    assert norm(shown) == norm(p.stdout + p.stderr)
 
 
 def test_the_stiff_corner_is_passed_over(default_run):
@@ -245,3 +256,25 @@ def test_from_fit_draws_stay_inside_the_fits_intervals(run, tmp_path):
     hi = float(rows["kp_scale"]["high95"]) / float(rows["kp_scale"]["fitted"])
     assert m["inputs"]["kp_factors"] == pytest.approx([lo, hi])
     assert not any(s.startswith("motor_gain=±10%") for s in m["inputs"]["spread"])
+
+
+def test_sigterm_stops_it_in_one_line_keeping_what_ran(pupper_bin, tmp_path):
+    import signal
+    import subprocess
+    import time
+
+    from conftest import clean_env
+
+    p = subprocess.Popen([str(pupper_bin), "recommend", "--trials", "64", "--batch", "4", "--robots", "8", "-q",
+                          "-o", str(tmp_path / "r")], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         env=clean_env())
+    # until the first generation is in trials.csv, then mid-search
+    deadline = time.time() + 600
+    while not (tmp_path / "r" / "trials.csv").exists() and time.time() < deadline and p.poll() is None:
+        time.sleep(0.2)
+    p.send_signal(signal.SIGTERM)
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 130, err
+    assert len(err.strip().splitlines()) == 1 and "SIGTERM" in err and "trials.csv" in err
+    with open(tmp_path / "r" / "trials.csv", newline="") as f:
+        assert len(list(csv.DictReader(f))) >= 4

@@ -25,6 +25,8 @@ from pupper_core._recommend_card import Card, card_of, print_card, write_outputs
 from pupper_core._recommend_plan import Plan, RecommendError, plan as make_plan
 from pupper_core._recommend_search import Candidate, best_of, robot_model_files, search
 from pupper_core._recommend_search import polish as polish_pick
+from pupper_core._signals import _stop_on_signals
+from pupper_core._tune import _sayer
 
 __all__ = ["recommend", "Recommendation", "RecommendError"]
 
@@ -43,6 +45,9 @@ class Recommendation:
     mjcf: str = ""
     neighbours: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    #: the pick as the search measured it (on the model it read; the card's
+    #: numbers are the exported MJCF's)
+    searched: Candidate | None = None
 
     @property
     def gains(self) -> dict[str, tuple[float, float]]:
@@ -133,17 +138,21 @@ def recommend(
                   joint_order=joint_order, controller=controller, polish=polish)
     out_dir = None if out is None else Path(out)
     if out_dir is None:
-        with tempfile.TemporaryDirectory(prefix="pupper-recommend-") as tmp:
+        with tempfile.TemporaryDirectory(prefix="pupper-recommend-") as tmp, _stop_on_signals("recommend"):
             return _run(p, Path(tmp), say, keep=False)
-    from pupper_core._tune_study import _check_fresh, _locked
+    from pupper_core._tune_study import _is_ours_to_ignore, _locked
 
-    try:
-        _check_fresh(out_dir, force)
-    except ValueError as e:
-        raise RecommendError(str(e)) from None
+    if out_dir.exists() and not out_dir.is_dir():
+        raise RecommendError(f"output directory '{out_dir}' is a file: choose another -o")
+    if out_dir.is_dir() and not force and not all(_is_ours_to_ignore(f.name) for f in out_dir.iterdir()):
+        raise RecommendError(f"output directory '{out_dir}' already exists: choose another -o, or add --force "
+                             "to overwrite it")
     made = not out_dir.exists()
     try:
-        with _locked(out_dir):
+        # Ctrl-C and SIGTERM stop it between sweeps too; the candidates run so
+        # far stay in trials.csv (written after every generation)
+        kept = f"the candidates run so far, if any, are in {out_dir / 'trials.csv'}"
+        with _locked(out_dir), _stop_on_signals("recommend", kept):
             return _run(p, out_dir, say, keep=True)
     except BaseException:
         if made and not (out_dir / "trials.csv").exists():
@@ -162,19 +171,12 @@ def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommenda
     rec = Recommendation(None, [], every, p, d if keep else None)
     if best is not None:
         pick, near = polish_pick(p, best, models, say, every)
+        rec.searched = pick
         rec.cards, rec.neighbours, rec.warnings, rec.pick = card_of(p, pick, near, d, say)
     if keep:
         write_trials(d, p, every)
     rec.yaml, rec.mjcf = write_outputs(rec, d, keep, time.time() - started)
     return rec
-
-
-def _sayer(progress: bool | Callable[[str], None]) -> Callable[[str], None]:
-    if callable(progress):
-        return progress
-    if progress:
-        return lambda s: print(s, file=sys.stderr, flush=True)
-    return lambda s: None
 
 
 def _cli(args_json: str) -> list[str]:

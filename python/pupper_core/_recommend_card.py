@@ -283,7 +283,10 @@ def print_card(rec: Recommendation) -> None:
                 f"{c.rise_time_s:.3g}", f"{c.overshoot_pct:.3g}", f"{c.settling_time_s:.3g}")
         print("".join(f"{v:>12}" for v in vals))
     c0 = rec.cards[0]
-    print(f"p95 push dip {pick.p95_dip_mm:.4g} mm; peak torque p95 {pick.p95_peak_torque:.3g} N·m of "
+    searched = rec.searched
+    also = (f" (on the exported MJCF, whose numbers MjSpec writes to six digits; {searched.p95_dip_mm:.4g} mm in "
+            "the search)" if searched and f"{searched.p95_dip_mm:.4g}" != f"{pick.p95_dip_mm:.4g}" else "")
+    print(f"p95 push dip {pick.p95_dip_mm:.4g} mm{also}; peak torque p95 {pick.p95_peak_torque:.3g} N·m of "
           f"{min(c.torque_limit for c in rec.cards):.3g} ({c0.torque_headroom_pct:.0f} % headroom); "
           "step response: the nominal robot hung in the air")
     if rec.neighbours:

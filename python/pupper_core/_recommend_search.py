@@ -368,8 +368,12 @@ def why_lost(plan: Plan, label: str, c: Candidate, pick: Candidate) -> str:
     if c.failed:
         return f"{label}: {c.failed}"
     if better(plan, c, pick):
-        how = ("a lower push dip" if c.p95_dip_mm < pick.p95_dip_mm * (1 - TIE)
-               else "a tie on the push dip with a faster slowest group")
+        if c.p95_dip_mm < pick.p95_dip_mm * (1 - TIE):
+            how = "a lower push dip"
+        elif slowest_hz(plan, c) > slowest_hz(plan, pick):
+            how = "a tie on the push dip, with a faster slowest group"
+        else:
+            how = "a tie on the push dip at the same slowest group, and a lower dip"
         return (f"{label}: would win ({how}: {c.p95_dip_mm:.4g} mm against {pick.p95_dip_mm:.4g} mm); the polish "
                 "had made its last move (--polish), so the pick may lie short of the best")
     if c.p95_dip_mm <= pick.p95_dip_mm * (1 + TIE):

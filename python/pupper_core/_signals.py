@@ -12,7 +12,7 @@ from typing import Any
 
 
 @contextlib.contextmanager
-def _stop_on_signals(what: str) -> Iterator[None]:
+def _stop_on_signals(what: str, left: str = "nothing written") -> Iterator[None]:
     """SIGINT and SIGTERM stop ``what`` with KeyboardInterrupt, as Ctrl-C
     stops Python, and the handlers from before are put back after. (The CLI's
     own handler only sets a flag its Rust loops read, which a fit never
@@ -23,7 +23,7 @@ def _stop_on_signals(what: str) -> Iterator[None]:
         return
 
     def stop(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt(f"{what} stopped by {signal.Signals(signum).name}: nothing written")
+        raise KeyboardInterrupt(f"{what} stopped by {signal.Signals(signum).name}: {left}")
 
     saved = []
     for sig in (signal.SIGINT, signal.SIGTERM):
