@@ -39,7 +39,7 @@ import math
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -76,7 +76,8 @@ from pupper_core._fit_terms import (
     PER,
     FitError,
 )
-from pupper_core._joint_log import JointLog
+from pupper_core._joint_log import JointLog, LogError
+from pupper_core._log_columns import ColumnMap, read_map
 from pupper_core._signals import _stop_on_signals
 
 __all__ = ["fit", "excite", "FitResult", "FitError", "PARAMS"]
@@ -96,10 +97,15 @@ def _parse_params(params: str | Sequence[str]) -> list[str]:
 
 def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str] = "pupper_v3",
         params: str | Sequence[str] = DEFAULT_PARAMS, per: str = "all", out: str | os.PathLike[str] | None = None,
-        force: bool = False, max_iters: int = 50, plot: bool = False, progress: bool = True) -> FitResult:
+        force: bool = False, max_iters: int = 50, plot: bool = False, progress: bool = True,
+        columns: str | None = None, kp: float | str | None = None, kd: float | str | None = None,
+        held: float | str | Mapping[str, float] | None = None) -> FitResult:
     """Fits ``params`` (per ``all`` actuators, joint ``group`` or ``joint``)
     to the joint ``logs`` and, with ``out``, writes the run directory.
-    SIGINT and SIGTERM stop it (KeyboardInterrupt) with nothing written."""
+    ``columns``: a column map (KEY=COLUMN[:UNIT],...) or its file, over
+    each log's own; ``kp``, ``kd``, ``held``: for a log that does not say
+    them in its header. SIGINT and SIGTERM stop it (KeyboardInterrupt) with
+    nothing written."""
     names = _parse_params(params)
     if per not in PER:
         raise FitError(f"--per {per} is unknown: use all, group or joint")
@@ -114,7 +120,7 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         raise FitError(f"{out_dir} exists and is not empty: give another --out, or --force")
     with _stop_on_signals("fit"):
         robot = load_robot(model)
-        read = _read_logs(logs, robot)
+        read = _read_logs(logs, robot, *_log_options(columns, kp, kd, held))
         _check_memory(read, robot, len(names) * len(robot.members(per)))
         sysid = _sysid()
         started = time.perf_counter()
@@ -127,6 +133,22 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         if out_dir is not None:
             _write_run(out_dir, result, pb, sol, model, names, per, force, plot)
     return result
+
+
+def _log_options(columns: str | None, kp: float | str | None, kd: float | str | None,
+                 held: float | str | Mapping[str, float] | None) -> tuple[ColumnMap | None, dict[str, str | None]]:
+    """The column map and the header keys a log may leave to the caller."""
+    try:
+        cmap = read_map(columns) if columns else None
+    except LogError as e:
+        raise FitError(str(e)) from None
+    if isinstance(held, Mapping):
+        held = ",".join(f"{a}={float(v)!r}" for a, v in held.items())
+
+    def text(v: float | str | None) -> str | None:
+        return None if v is None else v if isinstance(v, str) else repr(float(v))
+
+    return cmap, {"kp": text(kp), "kd": text(kd), "held": text(held)}
 
 
 def _memory_limit() -> float:
@@ -347,7 +369,8 @@ def _cli_fit(args_json: str) -> list[str]:
         print(f"{r['parameter']:<{width}}  {r['nominal']:>10.4g}  {r['fitted']:>10.4g}  {interval}  {r['unit']}")
     for name in res.rms_before:
         b, f = np.mean(res.rms_before[name]) * 1e3, np.mean(res.rms_after[name]) * 1e3
-        print(f"{name}: RMS angle error {b:.3f} -> {f:.3f} mrad (mean over {len(res.actuators)} joints)")
+        n = len(res.actuators)
+        print(f"{name}: RMS angle error {b:.3f} -> {f:.3f} mrad (mean over {n} joint{'s' if n > 1 else ''})")
     for w in res.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(f"fitted in {res.seconds:.1f} s")

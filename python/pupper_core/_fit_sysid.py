@@ -31,13 +31,18 @@ def _sysid() -> Any:
 
 
 def _held(t: np.ndarray, target: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Targets logged slower than the physics, as a servo holds them: each
-    one until the next (sysid would interpolate between them)."""
-    period = float(np.mean(np.diff(t)))
-    if period <= dt * (1 + 1e-9):
+    """Targets logged slower than the physics or unevenly (time stamps as
+    recorded), as a servo holds them: each from the physics step nearest its
+    instant until the next (sysid would interpolate between them). An
+    even log at the physics rate or faster is sysid's to resample."""
+    steps = np.diff(t)
+    period = float(np.mean(steps))
+    even = float(np.ptp(steps)) <= 1e-6 * period + 1e-12
+    if period <= dt * (1 + 1e-9) and even:
         return t, target
     tc = np.arange(0.0, t[-1] + dt / 2, dt)
-    idx = np.searchsorted(t, tc + 1e-9 * dt, side="right") - 1
+    # the target whose instant is nearest each step's start: at most half a step off
+    idx = np.searchsorted(t, tc + 0.5 * dt, side="right") - 1
     return tc, target[np.clip(idx, 0, len(t) - 1)]
 
 
