@@ -61,6 +61,8 @@ from pupper_core._fit_sysid import (
     _sysid,
     _whitening,
 )
+from pupper_core._fit_validate import Validation, check_apart, print_table
+from pupper_core._fit_validate import validate as validate_logs
 from pupper_core._fit_terms import GROUPS as GROUPS
 from pupper_core._fit_terms import MAX_LOG_SECONDS as MAX_LOG_SECONDS
 from pupper_core._fit_terms import NOISE_FLOOR as NOISE_FLOOR
@@ -99,13 +101,15 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         params: str | Sequence[str] = DEFAULT_PARAMS, per: str = "all", out: str | os.PathLike[str] | None = None,
         force: bool = False, max_iters: int = 50, plot: bool = False, progress: bool = True,
         columns: str | None = None, kp: float | str | None = None, kd: float | str | None = None,
-        held: float | str | Mapping[str, float] | None = None) -> FitResult:
+        held: float | str | Mapping[str, float] | None = None,
+        validate: Sequence[str | os.PathLike[str]] = ()) -> FitResult:
     """Fits ``params`` (per ``all`` actuators, joint ``group`` or ``joint``)
     to the joint ``logs`` and, with ``out``, writes the run directory.
     ``columns``: a column map (KEY=COLUMN[:UNIT],...) or its file, over
     each log's own; ``kp``, ``kd``, ``held``: for a log that does not say
-    them in its header. SIGINT and SIGTERM stop it (KeyboardInterrupt) with
-    nothing written."""
+    them in its header. ``validate``: logs not fitted, replayed through the
+    nominal and the calibrated model (``FitResult.validation``). SIGINT and
+    SIGTERM stop it (KeyboardInterrupt) with nothing written."""
     names = _parse_params(params)
     if per not in PER:
         raise FitError(f"--per {per} is unknown: use all, group or joint")
@@ -120,7 +124,10 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         raise FitError(f"{out_dir} exists and is not empty: give another --out, or --force")
     with _stop_on_signals("fit"):
         robot = load_robot(model)
-        read = _read_logs(logs, robot, *_log_options(columns, kp, kd, held))
+        options = _log_options(columns, kp, kd, held)
+        read = _read_logs(logs, robot, *options)
+        held_out = _read_logs(validate, robot, *options) if validate else []
+        check_apart(read, held_out)
         _check_memory(read, robot, len(names) * len(robot.members(per)))
         sysid = _sysid()
         started = time.perf_counter()
@@ -129,9 +136,10 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         with np.errstate(all="ignore"):
             pb = _problem(sysid, robot, read, names, per)
             sol = _solve(sysid, pb, max_iters)
-        result = _result(pb, sol, out_dir, time.perf_counter() - started)
+            val = validate_logs(sysid, pb, sol, held_out, names, per) if held_out else None
+        result = _result(pb, sol, out_dir, time.perf_counter() - started, val)
         if out_dir is not None:
-            _write_run(out_dir, result, pb, sol, model, names, per, force, plot)
+            _write_run(out_dir, result, pb, sol, model, names, per, force, plot, val)
     return result
 
 
@@ -185,8 +193,7 @@ def _size(n: float) -> str:
 
 def _solve(sysid: Any, pb: _Problem, max_iters: int) -> _Solution:
     nu = len(pb.robot.actuators)
-    enabled = [(s.name, sysid.SignalType.MjSensor) for s in pb.sequences[0].spec.sensors
-               if [x.name for x in pb.sequences[0].spec.sensors].index(s.name) in pb.sensors]
+    enabled = pb.enabled(sysid)
     residual_fn = _residual_fn(sysid, pb.sequences, enabled, None)
     _check_finite(residual_fn, pb)
     before = _rms(_predictions(residual_fn, pb.pdict, pb.x_nominal), pb.sensors, nu)
@@ -341,7 +348,8 @@ def _confounded(pb: _Problem, sol: _Solution) -> list[str]:
     return out
 
 
-def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float) -> FitResult:
+def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float,
+            val: Validation | None = None) -> FitResult:
     table = []
     for i, (name, kind, members, nom) in enumerate(pb.labels):
         x, h = float(sol.x[i]), float(sol.half[i])
@@ -351,8 +359,9 @@ def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float) 
     kept = pb.kept
     return FitResult(table, {lg.path.name: v for lg, v in zip(pb.logs, sol.before)},
                      {lg.path.name: v for lg, v in zip(pb.logs, sol.after)}, out_dir, seconds,
-                     pb.warnings + sol.warnings + _judge(pb, sol, table), [pb.robot.actuators[k] for k in kept],
-                     floored=sol.floored)
+                     pb.warnings + sol.warnings + _judge(pb, sol, table) + (val.warnings if val else []),
+                     [pb.robot.actuators[k] for k in kept], floored=sol.floored,
+                     validation=val.rows if val else [], bode=val.bode if val else [])
 
 
 # ---------------------------------------------------------------------- CLI
@@ -371,6 +380,8 @@ def _cli_fit(args_json: str) -> list[str]:
         b, f = np.mean(res.rms_before[name]) * 1e3, np.mean(res.rms_after[name]) * 1e3
         n = len(res.actuators)
         print(f"{name}: RMS angle error {b:.3f} -> {f:.3f} mrad (mean over {n} joint{'s' if n > 1 else ''})")
+    if res.validation:
+        print_table(res.validation)
     for w in res.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(f"fitted in {res.seconds:.1f} s")
@@ -378,10 +389,13 @@ def _cli_fit(args_json: str) -> list[str]:
     if res.out is None:
         return []
     wrote = [str(res.out / n) for n in ("fit.csv", "residuals.csv", "calibrated.xml")]
+    if res.validation:
+        wrote += [str(res.out / n) for n in ("validation.csv", "validation_bode.csv") if (res.out / n).is_file()]
     if res.warnings:
         wrote.append(str(res.out / "warnings.csv"))
     if (res.out / "plots").is_dir():
         wrote += [str(p) for p in sorted((res.out / "plots").glob("fit_*.png"))]
+        wrote += [str(p) for p in sorted((res.out / "plots").glob("validate_*.png"))]
     return wrote + [str(res.out / "report.html")]
 
 

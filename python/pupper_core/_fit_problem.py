@@ -34,6 +34,10 @@ class FitResult:
     actuators: list[str] = field(default_factory=list)
     #: the intervals assume NOISE_FLOOR: the residual was below it (noise-free logs)
     floored: bool = False
+    #: validation.csv's rows: per validated log and joint (``validate``)
+    validation: list[dict[str, Any]] = field(default_factory=list)
+    #: validation_bode.csv's rows: per validated log, joint and frequency
+    bode: list[dict[str, Any]] = field(default_factory=list)
 
     def value(self, name: str) -> float:
         return next(float(r["fitted"]) for r in self.table if r["parameter"] == name)
@@ -64,6 +68,12 @@ class _Problem:
         """The actuators whose angle is fitted."""
         nu = len(self.robot.actuators)
         return [s for s in self.sensors if s < nu]
+
+    def enabled(self, sysid: Any) -> list[Any]:
+        """The enabled sensors as sysid's observations, in the model's order."""
+        names = [x.name for x in self.sequences[0].spec.sensors]
+        return [(s.name, sysid.SignalType.MjSensor) for s in self.sequences[0].spec.sensors
+                if names.index(s.name) in self.sensors]
 
 
 @dataclass

@@ -162,6 +162,7 @@ Examples:
   pupper excite -o ex1.csv && pupper excite --kd 0.3 -o ex2.csv    then play both on the robot
   pupper fit robot1.csv robot2.csv -o runs/fit --plot
   pupper fit robot1.csv --params armature,frictionloss,kp_scale,delay --per group
+  pupper fit stand_kd01.csv stand_kd03.csv --columns stand.map --validate stand_kp25.csv stand_kp75.csv
   pupper response --model runs/fit/calibrated.xml --grid kp=5,20 --grid kd=0.1,0.5"
 )]
 pub(super) struct FitArgs {
@@ -206,6 +207,11 @@ pub(super) struct FitArgs {
     /// [default: the model's rest pose]
     #[arg(long, value_name = "RAD|ACT=RAD,...", allow_hyphen_values = true)]
     held: Option<String>,
+    /// Logs not fitted, replayed through the nominal and the calibrated model: RMS angle error and
+    /// frequency response (stepped sines, chirps) beside the log's own; validation.csv,
+    /// validation_bode.csv and plots/validate_<log>.png.
+    #[arg(long, value_name = "LOG", num_args = 1..)]
+    validate: Vec<PathBuf>,
 }
 
 impl FitArgs {
@@ -225,6 +231,7 @@ impl FitArgs {
             "kp": self.kp,
             "kd": self.kd,
             "held": self.held,
+            "validate": py.paths(&self.validate),
         });
         python_command(&calls::FIT, &py.text(&args))
     }
