@@ -295,7 +295,9 @@ def fit(logs: Sequence[str | os.PathLike[str]] | str | os.PathLike[str], **optio
     does: keywords model, params (armature, damping, frictionloss, kp_scale,
     kd_scale, delay), per ("all", "group", "joint"), out, force, max_iters,
     plot, columns (the logs' own column names and units: KEY=COLUMN[:UNIT],...
-    or a map file), kp, kd, held (for logs that do not say them). Needs the fit extra; returns a FitResult (``table`` as fit.csv,
+    or a map file), kp, kd, held (for logs that do not say them), validate
+    (logs replayed, not fitted), motor (the servo firmware to replay through).
+    Needs the fit extra; returns a FitResult (``table`` as fit.csv,
     ``value(name)``, ``interval(name)``, RMS angle error before and after)."""
     from pupper_core import _fit
 

@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from pupper_core._fit_excite import _excite, excite
+from pupper_core._fit_firmware import parse_motor
 from pupper_core._fit_output import _write_run
 from pupper_core._fit_problem import FitResult, _Problem, _problem, _read_logs, _Solution
 from pupper_core._fit_robot import BUILTINS as BUILTINS
@@ -102,13 +103,15 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         force: bool = False, max_iters: int = 50, plot: bool = False, progress: bool = True,
         columns: str | None = None, kp: float | str | None = None, kd: float | str | None = None,
         held: float | str | Mapping[str, float] | None = None,
-        validate: Sequence[str | os.PathLike[str]] = ()) -> FitResult:
+        validate: Sequence[str | os.PathLike[str]] = (), motor: str | None = None) -> FitResult:
     """Fits ``params`` (per ``all`` actuators, joint ``group`` or ``joint``)
     to the joint ``logs`` and, with ``out``, writes the run directory.
     ``columns``: a column map (KEY=COLUMN[:UNIT],...) or its file, over
     each log's own; ``kp``, ``kd``, ``held``: for a log that does not say
     them in its header. ``validate``: logs not fitted, replayed through the
-    nominal and the calibrated model (``FitResult.validation``). SIGINT and
+    nominal and the calibrated model (``FitResult.validation``). ``motor``:
+    the servo firmware to replay through (rate, filter, counts, noload, as
+    --motor takes them; default MuJoCo's ideal servo). SIGINT and
     SIGTERM stop it (KeyboardInterrupt) with nothing written."""
     names = _parse_params(params)
     if per not in PER:
@@ -124,6 +127,7 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         raise FitError(f"{out_dir} exists and is not empty: give another --out, or --force")
     with _stop_on_signals("fit"):
         robot = load_robot(model)
+        firmware = parse_motor(motor, robot.timestep)
         options = _log_options(columns, kp, kd, held)
         read = _read_logs(logs, robot, *options)
         held_out = _read_logs(validate, robot, *options) if validate else []
@@ -134,7 +138,7 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         # sysid's linear algebra on a degenerate problem divides by zero: the
         # outcome is checked and said below, numpy's warnings would only leak
         with np.errstate(all="ignore"):
-            pb = _problem(sysid, robot, read, names, per)
+            pb = _problem(sysid, robot, read, names, per, firmware)
             sol = _solve(sysid, pb, max_iters)
             val = validate_logs(sysid, pb, sol, held_out, names, per) if held_out else None
         result = _result(pb, sol, out_dir, time.perf_counter() - started, val)
@@ -194,7 +198,7 @@ def _size(n: float) -> str:
 def _solve(sysid: Any, pb: _Problem, max_iters: int) -> _Solution:
     nu = len(pb.robot.actuators)
     enabled = pb.enabled(sysid)
-    residual_fn = _residual_fn(sysid, pb.sequences, enabled, None)
+    residual_fn = _residual_fn(sysid, pb.sequences, enabled, None, pb.firmware)
     _check_finite(residual_fn, pb)
     before = _rms(_predictions(residual_fn, pb.pdict, pb.x_nominal), pb.sensors, nu)
     sink = io.StringIO()
@@ -204,7 +208,7 @@ def _solve(sysid: Any, pb: _Problem, max_iters: int) -> _Solution:
         # whiten: each kind of signal by its own noise, so the pooled
         # variance of the intervals means something
         weights = _whitening(residual_fn, opt, nu, pb.sensors)
-        residual_fn = _residual_fn(sysid, pb.sequences, enabled, weights)
+        residual_fn = _residual_fn(sysid, pb.sequences, enabled, weights, pb.firmware)
         opt, res = _optimize(sysid, opt, residual_fn, max_iters, sink)
     warnings: list[str] = []
     opt, res = _no_worse_than_nominal(sysid, pb, residual_fn, opt, res, max_iters, sink, warnings)

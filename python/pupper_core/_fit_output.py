@@ -96,6 +96,7 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
         "command": "fit",
         "inputs": {"model": str(model), "logs": [{"path": str(lg.path), "sha256": lg.sha256} for lg in logs],
                    "params": names, "per": per,
+                   "motor": pb.firmware.spec() if pb.firmware is not None else "ideal",
                    "validate": [{"path": str(t), "sha256": s} for t, s in (val.logs if val else [])]},
         "fit": {r["parameter"]: {"nominal": r["nominal"], "fitted": r["fitted"], "low95": r["low95"],
                                  "high95": r["high95"], "unit": r["unit"]} for r in res.table},

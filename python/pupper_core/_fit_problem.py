@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from pupper_core._fit_firmware import Firmware
 from pupper_core._fit_robot import Robot, initial_state, suspended_spec
 from pupper_core._fit_sysid import _held, _modifier
 from pupper_core._fit_terms import MAX_LOG_SECONDS, PARAMS, STILL_RAD, FitError
@@ -62,6 +63,8 @@ class _Problem:
     sensors: list[int]
     gains: dict[int, tuple[np.ndarray, np.ndarray]]
     warnings: list[str] = field(default_factory=list)
+    #: the servo firmware the replay runs through (--motor); None: MuJoCo's servo
+    firmware: Firmware | None = None
 
     @property
     def kept(self) -> list[int]:
@@ -167,7 +170,8 @@ def _check_log(lg: JointLog, robot: Robot) -> None:
                        f"past half the sample rate; log at {10 * hz[k]:.0f} Hz or more")
 
 
-def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], per: str) -> _Problem:
+def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], per: str,
+             firmware: Firmware | None = None) -> _Problem:
     nu = len(robot.actuators)
     has_tau = all(lg.tau is not None for lg in read)
     has_qd = all(lg.qd is not None for lg in read)
@@ -181,7 +185,7 @@ def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], p
         kp, kd = lg.kp[order], lg.kd[order]
         key = (kp.tobytes(), kd.tobytes())
         if key not in specs:
-            spec = suspended_spec(robot, kp, kd)
+            spec = suspended_spec(robot, kp, kd, firmware=firmware is not None)
             specs[key] = spec
             gains[id(spec)] = (kp, kd)
         spec = specs[key]
@@ -206,8 +210,8 @@ def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], p
         sequences.append(sysid.ModelSequences(f"log{li}", spec, lg.path.stem, x0, control, measured))
     kept = {s for s in sensors if s < nu}
     pdict, labels, x_nominal = _parameters(sysid, robot, names, per, gains, kept, _logged(robot, read),
-                                           warnings)
-    return _Problem(robot, read, sequences, pdict, labels, x_nominal, sensors, gains, warnings)
+                                           warnings, firmware is not None)
+    return _Problem(robot, read, sequences, pdict, labels, x_nominal, sensors, gains, warnings, firmware)
 
 
 def _order(lg: JointLog, robot: Robot) -> list[int]:
@@ -262,8 +266,8 @@ def _enabled_sensors(robot: Robot, read: list[JointLog], has_qd: bool,
 
 
 def _parameters(sysid: Any, robot: Robot, names: list[str], per: str, gains: dict[int, tuple[np.ndarray, np.ndarray]],
-                kept: set[int], logged: set[int],
-                warnings: list[str]) -> tuple[Any, list[tuple[str, str, list[int], float]], np.ndarray]:
+                kept: set[int], logged: set[int], warnings: list[str],
+                firmware: bool = False) -> tuple[Any, list[tuple[str, str, list[int], float]], np.ndarray]:
     """The parameters at their nominal values (the vector returned, before
     sysid moves those on a bound inside for its start); a set of joints no
     log covers is not fitted, silently (the logs say what they cover)."""
@@ -283,7 +287,7 @@ def _parameters(sysid: Any, robot: Robot, names: list[str], per: str, gains: dic
             else:
                 nom = 1.0 if "scale" in kind else 0.0
             _, lo, hi = PARAMS[kind]
-            modifier = _modifier(kind, members, robot, gains)
+            modifier = _modifier(kind, members, robot, gains, firmware)
             pdict.add(sysid.Parameter(kind + suffix, nom, lo, max(hi, 4 * nom), modifier=modifier))
             labels.append((kind + suffix, kind, members, nom))
     x_nominal = pdict.as_vector().copy()

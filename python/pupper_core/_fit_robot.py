@@ -133,9 +133,11 @@ def _history_samples(robot: Robot) -> int:
     return int(math.ceil(PARAMS["delay"][2] / robot.timestep)) + 3
 
 
-def suspended_spec(robot: Robot, kp: np.ndarray, kd: np.ndarray) -> Any:
+def suspended_spec(robot: Robot, kp: np.ndarray, kd: np.ndarray, firmware: bool = False) -> Any:
     """The robot hung in the air at the given gains, sensing each actuated
-    joint's angle, velocity and actuator force (sensors in that order)."""
+    joint's angle, velocity and actuator force (sensors in that order).
+    ``firmware``: its actuators plain torque motors, the gains and the
+    command delay kept for the firmware's replay (``_fit_firmware``)."""
     import mujoco
 
     spec = mujoco.MjSpec.from_file(str(robot.file))
@@ -150,6 +152,9 @@ def suspended_spec(robot: Robot, kp: np.ndarray, kd: np.ndarray) -> Any:
     n = _history_samples(robot)
     for i, name in enumerate(robot.actuators):
         act = spec.actuator(name)
+        if firmware:
+            _torque_motor(act, kp[i], kd[i])
+            continue
         act.gainprm[0] = kp[i]
         act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
         act.biasprm[0] = 0.0
@@ -165,6 +170,22 @@ def suspended_spec(robot: Robot, kp: np.ndarray, kd: np.ndarray) -> Any:
                             objtype=mujoco.mjtObj.mjOBJ_JOINT if obj == "joint" else mujoco.mjtObj.mjOBJ_ACTUATOR,
                             objname=target)
     return spec
+
+
+def _torque_motor(act: Any, kp: float, kd: float) -> None:
+    """An actuator as a plain torque motor, the firmware's gains and command
+    delay in its unused gain parameters (gainprm[1:4])."""
+    import mujoco
+
+    from pupper_core._fit_firmware import DELAY_SLOT, KD_SLOT, KP_SLOT
+
+    act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+    act.biastype = mujoco.mjtBias.mjBIAS_NONE
+    act.gainprm[:] = 0.0
+    act.biasprm[:] = 0.0
+    act.gainprm[0] = 1.0
+    act.gainprm[KP_SLOT], act.gainprm[KD_SLOT], act.gainprm[DELAY_SLOT] = kp, kd, 0.0
+    act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
 
 
 def initial_state(model: Any, robot: Robot, q0: np.ndarray, qd0: np.ndarray, target0: np.ndarray) -> np.ndarray:

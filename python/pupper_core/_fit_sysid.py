@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from pupper_core._fit_firmware import Firmware, rollout_fn
 from pupper_core._fit_robot import Robot
 from pupper_core._fit_terms import NOISE_FLOOR, FitError
 
@@ -46,10 +47,20 @@ def _held(t: np.ndarray, target: np.ndarray, dt: float) -> tuple[np.ndarray, np.
     return tc, target[np.clip(idx, 0, len(t) - 1)]
 
 
-def _modifier(kind: str, members: list[int], robot: Robot, gains: dict[int, tuple[np.ndarray, np.ndarray]]) -> Any:
+def _modifier(kind: str, members: list[int], robot: Robot, gains: dict[int, tuple[np.ndarray, np.ndarray]],
+              firmware: bool = False) -> Any:
+    from pupper_core._fit_firmware import DELAY_SLOT, KD_SLOT, KP_SLOT
+
+    slot = {"kp_scale": KP_SLOT, "kd_scale": KD_SLOT, "delay": DELAY_SLOT}
+
     def apply(spec: Any, p: Any) -> None:
         v = float(p.value[0])
         for i in members:
+            if firmware and kind in slot:
+                # the firmware's own gains and command delay (a torque motor's spare gain parameters)
+                base = 1.0 if kind == "delay" else gains[id(spec)][0 if kind == "kp_scale" else 1][i]
+                spec.actuator(robot.actuators[i]).gainprm[slot[kind]] = base * v
+                continue
             if kind in ("armature", "damping", "frictionloss"):
                 j = spec.joint(robot.joints[i])
                 if kind == "damping":
@@ -69,12 +80,16 @@ def _modifier(kind: str, members: list[int], robot: Robot, gains: dict[int, tupl
     return apply
 
 
-def _residual_fn(sysid: Any, sequences: list[Any], enabled: list[Any], weights: np.ndarray | None) -> Any:
+def _residual_fn(sysid: Any, sequences: list[Any], enabled: list[Any], weights: np.ndarray | None,
+                 firmware: Firmware | None = None) -> Any:
+    through = rollout_fn(sysid, firmware) if firmware is not None else None
+
     def rollout(**kw: Any) -> Any:
         # mujoco.rollout's sensordata row k is the state before step k (time
         # k dt); sysid labels it one step later: put it back
-        trajs = sysid.sysid_rollout(kw["models"], kw["datas"], kw["control_signal"], kw["initial_states"],
-                                    kw["rollout_signal_mapping"], kw["rollout_state_mapping"], kw["ctrl_mapping"])
+        trajs = through(**kw) if through is not None else sysid.sysid_rollout(
+            kw["models"], kw["datas"], kw["control_signal"], kw["initial_states"],
+            kw["rollout_signal_mapping"], kw["rollout_state_mapping"], kw["ctrl_mapping"])
         dt = kw["models"][0].opt.timestep
         return [tr.replace(sensordata=sysid.TimeSeries(tr.sensordata.times - dt, tr.sensordata.data,
                                                        tr.sensordata.signal_mapping)) for tr in trajs]

@@ -67,10 +67,10 @@ def validate(sysid: Any, pb: _Problem, sol: _Solution, read: list[JointLog], nam
              per: str) -> Validation:
     """Replays ``read`` through the nominal model and the calibrated one
     (the fit's values; nominal where the fit left a parameter out)."""
-    vpb = _problem(sysid, pb.robot, read, names, per)
+    vpb = _problem(sysid, pb.robot, read, names, per, pb.firmware)
     fitted = {label[0]: float(v) for label, v in zip(pb.labels, sol.x)}
     x_cal = np.array([fitted.get(label[0], float(x0)) for label, x0 in zip(vpb.labels, vpb.x_nominal)])
-    residual_fn = _residual_fn(sysid, vpb.sequences, vpb.enabled(sysid), None)
+    residual_fn = _residual_fn(sysid, vpb.sequences, vpb.enabled(sysid), None, vpb.firmware)
     nominal = _predictions(residual_fn, vpb.pdict, vpb.x_nominal)
     calibrated = _predictions(residual_fn, vpb.pdict, x_cal)
     out = Validation(warnings=[f"--validate: {w}" for w in vpb.warnings], logs=[(str(lg.path), lg.sha256) for lg in read])

@@ -212,6 +212,11 @@ pub(super) struct FitArgs {
     /// validation_bode.csv and plots/validate_<log>.png.
     #[arg(long, value_name = "LOG", num_args = 1..)]
     validate: Vec<PathBuf>,
+    /// Replay through the servo firmware, KEY=VALUE,...: rate (Hz), filter (Hz), counts (the
+    /// encoder's difference velocity), noload (rad/s), noise (the encoder noise the PD reads, rad)
+    /// [default: MuJoCo's ideal servo]
+    #[arg(long, value_name = "KEY=VALUE,...")]
+    motor: Option<String>,
 }
 
 impl FitArgs {
@@ -232,6 +237,7 @@ impl FitArgs {
             "kd": self.kd,
             "held": self.held,
             "validate": py.paths(&self.validate),
+            "motor": self.motor,
         });
         python_command(&calls::FIT, &py.text(&args))
     }
