@@ -53,7 +53,8 @@ def firmware_log(excitation: Path, out: Path, *, seed: int, torque: bool = False
     jq = [m.jnt_qposadr[m.actuator_trnid[a, 0]] for a in range(m.nu)]
     limit = np.abs(m.actuator_forcerange[:, 1])
     lag = round(TRUE["delay"] / m.opt.timestep)
-    rng = np.random.default_rng(seed)
+    # not the replay's draw (--motor noise= replays a seeded draw of its own, seed 0)
+    rng = np.random.default_rng(1000 + seed)
     step = 2 * math.pi / COUNTS
     # at rest on the first target when the log starts
     d.qpos[jq] = targets[0]
@@ -83,10 +84,11 @@ def logs(tmp_path_factory) -> dict[str, Path]:
 
 def test_fit_through_the_firmware_finds_the_noisy_servo(logs, tmp_path, run):
     """Replayed through the firmware (500 Hz, the encoder's difference
-    velocity, the encoder's noise read by the PD), the fit lands kp scale
-    within 2 %, kd scale 5 %, armature 10 %, friction loss 20 % and the
-    delay within one control step. (MuJoCo's ideal servo, without --motor,
-    put friction loss 75 % low and damping 80 % high on these logs.)"""
+    velocity, the encoder's noise read by the PD as an antithetic pair),
+    the fit lands kp scale within 2 %, kd scale 5 %, armature 10 %,
+    friction loss 20 % and the delay within one control step, the truth
+    inside the intervals. (MuJoCo's ideal servo, without --motor, put
+    friction loss 73 % low and damping 79 % high on these logs.)"""
     out = tmp_path / "fit"
     run("fit", logs["kd0.1"], logs["kd0.3"], "--motor", "rate=500,counts=16384,noise=0.001", "-o", out, check=0)
 
@@ -95,15 +97,18 @@ def test_fit_through_the_firmware_finds_the_noisy_servo(logs, tmp_path, run):
     for name, rel in dict(kp_scale=0.02, kd_scale=0.05, armature=0.10, frictionloss=0.20).items():
         assert v[name] == pytest.approx(TRUE[name], rel=rel), (name, v[name])
     assert abs(v["delay"] - TRUE["delay"]) < 0.002
+    # the truth inside every interval (widened by the residual's correlation time)
+    for r in rows:
+        assert float(r["low95"]) <= TRUE[r["parameter"]] <= float(r["high95"]), r
     import json
 
     assert json.loads((out / "manifest.json").read_text())["inputs"]["motor"] == "rate=500,counts=16384,noise=0.001"
     _, resid = read_csv(out / "residuals.csv")
-    # down to the encoder's noise on the softer log (the stiffer one's PD turns more of the noise into motion)
+    # near the encoder's noise (1 mrad): the rest is the joint's response to the hardware's own dither
     rms = {}
     for r in resid:
         rms.setdefault(r["log"], []).append(float(r["rms_after_rad"]))
-    assert np.mean(rms["firmware_kd0.1.csv"]) < 1.1 * NOISE, rms
+    assert all(np.mean(v) < 1.35 * NOISE for v in rms.values()), rms
 
 
 def test_a_bad_motor_is_one_line(logs, tmp_path, run):

@@ -55,6 +55,7 @@ from pupper_core._fit_robot import simulate as simulate
 from pupper_core._fit_robot import Robot, load_robot, suspended_spec
 from pupper_core._fit_sysid import (
     Predictions,
+    _correlation_time,
     _interval_residuals,
     _predictions,
     _residual_fn,
@@ -215,9 +216,9 @@ def _solve(sysid: Any, pb: _Problem, max_iters: int) -> _Solution:
     x = opt.as_vector()
     # the replay where the fit ended, once: its intervals' residual and the error after
     ended = None if res is None else _predictions(residual_fn, opt, x)
-    half, corr, floored = _intervals(sysid, pb, residual_fn, opt, res, weights, ended)
+    half, corr, floored, tau = _intervals(sysid, pb, residual_fn, opt, res, weights, ended)
     after = before if ended is None else _rms(ended, pb.sensors, nu)
-    return _Solution(x, half, corr, residual_fn, opt, before, after, floored, warnings)
+    return _Solution(x, half, corr, residual_fn, opt, before, after, floored, warnings, tau)
 
 
 def _optimize(sysid: Any, start: Any, residual_fn: Any, max_iters: int, sink: io.StringIO) -> tuple[Any, Any]:
@@ -276,24 +277,27 @@ def _no_worse_than_nominal(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any,
 
 
 def _intervals(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any, res: Any, weights: np.ndarray | None,
-               ended: Predictions | None) -> tuple[np.ndarray, np.ndarray | None, bool]:
+               ended: Predictions | None) -> tuple[np.ndarray, np.ndarray | None, bool, float]:
     """sysid's Gauss-Newton 95 % half-widths (infinite where the logs do not
-    determine a parameter), the correlations, and whether the residual noise
-    behind them was floored at NOISE_FLOOR; ``ended``: the predictions at
-    ``opt``."""
+    determine a parameter), widened by the square root of the residual's
+    correlation time (returned; 1 where the noise was floored), the
+    correlations, and whether the residual noise behind them was floored
+    at NOISE_FLOOR; ``ended``: the predictions at ``opt``."""
     n = len(pb.labels)
     if res is None or ended is None:
-        return np.full(n, math.nan), None, False
+        return np.full(n, math.nan), None, False, 1.0
     r_star, _, _ = residual_fn(opt.as_vector(), opt.copy())
     r_iv, floored = _interval_residuals(r_star, ended, weights, pb.sensors, len(pb.robot.actuators))
     try:
         cov, half = sysid.calculate_intervals(r_iv, res.jac, alpha=0.05)
     except (np.linalg.LinAlgError, ValueError):
-        return np.full(n, math.inf), None, floored
-    half = np.where(np.isnan(half), math.inf, half)
+        return np.full(n, math.inf), None, floored, 1.0
+    # a noise-free log's residual is round-off, not noise: its floor stands for independent noise
+    tau = 1.0 if floored else _correlation_time(ended)
+    half = np.where(np.isnan(half), math.inf, half * math.sqrt(tau))
     sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     corr = cov / np.outer(sd, sd)
-    return half, (corr if np.all(np.isfinite(corr)) else None), floored
+    return half, (corr if np.all(np.isfinite(corr)) else None), floored, tau
 
 
 def _judge(pb: _Problem, sol: _Solution, table: list[dict[str, Any]]) -> list[str]:
@@ -364,7 +368,7 @@ def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float,
     return FitResult(table, {lg.path.name: v for lg, v in zip(pb.logs, sol.before)},
                      {lg.path.name: v for lg, v in zip(pb.logs, sol.after)}, out_dir, seconds,
                      pb.warnings + sol.warnings + _judge(pb, sol, table) + (val.warnings if val else []),
-                     [pb.robot.actuators[k] for k in kept], floored=sol.floored,
+                     [pb.robot.actuators[k] for k in kept], floored=sol.floored, correlation_time=sol.tau,
                      validation=val.rows if val else [], bode=val.bode if val else [])
 
 

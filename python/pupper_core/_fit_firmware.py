@@ -14,7 +14,7 @@ modifiers set, so that each rollout of a Jacobian carries its own."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -76,8 +76,10 @@ class _State:
     """The firmware of a batch of rollouts: per rollout and actuator the
     held torque, the last encoder angle and the filtered derivative."""
 
-    def __init__(self, fw: Firmware, shape: tuple[int, int], dt: float) -> None:
+    def __init__(self, fw: Firmware, shape: tuple[int, int], dt: float, sign: np.ndarray | None = None) -> None:
         self.fw = fw
+        #: each rollout's sign of the noise it reads (antithetic pairs)
+        self.sign = np.ones((shape[0], 1)) if sign is None else sign
         self.period = 1 / fw.rate if fw.rate else dt
         self.alpha = 1 - math.exp(-2 * math.pi * fw.filter * self.period) if fw.filter else None
         self.held = np.zeros(shape)
@@ -95,7 +97,7 @@ class _State:
         if self.fw.noise:
             # common random numbers: every rollout reads the same noise, so the replay stays smooth in the
             # parameters while the PD is dithered as the hardware's is
-            q = q + self.fw.noise * np.asarray(self.draws.standard_normal(q.shape[1]))[None, :]
+            q = q + self.sign * self.fw.noise * np.asarray(self.draws.standard_normal(q.shape[1]))[None, :]
         if self.fw.counts:
             # the encoder's difference velocity; its rounding is not replayed: a rounded angle makes the
             # replay a staircase in the parameters, which no finite-difference Jacobian can follow
@@ -134,10 +136,22 @@ def rollout_fn(sysid: Any, fw: Firmware) -> Any:
     from mujoco.sysid._src.trajectory import arrays2traj, sequence2array, timeseries2array
 
     def rollout(**kw: Any) -> Any:
-        models = kw["models"]
         control, control_times = timeseries2array(kw["control_signal"])
         x0 = sequence2array(kw["initial_states"])
-        nb, n, nu = control.shape
+        state, sens = _run(list(kw["models"]), control, x0)
+        return arrays2traj(kw["models"], x0, control, control_times, state, sens, kw["rollout_signal_mapping"],
+                           kw["rollout_state_mapping"], kw["ctrl_mapping"])
+
+    def _run(models: list[Any], control: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each rollout's state and sensors; with noise, the mean of an
+        antithetic pair (the noise read, and its negative): the response to
+        the noise itself, which no replay can match to the hardware's own
+        draw, cancels to first order, and what the noise does to the
+        friction (it dithers the joint loose) stays."""
+        nb = len(models)
+        if fw.noise:
+            models, control, x0 = models * 2, np.concatenate([control, control]), np.concatenate([x0, x0])
+        nb2, n, nu = control.shape
         m0 = models[0]
         dt = float(m0.opt.timestep)
         datas = [mujoco.MjData(m) for m in models]
@@ -149,21 +163,32 @@ def rollout_fn(sysid: Any, fw: Firmware) -> Any:
         kp, kd, lag = (np.stack([m.actuator_gainprm[:, s] for m in models]) for s in (KP_SLOT, KD_SLOT, DELAY_SLOT))
         lag = lag / dt
         peak = np.where(m0.actuator_forcelimited.astype(bool), np.abs(m0.actuator_forcerange).max(axis=1), np.inf)
-        state = np.empty((nb, n, mujoco.mj_stateSize(m0, kind)))
-        sens = np.empty((nb, n, m0.nsensordata))
-        fs = _State(fw, (nb, nu), dt)
+        state = np.empty((nb2, n, mujoco.mj_stateSize(m0, kind)))
+        sens = np.empty((nb2, n, m0.nsensordata))
+        sign = np.where(np.arange(nb2) < nb, 1.0, -1.0)[:, None]
+        fs = _State(fw, (nb2, nu), dt, sign)
+        # the torque the PD gives on the replay's own angle, without the noise it reads: what the
+        # torque sensors report (the hardware's dither is its own draw, which no replay can match)
+        clean = _State(replace(fw, noise=None), (nb2, nu), dt) if fw.noise else None
+        tau_cols = slice(2 * nu, 3 * nu)
         for k in range(n):
             q = np.stack([d.qpos[qadr] for d in datas])
             v = np.stack([d.qvel[dadr] for d in datas])
             if fs.due(k * dt):
-                fs.update(kp, kd, _delayed(control, k, lag), q, v)
+                target = _delayed(control, k, lag)
+                fs.update(kp, kd, target, q, v)
+                if clean is not None:
+                    clean.update(kp, kd, target, q, v)
             tau = fs.deliver(peak, v)
             for b, (m, d) in enumerate(zip(models, datas)):
                 d.ctrl[:] = tau[b]
                 mujoco.mj_step(m, d)
                 mujoco.mj_getState(m, d, state[b, k], kind)
                 sens[b, k] = d.sensordata
-        return arrays2traj(models, x0, control, control_times, state, sens, kw["rollout_signal_mapping"],
-                           kw["rollout_state_mapping"], kw["ctrl_mapping"])
+            if clean is not None:
+                sens[:, k, tau_cols] = clean.deliver(peak, v)
+        if nb2 > nb:
+            return 0.5 * (state[:nb] + state[nb:]), 0.5 * (sens[:nb] + sens[nb:])
+        return state, sens
 
     return rollout

@@ -103,7 +103,7 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
         "rms_before_rad": res.rms_before, "rms_after_rad": res.rms_after,
         "warnings": res.warnings, "seconds": res.seconds, "validation": res.validation,
         "intervals": {"noise_floor": dict(zip(("angle_rad", "velocity_rad_s", "torque_nm"), NOISE_FLOOR)),
-                      "floored": res.floored},
+                      "floored": res.floored, "correlation_time_samples": res.correlation_time},
         "versions": {"mujoco": mujoco.__version__, "pupper": _version()},
     }
     atomic_write(out / "manifest.json", lambda tmp: _write_text(tmp, json.dumps(manifest, indent=2) + "\n"))

@@ -35,6 +35,8 @@ class FitResult:
     actuators: list[str] = field(default_factory=list)
     #: the intervals assume NOISE_FLOOR: the residual was below it (noise-free logs)
     floored: bool = False
+    #: the residual's correlation time (samples): the intervals are widened by its square root
+    correlation_time: float = 1.0
     #: validation.csv's rows: per validated log and joint (``validate``)
     validation: list[dict[str, Any]] = field(default_factory=list)
     #: validation_bode.csv's rows: per validated log, joint and frequency
@@ -93,6 +95,8 @@ class _Solution:
     after: list[list[float]]
     floored: bool
     warnings: list[str]
+    #: the residual's correlation time (samples) the intervals were widened by
+    tau: float = 1.0
 
 
 def _read_logs(paths: Sequence[str | os.PathLike[str]], robot: Robot, columns: ColumnMap | None = None,

@@ -167,3 +167,27 @@ def _interval_residuals(r_star: list[np.ndarray], preds: Predictions,
             total += scale ** 2 * e2
     size = sum(int(np.size(r)) for r in r_star)
     return [np.full(size, math.sqrt(total / size))], True
+
+
+def _correlation_time(preds: Predictions) -> float:
+    """The residual's integrated autocorrelation time (in samples, 1 for
+    white noise), the mean over every log's compared signals: each sample
+    of a residual that the replay cannot follow (a servo's own dither, a
+    model's coarser timestep) is worth 1/tau of an independent one, so the
+    Gauss-Newton intervals, which assume independent samples, are too
+    narrow by sqrt(tau). Summed up to the first negative autocorrelation,
+    and at most a tenth of a log."""
+    taus = []
+    for _, me, pr in preds:
+        err = me - pr
+        n = len(err)
+        for c in range(err.shape[1]):
+            e = err[:, c] - np.mean(err[:, c])
+            spec = np.fft.rfft(e, 2 * n)
+            ac = np.fft.irfft(spec * np.conj(spec))[: max(n // 10, 2)]
+            if ac[0] <= 0:
+                continue
+            ac = ac / ac[0]
+            stop = int(np.argmax(ac < 0)) if np.any(ac < 0) else len(ac)
+            taus.append(1.0 + 2.0 * float(np.sum(ac[1:stop])))
+    return max(float(np.mean(taus)), 1.0) if taus else 1.0
