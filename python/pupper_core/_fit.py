@@ -47,6 +47,7 @@ import numpy as np
 
 from pupper_core._fit_excite import _excite, excite
 from pupper_core._fit_firmware import parse_motor
+from pupper_core._fit_jacobian import jacobian_fn, rollouts_per_jacobian
 from pupper_core._fit_output import _write_run
 from pupper_core._fit_problem import FitResult, _Problem, _problem, _read_logs, _Solution
 from pupper_core._fit_robot import BUILTINS as BUILTINS
@@ -133,7 +134,7 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         read = _read_logs(logs, robot, *options)
         held_out = _read_logs(validate, robot, *options) if validate else []
         check_apart(read, held_out)
-        _check_memory(read, robot, len(names) * len(robot.members(per)))
+        _check_memory(read, robot, rollouts_per_jacobian(robot, per, len(names)))
         sysid = _sysid()
         started = time.perf_counter()
         # sysid's linear algebra on a degenerate problem divides by zero: the
@@ -173,21 +174,22 @@ def _memory_limit() -> float:
     return MEMORY_FRACTION * float(total)
 
 
-def _check_memory(read: list[JointLog], robot: Robot, n_params: int) -> None:
+def _check_memory(read: list[JointLog], robot: Robot, n_rollouts: int) -> None:
     """Refuses a fit whose rollouts would not fit in memory, before any is
-    allocated: every Jacobian rolls each log out once per parameter and once
-    more, keeping the full state and the sensors of every physics step, and
-    sysid copies them (MEMORY_COPIES)."""
+    allocated: every Jacobian rolls each log out once per perturbed rollout
+    (a parameter; per joint, one on every leg at once) and once more,
+    keeping the full state and the sensors of every physics step, and sysid
+    copies them (MEMORY_COPIES)."""
     import mujoco
 
     m = suspended_spec(robot, read[0].kp, read[0].kd).compile()
     per_step = 8 * (mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS) + m.nsensordata)
     steps = sum(lg.duration / min(robot.timestep, float(np.mean(np.diff(lg.times)))) + 1 for lg in read)
-    need = per_step * steps * (n_params + 1) * MEMORY_COPIES
+    need = per_step * steps * (n_rollouts + 1) * MEMORY_COPIES
     limit = _memory_limit()
     if need > limit:
         raise FitError(f"the fit would allocate about {_size(need)} ({len(read)} log(s), {steps:,.0f} physics "
-                       f"steps, {n_params + 1} rollouts of each per Jacobian), past {_size(limit)} "
+                       f"steps, {n_rollouts + 1} rollouts of each per Jacobian), past {_size(limit)} "
                        f"({MEMORY_FRACTION:.0%} of this machine's memory): fit fewer or shorter logs at once, "
                        "or fewer parameters (--params, --per all)")
 
@@ -203,14 +205,14 @@ def _solve(sysid: Any, pb: _Problem, max_iters: int) -> _Solution:
     _check_finite(residual_fn, pb)
     before = _rms(_predictions(residual_fn, pb.pdict, pb.x_nominal), pb.sensors, nu)
     sink = io.StringIO()
-    opt, res = _optimize(sysid, pb.pdict, residual_fn, max_iters, sink)
+    opt, res = _optimize(sysid, pb, pb.pdict, residual_fn, max_iters, sink)
     weights = None
     if any(s >= nu for s in pb.sensors):
         # whiten: each kind of signal by its own noise, so the pooled
         # variance of the intervals means something
         weights = _whitening(residual_fn, opt, nu, pb.sensors)
         residual_fn = _residual_fn(sysid, pb.sequences, enabled, weights, pb.firmware)
-        opt, res = _optimize(sysid, opt, residual_fn, max_iters, sink)
+        opt, res = _optimize(sysid, pb, opt, residual_fn, max_iters, sink)
     warnings: list[str] = []
     opt, res = _no_worse_than_nominal(sysid, pb, residual_fn, opt, res, max_iters, sink, warnings)
     x = opt.as_vector()
@@ -221,14 +223,28 @@ def _solve(sysid: Any, pb: _Problem, max_iters: int) -> _Solution:
     return _Solution(x, half, corr, residual_fn, opt, before, after, floored, warnings, tau)
 
 
-def _optimize(sysid: Any, start: Any, residual_fn: Any, max_iters: int, sink: io.StringIO) -> tuple[Any, Any]:
+def _optimize(sysid: Any, pb: _Problem, start: Any, residual_fn: Any, max_iters: int,
+              sink: io.StringIO) -> tuple[Any, Any]:
+    # legs do not interact: one rollout perturbs a parameter on each (a per-joint fit costs a per-group one)
+    jac = jacobian_fn(residual_fn, start, pb)
     try:
-        opt, res = sysid.optimize(start, residual_fn, optimizer="mujoco", verbose=False,
-                                  max_iters=max_iters, x_scale="jac", output=sink)
+        opt, res = sysid.optimize(start, residual_fn, optimizer="mujoco", verbose=False, max_iters=max_iters,
+                                  x_scale="jac", output=sink, iter_callback=_lean,
+                                  **({"jacobian": jac} if jac is not None else {}))
         return opt, res
     except np.linalg.LinAlgError as e:
         raise FitError(f"the fit's linear algebra failed ({e}): the logs do not determine the parameters; "
                        "fit fewer (--params) or give logs where every joint moves") from None
+
+
+def _lean(trace: list[Any]) -> None:
+    """Keeps the Jacobian and residual of the optimizer's last iteration
+    only (the intervals need it; each earlier one would hold another
+    samples x parameters matrix: 1 GB over a per-joint fit of two 20 s logs)."""
+    import dataclasses
+
+    if len(trace) > 1 and trace[-2].jacobian is not None:
+        trace[-2] = dataclasses.replace(trace[-2], jacobian=None, residual=None)
 
 
 def _check_finite(residual_fn: Any, pb: _Problem) -> None:
@@ -263,7 +279,7 @@ def _no_worse_than_nominal(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any,
         return opt, res
     start = pb.pdict.copy()
     start.update_from_vector(pb.x_nominal)
-    opt2, res2 = _optimize(sysid, start, residual_fn, max_iters, sink)
+    opt2, res2 = _optimize(sysid, pb, start, residual_fn, max_iters, sink)
     again = _cost(residual_fn, opt2, opt2.as_vector())
     if again <= nominal:
         warnings.append(f"the fit ended worse than the nominal values (cost {ended:.4g} against {nominal:.4g}): "

@@ -54,6 +54,8 @@ class Robot:
     inertia: np.ndarray = field(default_factory=lambda: np.zeros(0))
     #: the base welded to the world (pupper_v3_fixed): calibrated.xml keeps it so
     fixed_base: bool = False
+    #: each actuator's leg (-1: none): hung from a welded base, legs do not interact
+    legs: list[int] = field(default_factory=list)
 
     def natural_hz(self, kp: np.ndarray) -> np.ndarray:
         """Each joint's natural frequency (Hz) at stiffness ``kp``."""
@@ -79,10 +81,12 @@ def load_robot(model: str | os.PathLike[str]) -> Robot:
         raise FitError(f"model '{path}' does not compile ({str(e).splitlines()[0]}): fix the MJCF") from None
     info = model_info(str(path))
     group_of: dict[int, str] = {}
-    for leg in info["legs"]:
+    leg_of: dict[int, int] = {}
+    for li, leg in enumerate(info["legs"]):
         for k, leg_joint in enumerate(leg["joints"]):
             group_of[leg_joint] = GROUPS[min(k, 2)]
-    acts, joints, groups, ranges, limits = [], [], [], {}, []
+            leg_of[leg_joint] = li
+    acts, joints, groups, ranges, limits, legs = [], [], [], {}, [], []
     own_kp, own_kd, arm, damp, fric, rest = [], [], [], [], [], []
     key: int | None = next((k for k in range(m.nkey)
                             if mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_KEY, k) == "home"), None)
@@ -94,6 +98,7 @@ def load_robot(model: str | os.PathLike[str]) -> Robot:
         acts.append(ai["name"])
         joints.append(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, jid))
         groups.append(group_of.get(j, "joint"))
+        legs.append(leg_of.get(j, -1))
         lim = m.jnt_range[jid] if m.jnt_limited[jid] else None
         ranges[ai["name"]] = (float(lim[0]), float(lim[1])) if lim is not None else None
         fr = ai["forcerange"]
@@ -111,7 +116,7 @@ def load_robot(model: str | os.PathLike[str]) -> Robot:
         rest.append(q)
     return Robot(path, acts, joints, groups, ranges, np.array(limits), np.array(own_kp),
                  np.array(own_kd), np.array(arm), np.array(damp), np.array(fric), np.array(rest),
-                 float(m.opt.timestep), _inertia(m, joints, rest), fixed)
+                 float(m.opt.timestep), _inertia(m, joints, rest), fixed, legs)
 
 
 def _inertia(m: Any, joints: list[str], rest: list[float]) -> np.ndarray:
