@@ -5,6 +5,13 @@ Run from the repository root, after `make setup PUPPER_EXTRAS=fit`:
 
     .venv/bin/python benches/bench_fit.py              # one log, the six parameters
     .venv/bin/python benches/bench_fit.py --per group  # 18 parameters
+    .venv/bin/python benches/bench_fit.py --compare    # issue 38: per group against per joint
+                                                       # on two 20 s logs at 250 Hz
+
+`--compare` fits two 20 s logs of the 12 joints at 250 Hz (excite --rate
+250, kd 0.1 and 0.3) per group (18 parameters) and per joint (72), each in
+a process of its own, and prints each fit's time and the process's peak
+memory, and their ratio.
 
 The log: `pupper excite` (multisine, 0.75 s holds, 9 s per joint group:
 30 s, 15,001 samples of 12 joints) played on the built-in robot with known
@@ -40,8 +47,9 @@ from pupper_core import _fit, _joint_log
 TRUE = dict(armature=0.0016 * 1.3, damping=0.02, frictionloss=0.05, kp_scale=0.9, delay=0.010)
 
 
-def hardware_log(directory: Path) -> Path:
-    ex = pc.excite(out=directory / "excite.csv", seconds=9.0, hold=0.75)
+def hardware_log(directory: Path, seconds: float = 9.0, rate: float | None = None, kd: float | None = None,
+                 name: str = "robot") -> Path:
+    ex = pc.excite(out=directory / f"excite_{name}.csv", seconds=seconds, hold=0.75, rate=rate, kd=kd)
     robot = _fit.load_robot("pupper_v3")
     lg = _joint_log.read_log(ex, robot.ranges)
     spec = _fit.suspended_spec(robot, lg.kp * TRUE["kp_scale"], lg.kd)
@@ -54,15 +62,41 @@ def hardware_log(directory: Path) -> Path:
     sens = _fit.simulate(spec, robot, lg.times, lg.target)
     nu = len(robot.actuators)
     q = sens[:, :nu] + 1e-3 * np.random.default_rng(0).standard_normal((len(lg.times), nu))
-    out = directory / "robot.csv"
+    out = directory / f"{name}.csv"
     _joint_log.write_log(out, lg.times, robot.actuators, target=lg.target, q=q, kp=lg.kp, kd=lg.kd)
     return out
+
+
+def compare() -> None:
+    """Per group against per joint on two 20 s logs at 250 Hz, each fit in
+    a process of its own (its peak memory is its own)."""
+    import subprocess
+
+    got = {}
+    for per in ("group", "joint"):
+        p = subprocess.run([sys.executable, __file__, "--per", per, "--two-logs"], capture_output=True, text=True,
+                           check=True)
+        print(p.stdout, end="")
+        line = next(ln for ln in p.stdout.splitlines() if ln.startswith("fit: "))
+        peak = next(ln for ln in p.stdout.splitlines() if ln.startswith("peak memory: "))
+        got[per] = (float(line.split()[1]), float(peak.split()[2]))
+    (tg, mg), (tj, mj) = got["group"], got["joint"]
+    print(f"per joint / per group: time {tj / tg:.2f}x ({tj:.1f} s / {tg:.1f} s), peak memory "
+          f"{mj:.2f} GB / {mg:.2f} GB")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--per", default="all", choices=_fit.PER)
+    ap.add_argument("--compare", action="store_true", help="per group against per joint, two 20 s logs at 250 Hz")
+    ap.add_argument("--two-logs", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
+    if a.compare:
+        compare()
+        return
+    if a.two_logs:
+        two_logs(a.per)
+        return
     with tempfile.TemporaryDirectory() as tmp:
         log = hardware_log(Path(tmp))
         robot = _fit.load_robot("pupper_v3")
@@ -101,6 +135,25 @@ def main() -> None:
         print(f"  {r['parameter']:<22} fitted {r['fitted']:.5g}  [{r['low95']:.5g}, {r['high95']:.5g}]")
     print(f"RMS angle error {np.mean(res.rms_before['robot.csv']) * 1e3:.3f} -> "
           f"{np.mean(res.rms_after['robot.csv']) * 1e3:.3f} mrad")
+    sys.stdout.flush()
+
+
+def two_logs(per: str) -> None:
+    """One fit of two 20 s logs at 250 Hz (kd 0.1 and 0.3), timed, and this
+    process's peak memory."""
+    import resource
+
+    with tempfile.TemporaryDirectory() as tmp:
+        # 3 groups of 5.67 s with 0.75 s holds: 20 s
+        logs = [hardware_log(Path(tmp), seconds=5.67, rate=250, kd=kd, name=f"robot_kd{kd}") for kd in (0.1, 0.3)]
+        t0 = time.perf_counter()
+        res = pc.fit(logs, per=per, progress=False)
+        total = time.perf_counter() - t0
+    lg = res.rms_after
+    print(f"per {per}: {len(res.table)} parameters, two logs of 20 s at 250 Hz; {os.cpu_count()} cores")
+    print(f"fit: {total:.1f} s")
+    print(f"peak memory: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20:.2f} GB")
+    print("RMS angle error after: " + ", ".join(f"{k} {np.mean(v) * 1e3:.3f} mrad" for k, v in lg.items()))
     sys.stdout.flush()
 
 

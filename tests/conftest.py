@@ -172,3 +172,25 @@ def assert_drawn_as_traced(run_dir: Path) -> None:
         assert float(r["base_z"]) == traced[(r["id"], t)], r
         checked += 1
     assert checked >= len(ids) * 10, checked
+
+
+def write_hardware_log(out: Path, t, names: list[str], targets, q, kp: float, kd: float, *, tau=None,
+                       rng=None) -> Path:
+    """A stand-in hardware's log in pupper's format (the tests' own writer,
+    not pupper's): the targets and angles, and the torque with 0.01 N·m of
+    noise from ``rng`` where given."""
+    import csv
+
+    with out.open("w", newline="") as f:
+        f.write(f"# pupper joint log 1\n# mode: servo\n# base: suspended\n# kp: {kp}\n# kd: {kd}\n")
+        w = csv.writer(f, lineterminator="\n")
+        fields = ["target", "q"] + (["tau"] if tau is not None else [])
+        w.writerow(["time"] + [f"{a}.{x}" for a in names for x in fields])
+        for k in range(len(t)):
+            row = [repr(float(t[k]))]
+            for i in range(len(names)):
+                row += [repr(float(targets[k, i])), repr(float(q[k, i]))]
+                if tau is not None:
+                    row.append(repr(float(tau[k, i] + 0.01 * rng.standard_normal())))
+            w.writerow(row)
+    return out

@@ -9,7 +9,6 @@ noise (sigma 1e-3 rad) and a 16384-count encoder's quantisation."""
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 from pathlib import Path
@@ -19,7 +18,7 @@ import numpy as np
 import pupper_core as pc
 import pytest
 
-from conftest import hidden, read_csv
+from conftest import hidden, read_csv, write_hardware_log
 
 pytest.importorskip("scipy", reason="the fit extra (make test installs it)")
 
@@ -88,19 +87,7 @@ def play(excite_file: Path, out: Path, *, torque: bool = False, seed: int = 0, t
     q += NOISE * rng.standard_normal(q.shape)
     step = 2 * math.pi / COUNTS
     q = np.round(q / step) * step
-    with out.open("w", newline="") as f:
-        f.write(f"# pupper joint log 1\n# mode: servo\n# base: suspended\n# kp: {kp}\n# kd: {kd}\n")
-        w = csv.writer(f, lineterminator="\n")
-        fields = ["target", "q"] + (["tau"] if torque else [])
-        w.writerow(["time"] + [f"{a}.{x}" for a in names for x in fields])
-        for k in range(len(t)):
-            row = [repr(float(t[k]))]
-            for i in range(m.nu):
-                row += [repr(float(targets[k, i])), repr(float(q[k, i]))]
-                if torque:
-                    row.append(repr(float(tau[k, i] + 0.01 * rng.standard_normal())))
-            w.writerow(row)
-    return out
+    return write_hardware_log(out, t, names, targets, q, kp, kd, tau=tau if torque else None, rng=rng)
 
 
 @pytest.fixture(scope="module")

@@ -214,8 +214,8 @@ def test_a_fit_that_cannot_beat_the_nominal_values_keeps_them(nominal, tmp_path,
 
     optimize = _fit._optimize
 
-    def stalled(sysid, start, residual_fn, max_iters, sink):
-        opt, res = optimize(sysid, start, residual_fn, 1, sink)
+    def stalled(sysid, pb, start, residual_fn, max_iters, sink):
+        opt, res = optimize(sysid, pb, start, residual_fn, 1, sink)
         opt.update_from_vector(np.array([3.0]))
         return opt, res
 

@@ -312,7 +312,9 @@ def excite(model: str | os.PathLike[str] = "pupper_v3", **options: Any) -> Any:
     ``kd`` (the gains the log is recorded at), ``signal`` (multisine or
     chirp), ``band`` (Hz, default 0.3–6), ``seconds`` (8),
     ``hold`` (s between groups), ``amplitude`` (rad), ``max_velocity``
-    (rad/s), ``seed``, ``force`` (overwrite)."""
+    (rad/s), ``seed``, ``force`` (overwrite), ``joints`` (the actuators or
+    joint groups excited and logged, the others held: a test stand),
+    ``rate`` (the log's sample rate, Hz)."""
     from pupper_core import _fit
 
     return _fit.excite(model, **options)
@@ -323,7 +325,10 @@ def fit(logs: Sequence[str | os.PathLike[str]] | str | os.PathLike[str], **optio
     """Calibrate the model to joint logs with mujoco.sysid, as `pupper fit`
     does: keywords model, params (armature, damping, frictionloss, kp_scale,
     kd_scale, delay), per ("all", "group", "joint"), out, force, max_iters,
-    plot. Needs the fit extra; returns a FitResult (``table`` as fit.csv,
+    plot, columns (the logs' own column names and units: KEY=COLUMN[:UNIT],...
+    or a map file), kp, kd, held (for logs that do not say them), validate
+    (logs replayed, not fitted), motor (the servo firmware to replay through).
+    Needs the fit extra; returns a FitResult (``table`` as fit.csv,
     ``value(name)``, ``interval(name)``, RMS angle error before and after)."""
     from pupper_core import _fit
 

@@ -39,13 +39,15 @@ import math
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from pupper_core._fit_excite import _excite, excite
+from pupper_core._fit_firmware import parse_motor
+from pupper_core._fit_jacobian import jacobian_fn, rollouts_per_jacobian
 from pupper_core._fit_output import _write_run
 from pupper_core._fit_problem import FitResult, _Problem, _problem, _read_logs, _Solution
 from pupper_core._fit_robot import BUILTINS as BUILTINS
@@ -54,6 +56,7 @@ from pupper_core._fit_robot import simulate as simulate
 from pupper_core._fit_robot import Robot, load_robot, suspended_spec
 from pupper_core._fit_sysid import (
     Predictions,
+    _correlation_time,
     _interval_residuals,
     _predictions,
     _residual_fn,
@@ -61,6 +64,8 @@ from pupper_core._fit_sysid import (
     _sysid,
     _whitening,
 )
+from pupper_core._fit_validate import Validation, check_apart, print_table
+from pupper_core._fit_validate import validate as validate_logs
 from pupper_core._fit_terms import GROUPS as GROUPS
 from pupper_core._fit_terms import MAX_LOG_SECONDS as MAX_LOG_SECONDS
 from pupper_core._fit_terms import NOISE_FLOOR as NOISE_FLOOR
@@ -76,7 +81,8 @@ from pupper_core._fit_terms import (
     PER,
     FitError,
 )
-from pupper_core._joint_log import JointLog
+from pupper_core._joint_log import JointLog, LogError
+from pupper_core._log_columns import ColumnMap, read_map
 from pupper_core._signals import _stop_on_signals
 
 __all__ = ["fit", "excite", "FitResult", "FitError", "PARAMS"]
@@ -96,10 +102,19 @@ def _parse_params(params: str | Sequence[str]) -> list[str]:
 
 def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str] = "pupper_v3",
         params: str | Sequence[str] = DEFAULT_PARAMS, per: str = "all", out: str | os.PathLike[str] | None = None,
-        force: bool = False, max_iters: int = 50, plot: bool = False, progress: bool = True) -> FitResult:
+        force: bool = False, max_iters: int = 50, plot: bool = False, progress: bool = True,
+        columns: str | None = None, kp: float | str | None = None, kd: float | str | None = None,
+        held: float | str | Mapping[str, float] | None = None,
+        validate: Sequence[str | os.PathLike[str]] = (), motor: str | None = None) -> FitResult:
     """Fits ``params`` (per ``all`` actuators, joint ``group`` or ``joint``)
     to the joint ``logs`` and, with ``out``, writes the run directory.
-    SIGINT and SIGTERM stop it (KeyboardInterrupt) with nothing written."""
+    ``columns``: a column map (KEY=COLUMN[:UNIT],...) or its file, over
+    each log's own; ``kp``, ``kd``, ``held``: for a log that does not say
+    them in its header. ``validate``: logs not fitted, replayed through the
+    nominal and the calibrated model (``FitResult.validation``). ``motor``:
+    the servo firmware to replay through (rate, filter, counts, noload, as
+    --motor takes them; default MuJoCo's ideal servo). SIGINT and
+    SIGTERM stop it (KeyboardInterrupt) with nothing written."""
     names = _parse_params(params)
     if per not in PER:
         raise FitError(f"--per {per} is unknown: use all, group or joint")
@@ -114,19 +129,40 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
         raise FitError(f"{out_dir} exists and is not empty: give another --out, or --force")
     with _stop_on_signals("fit"):
         robot = load_robot(model)
-        read = _read_logs(logs, robot)
-        _check_memory(read, robot, len(names) * len(robot.members(per)))
+        firmware = parse_motor(motor, robot.timestep)
+        options = _log_options(columns, kp, kd, held)
+        read = _read_logs(logs, robot, *options)
+        held_out = _read_logs(validate, robot, *options) if validate else []
+        check_apart(read, held_out)
+        _check_memory(read, robot, rollouts_per_jacobian(robot, per, len(names)))
         sysid = _sysid()
         started = time.perf_counter()
         # sysid's linear algebra on a degenerate problem divides by zero: the
         # outcome is checked and said below, numpy's warnings would only leak
         with np.errstate(all="ignore"):
-            pb = _problem(sysid, robot, read, names, per)
+            pb = _problem(sysid, robot, read, names, per, firmware)
             sol = _solve(sysid, pb, max_iters)
-        result = _result(pb, sol, out_dir, time.perf_counter() - started)
+            val = validate_logs(sysid, pb, sol, held_out, names, per) if held_out else None
+        result = _result(pb, sol, out_dir, time.perf_counter() - started, val)
         if out_dir is not None:
-            _write_run(out_dir, result, pb, sol, model, names, per, force, plot)
+            _write_run(out_dir, result, pb, sol, model, names, per, force, plot, val)
     return result
+
+
+def _log_options(columns: str | None, kp: float | str | None, kd: float | str | None,
+                 held: float | str | Mapping[str, float] | None) -> tuple[ColumnMap | None, dict[str, str | None]]:
+    """The column map and the header keys a log may leave to the caller."""
+    try:
+        cmap = read_map(columns) if columns else None
+    except LogError as e:
+        raise FitError(str(e)) from None
+    if isinstance(held, Mapping):
+        held = ",".join(f"{a}={float(v)!r}" for a, v in held.items())
+
+    def text(v: float | str | None) -> str | None:
+        return None if v is None else v if isinstance(v, str) else repr(float(v))
+
+    return cmap, {"kp": text(kp), "kd": text(kd), "held": text(held)}
 
 
 def _memory_limit() -> float:
@@ -138,21 +174,22 @@ def _memory_limit() -> float:
     return MEMORY_FRACTION * float(total)
 
 
-def _check_memory(read: list[JointLog], robot: Robot, n_params: int) -> None:
+def _check_memory(read: list[JointLog], robot: Robot, n_rollouts: int) -> None:
     """Refuses a fit whose rollouts would not fit in memory, before any is
-    allocated: every Jacobian rolls each log out once per parameter and once
-    more, keeping the full state and the sensors of every physics step, and
-    sysid copies them (MEMORY_COPIES)."""
+    allocated: every Jacobian rolls each log out once per perturbed rollout
+    (a parameter; per joint, one on every leg at once) and once more,
+    keeping the full state and the sensors of every physics step, and sysid
+    copies them (MEMORY_COPIES)."""
     import mujoco
 
     m = suspended_spec(robot, read[0].kp, read[0].kd).compile()
     per_step = 8 * (mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS) + m.nsensordata)
     steps = sum(lg.duration / min(robot.timestep, float(np.mean(np.diff(lg.times)))) + 1 for lg in read)
-    need = per_step * steps * (n_params + 1) * MEMORY_COPIES
+    need = per_step * steps * (n_rollouts + 1) * MEMORY_COPIES
     limit = _memory_limit()
     if need > limit:
         raise FitError(f"the fit would allocate about {_size(need)} ({len(read)} log(s), {steps:,.0f} physics "
-                       f"steps, {n_params + 1} rollouts of each per Jacobian), past {_size(limit)} "
+                       f"steps, {n_rollouts + 1} rollouts of each per Jacobian), past {_size(limit)} "
                        f"({MEMORY_FRACTION:.0%} of this machine's memory): fit fewer or shorter logs at once, "
                        "or fewer parameters (--params, --per all)")
 
@@ -163,38 +200,51 @@ def _size(n: float) -> str:
 
 def _solve(sysid: Any, pb: _Problem, max_iters: int) -> _Solution:
     nu = len(pb.robot.actuators)
-    enabled = [(s.name, sysid.SignalType.MjSensor) for s in pb.sequences[0].spec.sensors
-               if [x.name for x in pb.sequences[0].spec.sensors].index(s.name) in pb.sensors]
-    residual_fn = _residual_fn(sysid, pb.sequences, enabled, None)
+    enabled = pb.enabled(sysid)
+    residual_fn = _residual_fn(sysid, pb.sequences, enabled, None, pb.firmware)
     _check_finite(residual_fn, pb)
     before = _rms(_predictions(residual_fn, pb.pdict, pb.x_nominal), pb.sensors, nu)
     sink = io.StringIO()
-    opt, res = _optimize(sysid, pb.pdict, residual_fn, max_iters, sink)
+    opt, res = _optimize(sysid, pb, pb.pdict, residual_fn, max_iters, sink)
     weights = None
     if any(s >= nu for s in pb.sensors):
         # whiten: each kind of signal by its own noise, so the pooled
         # variance of the intervals means something
         weights = _whitening(residual_fn, opt, nu, pb.sensors)
-        residual_fn = _residual_fn(sysid, pb.sequences, enabled, weights)
-        opt, res = _optimize(sysid, opt, residual_fn, max_iters, sink)
+        residual_fn = _residual_fn(sysid, pb.sequences, enabled, weights, pb.firmware)
+        opt, res = _optimize(sysid, pb, opt, residual_fn, max_iters, sink)
     warnings: list[str] = []
     opt, res = _no_worse_than_nominal(sysid, pb, residual_fn, opt, res, max_iters, sink, warnings)
     x = opt.as_vector()
     # the replay where the fit ended, once: its intervals' residual and the error after
     ended = None if res is None else _predictions(residual_fn, opt, x)
-    half, corr, floored = _intervals(sysid, pb, residual_fn, opt, res, weights, ended)
+    half, corr, floored, tau = _intervals(sysid, pb, residual_fn, opt, res, weights, ended)
     after = before if ended is None else _rms(ended, pb.sensors, nu)
-    return _Solution(x, half, corr, residual_fn, opt, before, after, floored, warnings)
+    return _Solution(x, half, corr, residual_fn, opt, before, after, floored, warnings, tau)
 
 
-def _optimize(sysid: Any, start: Any, residual_fn: Any, max_iters: int, sink: io.StringIO) -> tuple[Any, Any]:
+def _optimize(sysid: Any, pb: _Problem, start: Any, residual_fn: Any, max_iters: int,
+              sink: io.StringIO) -> tuple[Any, Any]:
+    # legs do not interact: one rollout perturbs a parameter on each (a per-joint fit costs a per-group one)
+    jac = jacobian_fn(residual_fn, start, pb)
     try:
-        opt, res = sysid.optimize(start, residual_fn, optimizer="mujoco", verbose=False,
-                                  max_iters=max_iters, x_scale="jac", output=sink)
+        opt, res = sysid.optimize(start, residual_fn, optimizer="mujoco", verbose=False, max_iters=max_iters,
+                                  x_scale="jac", output=sink, iter_callback=_lean,
+                                  **({"jacobian": jac} if jac is not None else {}))
         return opt, res
     except np.linalg.LinAlgError as e:
         raise FitError(f"the fit's linear algebra failed ({e}): the logs do not determine the parameters; "
                        "fit fewer (--params) or give logs where every joint moves") from None
+
+
+def _lean(trace: list[Any]) -> None:
+    """Keeps the Jacobian and residual of the optimizer's last iteration
+    only (the intervals need it; each earlier one would hold another
+    samples x parameters matrix: 1 GB over a per-joint fit of two 20 s logs)."""
+    import dataclasses
+
+    if len(trace) > 1 and trace[-2].jacobian is not None:
+        trace[-2] = dataclasses.replace(trace[-2], jacobian=None, residual=None)
 
 
 def _check_finite(residual_fn: Any, pb: _Problem) -> None:
@@ -229,7 +279,7 @@ def _no_worse_than_nominal(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any,
         return opt, res
     start = pb.pdict.copy()
     start.update_from_vector(pb.x_nominal)
-    opt2, res2 = _optimize(sysid, start, residual_fn, max_iters, sink)
+    opt2, res2 = _optimize(sysid, pb, start, residual_fn, max_iters, sink)
     again = _cost(residual_fn, opt2, opt2.as_vector())
     if again <= nominal:
         warnings.append(f"the fit ended worse than the nominal values (cost {ended:.4g} against {nominal:.4g}): "
@@ -243,24 +293,27 @@ def _no_worse_than_nominal(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any,
 
 
 def _intervals(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any, res: Any, weights: np.ndarray | None,
-               ended: Predictions | None) -> tuple[np.ndarray, np.ndarray | None, bool]:
+               ended: Predictions | None) -> tuple[np.ndarray, np.ndarray | None, bool, float]:
     """sysid's Gauss-Newton 95 % half-widths (infinite where the logs do not
-    determine a parameter), the correlations, and whether the residual noise
-    behind them was floored at NOISE_FLOOR; ``ended``: the predictions at
-    ``opt``."""
+    determine a parameter), widened by the square root of the residual's
+    correlation time (returned; 1 where the noise was floored), the
+    correlations, and whether the residual noise behind them was floored
+    at NOISE_FLOOR; ``ended``: the predictions at ``opt``."""
     n = len(pb.labels)
     if res is None or ended is None:
-        return np.full(n, math.nan), None, False
+        return np.full(n, math.nan), None, False, 1.0
     r_star, _, _ = residual_fn(opt.as_vector(), opt.copy())
     r_iv, floored = _interval_residuals(r_star, ended, weights, pb.sensors, len(pb.robot.actuators))
     try:
         cov, half = sysid.calculate_intervals(r_iv, res.jac, alpha=0.05)
     except (np.linalg.LinAlgError, ValueError):
-        return np.full(n, math.inf), None, floored
-    half = np.where(np.isnan(half), math.inf, half)
+        return np.full(n, math.inf), None, floored, 1.0
+    # a noise-free log's residual is round-off, not noise: its floor stands for independent noise
+    tau = 1.0 if floored else _correlation_time(ended)
+    half = np.where(np.isnan(half), math.inf, half * math.sqrt(tau))
     sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     corr = cov / np.outer(sd, sd)
-    return half, (corr if np.all(np.isfinite(corr)) else None), floored
+    return half, (corr if np.all(np.isfinite(corr)) else None), floored, tau
 
 
 def _judge(pb: _Problem, sol: _Solution, table: list[dict[str, Any]]) -> list[str]:
@@ -319,7 +372,8 @@ def _confounded(pb: _Problem, sol: _Solution) -> list[str]:
     return out
 
 
-def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float) -> FitResult:
+def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float,
+            val: Validation | None = None) -> FitResult:
     table = []
     for i, (name, kind, members, nom) in enumerate(pb.labels):
         x, h = float(sol.x[i]), float(sol.half[i])
@@ -329,8 +383,9 @@ def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float) 
     kept = pb.kept
     return FitResult(table, {lg.path.name: v for lg, v in zip(pb.logs, sol.before)},
                      {lg.path.name: v for lg, v in zip(pb.logs, sol.after)}, out_dir, seconds,
-                     pb.warnings + sol.warnings + _judge(pb, sol, table), [pb.robot.actuators[k] for k in kept],
-                     floored=sol.floored)
+                     pb.warnings + sol.warnings + _judge(pb, sol, table) + (val.warnings if val else []),
+                     [pb.robot.actuators[k] for k in kept], floored=sol.floored, correlation_time=sol.tau,
+                     validation=val.rows if val else [], bode=val.bode if val else [])
 
 
 # ---------------------------------------------------------------------- CLI
@@ -347,7 +402,10 @@ def _cli_fit(args_json: str) -> list[str]:
         print(f"{r['parameter']:<{width}}  {r['nominal']:>10.4g}  {r['fitted']:>10.4g}  {interval}  {r['unit']}")
     for name in res.rms_before:
         b, f = np.mean(res.rms_before[name]) * 1e3, np.mean(res.rms_after[name]) * 1e3
-        print(f"{name}: RMS angle error {b:.3f} -> {f:.3f} mrad (mean over {len(res.actuators)} joints)")
+        n = len(res.actuators)
+        print(f"{name}: RMS angle error {b:.3f} -> {f:.3f} mrad (mean over {n} joint{'s' if n > 1 else ''})")
+    if res.validation:
+        print_table(res.validation)
     for w in res.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(f"fitted in {res.seconds:.1f} s")
@@ -355,10 +413,13 @@ def _cli_fit(args_json: str) -> list[str]:
     if res.out is None:
         return []
     wrote = [str(res.out / n) for n in ("fit.csv", "residuals.csv", "calibrated.xml")]
+    if res.validation:
+        wrote += [str(res.out / n) for n in ("validation.csv", "validation_bode.csv") if (res.out / n).is_file()]
     if res.warnings:
         wrote.append(str(res.out / "warnings.csv"))
     if (res.out / "plots").is_dir():
         wrote += [str(p) for p in sorted((res.out / "plots").glob("fit_*.png"))]
+        wrote += [str(p) for p in sorted((res.out / "plots").glob("validate_*.png"))]
     return wrote + [str(res.out / "report.html")]
 
 

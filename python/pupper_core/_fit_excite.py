@@ -42,12 +42,17 @@ def _chirp(t: np.ndarray, band: tuple[float, float]) -> np.ndarray:
 def excite(model: str | os.PathLike[str] = "pupper_v3", *, out: str | os.PathLike[str] = "excite.csv",
            kp: float | None = None, kd: float | None = None, seconds: float = 8.0, hold: float = 1.0,
            amplitude: float = 0.3, signal: str = "multisine", band: Sequence[float] = (0.3, 6.0),
-           max_velocity: float = 8.0, seed: int = 0, force: bool = False) -> Path:
+           max_velocity: float = 8.0, seed: int = 0, force: bool = False,
+           joints: str | Sequence[str] | None = None, rate: float | None = None) -> Path:
     """Writes an excitation to play on the robot and the nominal model's
-    response to it, in the joint-log format; returns the file's path. Gains
-    past the explicit PD's stability bound are said as a warning."""
+    response to it, in the joint-log format; returns the file's path.
+    ``joints``: the actuators (or joint groups haa, hfe, kfe) excited and
+    logged, the others held at rest (a test stand); ``rate``: the log's
+    sample rate (Hz), targets held between samples. Gains past the explicit
+    PD's stability bound are said as a warning."""
     path, notes = _excite(model, out=out, kp=kp, kd=kd, seconds=seconds, hold=hold, amplitude=amplitude,
-                          signal=signal, band=band, max_velocity=max_velocity, seed=seed, force=force)
+                          signal=signal, band=band, max_velocity=max_velocity, seed=seed, force=force,
+                          joints=joints, rate=rate)
     for note in notes:
         _warnings.warn(note, stacklevel=2)
     return path
@@ -55,25 +60,35 @@ def excite(model: str | os.PathLike[str] = "pupper_v3", *, out: str | os.PathLik
 
 def _excite(model: str | os.PathLike[str], *, out: str | os.PathLike[str], kp: float | None, kd: float | None,
             seconds: float, hold: float, amplitude: float, signal: str, band: Sequence[float],
-            max_velocity: float, seed: int, force: bool) -> tuple[Path, list[str]]:
+            max_velocity: float, seed: int, force: bool, joints: str | Sequence[str] | None = None,
+            rate: float | None = None) -> tuple[Path, list[str]]:
     """`excite`, and its notes."""
     robot = load_robot(model)
     out = _excite_out(out, force)
-    lo, hi = _excite_options(robot, signal, band, seconds, hold, amplitude, max_velocity)
+    chosen = _excite_joints(robot, joints)
+    lo, hi = _excite_options(robot, signal, band, seconds, hold, amplitude, max_velocity,
+                             {robot.groups[k] for k in chosen})
+    stride = _excite_stride(robot, rate)
     gains_kp, gains_kd = _excite_gains(robot, kp, kd)
     notes = _stability_notes(robot, gains_kp, gains_kd)
     with _stop_on_signals("excite"):
         times, targets = _excite_targets(robot, gains_kp, signal, (lo, hi), seconds, hold, amplitude,
-                                         max_velocity, seed)
+                                         max_velocity, seed, chosen)
+        # a slower log's targets: each held until the next sample, as the servo holds it
+        targets = targets[(np.arange(len(targets)) // stride) * stride]
         spec = suspended_spec(robot, gains_kp, gains_kd)
         sens = simulate(spec, robot, times, targets)
         if not np.all(np.isfinite(sens)):
             raise FitError(f"the model diverges at kp {gains_kp.max():g}, kd {gains_kd.max():g}: its response "
                            "is not finite; lower the gains (pupper gains --kp KP --kd KD shows the bound)")
-        nu = len(robot.actuators)
-        write_log(out, times, robot.actuators, target=targets, q=sens[:, :nu], qd=sens[:, nu:2 * nu],
-                  tau=sens[:, 2 * nu:], kp=gains_kp, kd=gains_kd,
-                  note=f"pupper excite {signal} {lo:g}-{hi:g} Hz; q, qd, tau: the nominal model's response")
+        nu, rows = len(robot.actuators), slice(None, None, stride)
+        block = [sens[rows, b * nu:(b + 1) * nu][:, chosen] for b in range(3)]
+        # torque sampled slower than the physics would land on the held targets' switches: left out
+        write_log(out, times[rows], [robot.actuators[k] for k in chosen], target=targets[rows][:, chosen],
+                  q=block[0], qd=block[1], tau=block[2] if stride == 1 else None, kp=gains_kp[chosen],
+                  kd=gains_kd[chosen],
+                  note=f"pupper excite {signal} {lo:g}-{hi:g} Hz; q, qd{', tau' if stride == 1 else ''}: "
+                       "the nominal model's response")
     return out, notes
 
 
@@ -90,6 +105,38 @@ def _excite_out(out: str | os.PathLike[str], force: bool) -> Path:
     return path
 
 
+def _excite_joints(robot: Robot, joints: str | Sequence[str] | None) -> list[int]:
+    """The actuators excited and logged (names or joint groups): all by default."""
+    if joints is None:
+        return list(range(len(robot.actuators)))
+    names = [j.strip() for j in (joints.split(",") if isinstance(joints, str) else joints) if j.strip()]
+    chosen: set[int] = set()
+    for n in names:
+        hit = [k for k, (a, g) in enumerate(zip(robot.actuators, robot.groups)) if n in (a, g)]
+        if not hit:
+            raise FitError(f"--joints names '{n}', neither an actuator of the model ({robot.actuators[0]}, "
+                           f"{robot.actuators[1]}, ...) nor a joint group (haa, hfe, kfe): give e.g. "
+                           f"--joints {robot.actuators[min(2, len(robot.actuators) - 1)]}")
+        chosen.update(hit)
+    if not chosen:
+        raise FitError("--joints is empty: name actuators or joint groups (haa, hfe, kfe)")
+    return sorted(chosen)
+
+
+def _excite_stride(robot: Robot, rate: float | None) -> int:
+    """Physics steps per logged sample at ``rate`` Hz: a whole number."""
+    if rate is None:
+        return 1
+    top = 1 / robot.timestep
+    r = _number("rate", rate)
+    stride = round(top / r) if r > 0 else 0
+    if stride < 1 or abs(stride * r - top) > 1e-6 * top:
+        ok = ", ".join(f"{top / k:g}" for k in (1, 2, 4, 5) if top / k == int(top / k))
+        raise FitError(f"--rate {r:g} Hz is not the physics rate ({top:g} Hz) divided by a whole number: "
+                       f"give e.g. {ok}")
+    return stride
+
+
 def _number(name: str, v: Any) -> float:
     """A flag's number; the CLI passes NaN and infinity as null."""
     if v is None or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -100,7 +147,7 @@ def _number(name: str, v: Any) -> float:
 
 
 def _excite_options(robot: Robot, signal: str, band: Sequence[float], seconds: float, hold: float,
-                    amplitude: float, max_velocity: float) -> tuple[float, float]:
+                    amplitude: float, max_velocity: float, excited: set[str]) -> tuple[float, float]:
     """Checks excite's options; returns the band."""
     if signal not in ("multisine", "chirp"):
         raise FitError(f"--signal {signal} is unknown: use multisine or chirp")
@@ -113,7 +160,7 @@ def _excite_options(robot: Robot, signal: str, band: Sequence[float], seconds: f
             raise FitError(f"--{name} {v} must be > 0")
     if not _number("hold", hold) >= 0:
         raise FitError(f"--hold {hold} must be >= 0")
-    groups = len([g for g in GROUPS if g in robot.groups] or ["joint"])
+    groups = len([g for g in GROUPS if g in excited] or ["joint"])
     total = hold + groups * (seconds + hold)
     if total > MAX_LOG_SECONDS:
         most = max((MAX_LOG_SECONDS - hold) / groups - hold, 0.0)
@@ -156,12 +203,14 @@ def _stability_notes(robot: Robot, kp: np.ndarray, kd: np.ndarray) -> list[str]:
 
 
 def _excite_targets(robot: Robot, gains_kp: np.ndarray, signal: str, band: tuple[float, float], seconds: float,
-                    hold: float, amplitude: float, max_velocity: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """The excitation's times and targets: per joint group a multisine or
-    chirp inside the ranges and the speed and torque limits, with holds."""
+                    hold: float, amplitude: float, max_velocity: float, seed: int,
+                    chosen: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """The excitation's times and targets: per joint group (of the chosen
+    actuators) a multisine or chirp inside the ranges and the speed and
+    torque limits, with holds."""
     dt = robot.timestep
     rng = np.random.default_rng(seed)
-    groups = [g for g in GROUPS if g in robot.groups] or ["joint"]
+    groups = [g for g in GROUPS if any(robot.groups[k] == g for k in chosen)] or ["joint"]
     n_seg = int(round(seconds / dt))
     n_hold = int(round(hold / dt))
     total = n_hold + len(groups) * (n_seg + n_hold)
@@ -172,7 +221,7 @@ def _excite_targets(robot: Robot, gains_kp: np.ndarray, signal: str, band: tuple
     taper = 0.5 - 0.5 * np.cos(np.pi * taper)
     for gi, g in enumerate(groups):
         start = n_hold + gi * (n_seg + n_hold)
-        for a in (i for i, x in enumerate(robot.groups) if x == g or g == "joint"):
+        for a in (i for i, x in enumerate(robot.groups) if (x == g or g == "joint") and i in chosen):
             s = (_multisine(ts, band, 8, rng) if signal == "multisine" else _chirp(ts, band)) * taper
             speed = np.max(np.abs(np.diff(s))) / dt
             amp = min(amplitude, max_velocity / max(speed, 1e-9))

@@ -18,10 +18,12 @@ from pupper_core._fit_problem import FitResult, _Problem, _Solution
 from pupper_core._fit_robot import Robot, _history_samples
 from pupper_core._fit_sysid import _predictions
 from pupper_core._fit_terms import NOISE_FLOOR, SCALE_NUMERIC, FitError
+from pupper_core._fit_validate import Validation
+from pupper_core._fit_validate import write as write_validation
 
 
 def _write_run(out: Path, res: FitResult, pb: _Problem, sol: _Solution, model: Any, names: list[str], per: str,
-               force: bool, plot: bool) -> None:
+               force: bool, plot: bool, val: Validation | None = None) -> None:
     """The run directory, written beside it first and moved in at the end:
     a run stopped or failing while it writes leaves the directory as it was
     (a --force run's earlier files too), or none if it made it."""
@@ -30,10 +32,15 @@ def _write_run(out: Path, res: FitResult, pb: _Problem, sol: _Solution, model: A
     try:
         shutil.rmtree(stage, ignore_errors=True)
         stage.mkdir(parents=True)
-        _write(stage, res, pb, sol.x, model, names, per)
+        _write(stage, res, pb, sol.x, model, names, per, val)
         if plot:
             _plot(stage, pb, sol)
+        if val is not None:
+            write_validation(stage, val)
         out.mkdir(parents=True, exist_ok=True)
+        # a --force run's validation is this run's, or none
+        for old in [out / "validation.csv", out / "validation_bode.csv", *out.glob("plots/validate_*.png")]:
+            old.unlink(missing_ok=True)
         for f in sorted(stage.rglob("*")):
             if f.is_file():
                 dest = out / f.relative_to(stage)
@@ -53,7 +60,8 @@ def _write_run(out: Path, res: FitResult, pb: _Problem, sol: _Solution, model: A
         shutil.rmtree(stage, ignore_errors=True)
 
 
-def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, names: list[str], per: str) -> None:
+def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, names: list[str], per: str,
+           val: Validation | None) -> None:
     import mujoco
 
     from pupper_core._files import atomic_write
@@ -87,13 +95,15 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
         "kind": "fit",
         "command": "fit",
         "inputs": {"model": str(model), "logs": [{"path": str(lg.path), "sha256": lg.sha256} for lg in logs],
-                   "params": names, "per": per},
+                   "params": names, "per": per,
+                   "motor": pb.firmware.spec() if pb.firmware is not None else "ideal",
+                   "validate": [{"path": str(t), "sha256": s} for t, s in (val.logs if val else [])]},
         "fit": {r["parameter"]: {"nominal": r["nominal"], "fitted": r["fitted"], "low95": r["low95"],
                                  "high95": r["high95"], "unit": r["unit"]} for r in res.table},
         "rms_before_rad": res.rms_before, "rms_after_rad": res.rms_after,
-        "warnings": res.warnings, "seconds": res.seconds,
+        "warnings": res.warnings, "seconds": res.seconds, "validation": res.validation,
         "intervals": {"noise_floor": dict(zip(("angle_rad", "velocity_rad_s", "torque_nm"), NOISE_FLOOR)),
-                      "floored": res.floored},
+                      "floored": res.floored, "correlation_time_samples": res.correlation_time},
         "versions": {"mujoco": mujoco.__version__, "pupper": _version()},
     }
     atomic_write(out / "manifest.json", lambda tmp: _write_text(tmp, json.dumps(manifest, indent=2) + "\n"))

@@ -12,10 +12,12 @@ from typing import Any
 
 import numpy as np
 
+from pupper_core._fit_firmware import Firmware
 from pupper_core._fit_robot import Robot, initial_state, suspended_spec
 from pupper_core._fit_sysid import _held, _modifier
 from pupper_core._fit_terms import MAX_LOG_SECONDS, PARAMS, STILL_RAD, FitError
 from pupper_core._joint_log import JointLog, LogError, read_log
+from pupper_core._log_columns import ColumnMap
 
 
 @dataclass
@@ -33,6 +35,12 @@ class FitResult:
     actuators: list[str] = field(default_factory=list)
     #: the intervals assume NOISE_FLOOR: the residual was below it (noise-free logs)
     floored: bool = False
+    #: the residual's correlation time (samples): the intervals are widened by its square root
+    correlation_time: float = 1.0
+    #: validation.csv's rows: per validated log and joint (``validate``)
+    validation: list[dict[str, Any]] = field(default_factory=list)
+    #: validation_bode.csv's rows: per validated log, joint and frequency
+    bode: list[dict[str, Any]] = field(default_factory=list)
 
     def value(self, name: str) -> float:
         return next(float(r["fitted"]) for r in self.table if r["parameter"] == name)
@@ -57,12 +65,20 @@ class _Problem:
     sensors: list[int]
     gains: dict[int, tuple[np.ndarray, np.ndarray]]
     warnings: list[str] = field(default_factory=list)
+    #: the servo firmware the replay runs through (--motor); None: MuJoCo's servo
+    firmware: Firmware | None = None
 
     @property
     def kept(self) -> list[int]:
         """The actuators whose angle is fitted."""
         nu = len(self.robot.actuators)
         return [s for s in self.sensors if s < nu]
+
+    def enabled(self, sysid: Any) -> list[Any]:
+        """The enabled sensors as sysid's observations, in the model's order."""
+        names = [x.name for x in self.sequences[0].spec.sensors]
+        return [(s.name, sysid.SignalType.MjSensor) for s in self.sequences[0].spec.sensors
+                if names.index(s.name) in self.sensors]
 
 
 @dataclass
@@ -79,17 +95,23 @@ class _Solution:
     after: list[list[float]]
     floored: bool
     warnings: list[str]
+    #: the residual's correlation time (samples) the intervals were widened by
+    tau: float = 1.0
 
 
-def _read_logs(paths: Sequence[str | os.PathLike[str]], robot: Robot) -> list[JointLog]:
-    """Reads and checks every log, and refuses the same log given twice."""
+def _read_logs(paths: Sequence[str | os.PathLike[str]], robot: Robot, columns: ColumnMap | None = None,
+               defaults: dict[str, str | None] | None = None) -> list[JointLog]:
+    """Reads and checks every log (through the column map, with the header
+    keys ``defaults`` for a log that does not say them), widens each to the
+    model's actuators, and refuses the same log given twice."""
     read: list[JointLog] = []
     for p in paths:
         try:
-            lg = read_log(Path(p), robot.ranges)
+            lg = read_log(Path(p), robot.ranges, columns=columns, defaults=defaults)
         except LogError as e:
             raise FitError(str(e)) from None
         _check_log(lg, robot)
+        lg = _widen(lg, robot)
         twin = next((x for x in read if x.sha256 == lg.sha256), None)
         if twin is not None:
             # a copy adds no information, yet would narrow every interval
@@ -99,39 +121,61 @@ def _read_logs(paths: Sequence[str | os.PathLike[str]], robot: Robot) -> list[Jo
     return read
 
 
+def _widen(lg: JointLog, robot: Robot) -> JointLog:
+    """The log over every actuator of the model, in its order: one it does
+    not cover holds the angle ``held`` gives (else the model's rest pose)
+    at the log's gains (their median where they differ), its columns
+    constant; ``logged`` names the ones the file covers."""
+    n, nu = len(lg.times), len(robot.actuators)
+    cols = {a: k for k, a in enumerate(lg.actuators)}
+
+    def wide(values: np.ndarray | None, other: np.ndarray) -> np.ndarray | None:
+        if values is None:
+            return None
+        out = np.tile(other, (n, 1))
+        for i, a in enumerate(robot.actuators):
+            if a in cols:
+                out[:, i] = values[:, cols[a]]
+        return out
+
+    rest = np.array([lg.held.get(a, lg.held.get("", robot.rest[i])) for i, a in enumerate(robot.actuators)])
+    gain = [np.array([g[cols[a]] if a in cols else float(np.median(g)) for a in robot.actuators])
+            for g in (lg.kp, lg.kd)]
+    target, q = wide(lg.target, rest), wide(lg.q, rest)
+    assert target is not None and q is not None
+    return JointLog(lg.path, lg.times, list(robot.actuators), target, q, wide(lg.qd, np.zeros(nu)),
+                    wide(lg.tau, np.zeros(nu)), gain[0], gain[1], lg.mode, lg.base, lg.sha256, lg.held,
+                    [a for a in robot.actuators if a in cols])
+
+
 def _check_log(lg: JointLog, robot: Robot) -> None:
-    missing = [a for a in robot.actuators if a not in lg.actuators]
-    if missing:
-        raise FitError(f"{lg.path}: column '{missing[0]}.target' is missing: a log must cover "
-                       f"every actuator of the model ({len(robot.actuators)})")
     if lg.base != "suspended":
         raise FitError(f"{lg.path}: '# base: {lg.base}': fit replays logs of the robot hung in "
                        "the air (base: suspended); standing logs are not supported yet")
     if lg.duration <= PARAMS["delay"][2] * 4:
         raise FitError(f"{lg.path}: the log spans {lg.duration:g} s, too short for the delay "
                        f"range (0 to {PARAMS['delay'][2]:g} s): log at least a few seconds")
-    dts = np.diff(lg.times)
-    if np.max(np.abs(dts - dts.mean())) > 1e-6 * max(dts.mean(), 1e-9) + 1e-9:
-        raise FitError(f"{lg.path}: samples are not evenly spaced in time: resample the log "
-                       "to a fixed rate")
-    spacing = float(dts.mean())
+    # uneven samples are replayed at their own instants: the mean spacing is the rate
+    spacing = float(np.mean(np.diff(lg.times)))
     # samples a second or more apart, which in ms would be a servo's rate
     ms = (f" (its samples are {spacing:g} apart: the time column looks like milliseconds; divide it "
           "by 1000)") if 1e-4 <= spacing / 1000 <= 0.1 and spacing >= 0.5 else ""
     if lg.duration > MAX_LOG_SECONDS:
         raise FitError(f"{lg.path}: the log spans {lg.duration:.4g} s, past the {MAX_LOG_SECONDS:g} s "
                        f"fit takes{ms}: times are in s; split a longer recording")
-    order = _order(lg, robot)
-    hz = robot.natural_hz(lg.kp[order])
+    idx = [robot.actuators.index(a) for a in lg.actuators]
+    hz = np.asarray(robot.inertia)[idx]
+    hz = np.sqrt(lg.kp / hz) / (2 * np.pi)
     k = int(np.argmax(hz))
     if 1 / spacing < 2 * hz[k]:
         # the samples cannot show a motion faster than half their rate
         raise FitError(f"{lg.path}: sampled at {1 / spacing:.3g} Hz, too slow for the joints' dynamics{ms}: "
-                       f"at the log's kp {lg.kp[order][k]:g} {robot.actuators[k]} swings at {hz[k]:.3g} Hz, "
+                       f"at the log's kp {lg.kp[k]:g} {lg.actuators[k]} swings at {hz[k]:.3g} Hz, "
                        f"past half the sample rate; log at {10 * hz[k]:.0f} Hz or more")
 
 
-def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], per: str) -> _Problem:
+def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], per: str,
+             firmware: Firmware | None = None) -> _Problem:
     nu = len(robot.actuators)
     has_tau = all(lg.tau is not None for lg in read)
     has_qd = all(lg.qd is not None for lg in read)
@@ -145,7 +189,7 @@ def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], p
         kp, kd = lg.kp[order], lg.kd[order]
         key = (kp.tobytes(), kd.tobytes())
         if key not in specs:
-            spec = suspended_spec(robot, kp, kd)
+            spec = suspended_spec(robot, kp, kd, firmware=firmware is not None)
             specs[key] = spec
             gains[id(spec)] = (kp, kd)
         spec = specs[key]
@@ -169,13 +213,19 @@ def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], p
         measured = sysid.TimeSeries.from_names(t, y, m)
         sequences.append(sysid.ModelSequences(f"log{li}", spec, lg.path.stem, x0, control, measured))
     kept = {s for s in sensors if s < nu}
-    pdict, labels, x_nominal = _parameters(sysid, robot, names, per, gains, kept, warnings)
-    return _Problem(robot, read, sequences, pdict, labels, x_nominal, sensors, gains, warnings)
+    pdict, labels, x_nominal = _parameters(sysid, robot, names, per, gains, kept, _logged(robot, read),
+                                           warnings, firmware is not None)
+    return _Problem(robot, read, sequences, pdict, labels, x_nominal, sensors, gains, warnings, firmware)
 
 
 def _order(lg: JointLog, robot: Robot) -> list[int]:
-    """A log's columns in the model's actuator order."""
+    """A log's columns in the model's actuator order (a widened log's are)."""
     return [lg.actuators.index(a) for a in robot.actuators]
+
+
+def _logged(robot: Robot, read: list[JointLog]) -> set[int]:
+    """The actuators every log covers."""
+    return {k for k, a in enumerate(robot.actuators) if all(a in lg.logged for lg in read)}
 
 
 def _enabled_sensors(robot: Robot, read: list[JointLog], has_qd: bool,
@@ -186,21 +236,30 @@ def _enabled_sensors(robot: Robot, read: list[JointLog], has_qd: bool,
     all zero; each is said. Refuses a fit with nothing left."""
     nu = len(robot.actuators)
     warnings: list[str] = []
+    logged = _logged(robot, read)
+    for k, a in enumerate(robot.actuators):
+        some = [lg.path.name for lg in read if a in lg.logged]
+        if k not in logged and some:
+            miss = next(lg.path.name for lg in read if a not in lg.logged)
+            warnings.append(f"{a} is logged in {some[0]} but not in {miss}: left out of the fit (fit logs of "
+                            "the same joints together)")
     still: dict[int, JointLog] = {}
     for lg in read:
         for k, c in enumerate(_order(lg, robot)):
-            if k not in still and float(np.ptp(lg.q[:, c])) <= STILL_RAD:
+            if k in logged and k not in still and float(np.ptp(lg.q[:, c])) <= STILL_RAD:
                 still[k] = lg
     for k, lg in sorted(still.items()):
         warnings.append(f"{robot.actuators[k]} never moves in {lg.path.name} (its angle stays at "
                         f"{lg.q[0, _order(lg, robot)[k]]:.6g} rad): left out of the fit")
-    if len(still) == nu:
+    if not logged:
+        raise FitError("the logs cover no actuator in common: fit logs of the same joints together")
+    if len(still) == len(logged):
         raise FitError(f"no joint moves in {', '.join(sorted({lg.path.name for lg in still.values()}))} "
                        "(every angle column is constant): nothing to fit; log a run where the joints "
                        "move (pupper excite writes its targets)")
-    sensors = [k for k in range(nu) if k not in still]
+    sensors = [k for k in range(nu) if k in logged and k not in still]
     for block, fld, on in ((1, "qd", has_qd), (2, "tau", has_tau)):
-        for k in (k for k in range(nu) if on and k not in still):
+        for k in (k for k in range(nu) if on and k in logged and k not in still):
             zero = next((lg for lg in read if not np.any(getattr(lg, fld)[:, _order(lg, robot)[k]])), None)
             if zero is not None:
                 warnings.append(f"{zero.path.name}: column '{robot.actuators[k]}.{fld}' is all zero: left "
@@ -211,15 +270,19 @@ def _enabled_sensors(robot: Robot, read: list[JointLog], has_qd: bool,
 
 
 def _parameters(sysid: Any, robot: Robot, names: list[str], per: str, gains: dict[int, tuple[np.ndarray, np.ndarray]],
-                kept: set[int], warnings: list[str]) -> tuple[Any, list[tuple[str, str, list[int], float]], np.ndarray]:
+                kept: set[int], logged: set[int], warnings: list[str],
+                firmware: bool = False) -> tuple[Any, list[tuple[str, str, list[int], float]], np.ndarray]:
     """The parameters at their nominal values (the vector returned, before
-    sysid moves those on a bound inside for its start)."""
+    sysid moves those on a bound inside for its start); a set of joints no
+    log covers is not fitted, silently (the logs say what they cover)."""
     pdict = sysid.ParameterDict()
     nominal = {"armature": robot.armature, "damping": robot.damping, "frictionloss": robot.frictionloss}
     labels: list[tuple[str, str, list[int], float]] = []
     for kind in names:
         for suffix, members in robot.members(per):
             if not kept.intersection(members):
+                if not logged.intersection(members):
+                    continue
                 warnings.append(f"{kind + suffix} is not fitted: none of its joints moves")
                 continue
             if kind in nominal:
@@ -228,7 +291,7 @@ def _parameters(sysid: Any, robot: Robot, names: list[str], per: str, gains: dic
             else:
                 nom = 1.0 if "scale" in kind else 0.0
             _, lo, hi = PARAMS[kind]
-            modifier = _modifier(kind, members, robot, gains)
+            modifier = _modifier(kind, members, robot, gains, firmware)
             pdict.add(sysid.Parameter(kind + suffix, nom, lo, max(hi, 4 * nom), modifier=modifier))
             labels.append((kind + suffix, kind, members, nom))
     x_nominal = pdict.as_vector().copy()

@@ -54,6 +54,8 @@ class Robot:
     inertia: np.ndarray = field(default_factory=lambda: np.zeros(0))
     #: the base welded to the world (pupper_v3_fixed): calibrated.xml keeps it so
     fixed_base: bool = False
+    #: each actuator's leg (-1: none): hung from a welded base, legs do not interact
+    legs: list[int] = field(default_factory=list)
 
     def natural_hz(self, kp: np.ndarray) -> np.ndarray:
         """Each joint's natural frequency (Hz) at stiffness ``kp``."""
@@ -79,10 +81,12 @@ def load_robot(model: str | os.PathLike[str]) -> Robot:
         raise FitError(f"model '{path}' does not compile ({str(e).splitlines()[0]}): fix the MJCF") from None
     info = model_info(str(path))
     group_of: dict[int, str] = {}
-    for leg in info["legs"]:
+    leg_of: dict[int, int] = {}
+    for li, leg in enumerate(info["legs"]):
         for k, leg_joint in enumerate(leg["joints"]):
             group_of[leg_joint] = GROUPS[min(k, 2)]
-    acts, joints, groups, ranges, limits = [], [], [], {}, []
+            leg_of[leg_joint] = li
+    acts, joints, groups, ranges, limits, legs = [], [], [], {}, [], []
     own_kp, own_kd, arm, damp, fric, rest = [], [], [], [], [], []
     key: int | None = next((k for k in range(m.nkey)
                             if mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_KEY, k) == "home"), None)
@@ -94,6 +98,7 @@ def load_robot(model: str | os.PathLike[str]) -> Robot:
         acts.append(ai["name"])
         joints.append(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, jid))
         groups.append(group_of.get(j, "joint"))
+        legs.append(leg_of.get(j, -1))
         lim = m.jnt_range[jid] if m.jnt_limited[jid] else None
         ranges[ai["name"]] = (float(lim[0]), float(lim[1])) if lim is not None else None
         fr = ai["forcerange"]
@@ -111,7 +116,7 @@ def load_robot(model: str | os.PathLike[str]) -> Robot:
         rest.append(q)
     return Robot(path, acts, joints, groups, ranges, np.array(limits), np.array(own_kp),
                  np.array(own_kd), np.array(arm), np.array(damp), np.array(fric), np.array(rest),
-                 float(m.opt.timestep), _inertia(m, joints, rest), fixed)
+                 float(m.opt.timestep), _inertia(m, joints, rest), fixed, legs)
 
 
 def _inertia(m: Any, joints: list[str], rest: list[float]) -> np.ndarray:
@@ -133,9 +138,11 @@ def _history_samples(robot: Robot) -> int:
     return int(math.ceil(PARAMS["delay"][2] / robot.timestep)) + 3
 
 
-def suspended_spec(robot: Robot, kp: np.ndarray, kd: np.ndarray) -> Any:
+def suspended_spec(robot: Robot, kp: np.ndarray, kd: np.ndarray, firmware: bool = False) -> Any:
     """The robot hung in the air at the given gains, sensing each actuated
-    joint's angle, velocity and actuator force (sensors in that order)."""
+    joint's angle, velocity and actuator force (sensors in that order).
+    ``firmware``: its actuators plain torque motors, the gains and the
+    command delay kept for the firmware's replay (``_fit_firmware``)."""
     import mujoco
 
     spec = mujoco.MjSpec.from_file(str(robot.file))
@@ -150,6 +157,9 @@ def suspended_spec(robot: Robot, kp: np.ndarray, kd: np.ndarray) -> Any:
     n = _history_samples(robot)
     for i, name in enumerate(robot.actuators):
         act = spec.actuator(name)
+        if firmware:
+            _torque_motor(act, kp[i], kd[i])
+            continue
         act.gainprm[0] = kp[i]
         act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
         act.biasprm[0] = 0.0
@@ -165,6 +175,22 @@ def suspended_spec(robot: Robot, kp: np.ndarray, kd: np.ndarray) -> Any:
                             objtype=mujoco.mjtObj.mjOBJ_JOINT if obj == "joint" else mujoco.mjtObj.mjOBJ_ACTUATOR,
                             objname=target)
     return spec
+
+
+def _torque_motor(act: Any, kp: float, kd: float) -> None:
+    """An actuator as a plain torque motor, the firmware's gains and command
+    delay in its unused gain parameters (gainprm[1:4])."""
+    import mujoco
+
+    from pupper_core._fit_firmware import DELAY_SLOT, KD_SLOT, KP_SLOT
+
+    act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+    act.biastype = mujoco.mjtBias.mjBIAS_NONE
+    act.gainprm[:] = 0.0
+    act.biasprm[:] = 0.0
+    act.gainprm[0] = 1.0
+    act.gainprm[KP_SLOT], act.gainprm[KD_SLOT], act.gainprm[DELAY_SLOT] = kp, kd, 0.0
+    act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
 
 
 def initial_state(model: Any, robot: Robot, q0: np.ndarray, qd0: np.ndarray, target0: np.ndarray) -> np.ndarray:

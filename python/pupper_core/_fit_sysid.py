@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from pupper_core._fit_firmware import Firmware, rollout_fn
 from pupper_core._fit_robot import Robot
 from pupper_core._fit_terms import NOISE_FLOOR, FitError
 
@@ -31,20 +32,35 @@ def _sysid() -> Any:
 
 
 def _held(t: np.ndarray, target: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Targets logged slower than the physics, as a servo holds them: each
-    one until the next (sysid would interpolate between them)."""
-    period = float(np.mean(np.diff(t)))
-    if period <= dt * (1 + 1e-9):
+    """Targets logged slower than the physics or unevenly (time stamps as
+    recorded), as a servo holds them: each from the physics step nearest its
+    instant until the next (sysid would interpolate between them). An
+    even log at the physics rate or faster is sysid's to resample."""
+    steps = np.diff(t)
+    period = float(np.mean(steps))
+    even = float(np.ptp(steps)) <= 1e-6 * period + 1e-12
+    if period <= dt * (1 + 1e-9) and even:
         return t, target
     tc = np.arange(0.0, t[-1] + dt / 2, dt)
-    idx = np.searchsorted(t, tc + 1e-9 * dt, side="right") - 1
+    # the target whose instant is nearest each step's start: at most half a step off
+    idx = np.searchsorted(t, tc + 0.5 * dt, side="right") - 1
     return tc, target[np.clip(idx, 0, len(t) - 1)]
 
 
-def _modifier(kind: str, members: list[int], robot: Robot, gains: dict[int, tuple[np.ndarray, np.ndarray]]) -> Any:
+def _modifier(kind: str, members: list[int], robot: Robot, gains: dict[int, tuple[np.ndarray, np.ndarray]],
+              firmware: bool = False) -> Any:
+    from pupper_core._fit_firmware import DELAY_SLOT, KD_SLOT, KP_SLOT
+
+    slot = {"kp_scale": KP_SLOT, "kd_scale": KD_SLOT, "delay": DELAY_SLOT}
+
     def apply(spec: Any, p: Any) -> None:
         v = float(p.value[0])
         for i in members:
+            if firmware and kind in slot:
+                # the firmware's own gains and command delay (a torque motor's spare gain parameters)
+                base = 1.0 if kind == "delay" else gains[id(spec)][0 if kind == "kp_scale" else 1][i]
+                spec.actuator(robot.actuators[i]).gainprm[slot[kind]] = base * v
+                continue
             if kind in ("armature", "damping", "frictionloss"):
                 j = spec.joint(robot.joints[i])
                 if kind == "damping":
@@ -64,12 +80,16 @@ def _modifier(kind: str, members: list[int], robot: Robot, gains: dict[int, tupl
     return apply
 
 
-def _residual_fn(sysid: Any, sequences: list[Any], enabled: list[Any], weights: np.ndarray | None) -> Any:
+def _residual_fn(sysid: Any, sequences: list[Any], enabled: list[Any], weights: np.ndarray | None,
+                 firmware: Firmware | None = None) -> Any:
+    through = rollout_fn(sysid, firmware) if firmware is not None else None
+
     def rollout(**kw: Any) -> Any:
         # mujoco.rollout's sensordata row k is the state before step k (time
         # k dt); sysid labels it one step later: put it back
-        trajs = sysid.sysid_rollout(kw["models"], kw["datas"], kw["control_signal"], kw["initial_states"],
-                                    kw["rollout_signal_mapping"], kw["rollout_state_mapping"], kw["ctrl_mapping"])
+        trajs = through(**kw) if through is not None else sysid.sysid_rollout(
+            kw["models"], kw["datas"], kw["control_signal"], kw["initial_states"],
+            kw["rollout_signal_mapping"], kw["rollout_state_mapping"], kw["ctrl_mapping"])
         dt = kw["models"][0].opt.timestep
         return [tr.replace(sensordata=sysid.TimeSeries(tr.sensordata.times - dt, tr.sensordata.data,
                                                        tr.sensordata.signal_mapping)) for tr in trajs]
@@ -147,3 +167,27 @@ def _interval_residuals(r_star: list[np.ndarray], preds: Predictions,
             total += scale ** 2 * e2
     size = sum(int(np.size(r)) for r in r_star)
     return [np.full(size, math.sqrt(total / size))], True
+
+
+def _correlation_time(preds: Predictions) -> float:
+    """The residual's integrated autocorrelation time (in samples, 1 for
+    white noise), the mean over every log's compared signals: each sample
+    of a residual that the replay cannot follow (a servo's own dither, a
+    model's coarser timestep) is worth 1/tau of an independent one, so the
+    Gauss-Newton intervals, which assume independent samples, are too
+    narrow by sqrt(tau). Summed up to the first negative autocorrelation,
+    and at most a tenth of a log."""
+    taus = []
+    for _, me, pr in preds:
+        err = me - pr
+        n = len(err)
+        for c in range(err.shape[1]):
+            e = err[:, c] - np.mean(err[:, c])
+            spec = np.fft.rfft(e, 2 * n)
+            ac = np.fft.irfft(spec * np.conj(spec))[: max(n // 10, 2)]
+            if ac[0] <= 0:
+                continue
+            ac = ac / ac[0]
+            stop = int(np.argmax(ac < 0)) if np.any(ac < 0) else len(ac)
+            taus.append(1.0 + 2.0 * float(np.sum(ac[1:stop])))
+    return max(float(np.mean(taus)), 1.0) if taus else 1.0

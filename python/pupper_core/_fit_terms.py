@@ -41,7 +41,8 @@ MEMORY_FRACTION = 0.5
 #: 2.5 times: sysid copies them as it resamples).
 MEMORY_COPIES = 2.5
 #: The files a fit writes in its run directory (and removes if it stops).
-RUN_FILES = ("fit.csv", "residuals.csv", "calibrated.xml", "manifest.json", "warnings.csv", "report.html")
+RUN_FILES = ("fit.csv", "residuals.csv", "calibrated.xml", "manifest.json", "warnings.csv", "report.html",
+             "validation.csv", "validation_bode.csv")
 
 
 

@@ -11,6 +11,7 @@ experiment kind's own tables), never by stepping physics.
 from __future__ import annotations
 from pupper_core._spec import DEFAULT_METRIC, ROBUST_METRIC
 
+import base64
 import csv
 import html
 import json
@@ -491,6 +492,7 @@ def _fit_sections(page: Page) -> list[str]:
         parts.append("<h2>Plots</h2>"
                      + _bars(labels, [_num(r["rms_before_rad"]) * 1e3 for r in rrows], "RMS angle error before (mrad)")
                      + _bars(labels, [_num(r["rms_after_rad"]) * 1e3 for r in rrows], "RMS angle error after (mrad)"))
+    parts += _validation_sections(page.dir)
     page.warnings.extend(page.manifest.get("warnings", []))
     return parts
 
@@ -524,6 +526,24 @@ def _recommend_sections(page: Page) -> list[str]:
     th, trials = _read(d / "trials.csv")
     if trials:
         parts.append("<h2>Candidates (trials.csv)</h2>" + _table(th, trials, None, key="trial"))
+    return parts
+
+
+def _validation_sections(d: Path) -> list[str]:
+    """A fit's validation (fit --validate): its table, the RMS angle error
+    of both models, and each log's Bode plot and residual (the PNG, inline)."""
+    vh, vrows = _read(d / "validation.csv")
+    if not vrows:
+        return []
+    labels = [f"{r['log']} {r['actuator']}" for r in vrows]
+    parts = ["<h2>Validation on logs not fitted (validation.csv)</h2>" + _table(vh, vrows, None, key="log"),
+             _bars(labels, [_num(r["rms_nominal_rad"]) * 1e3 for r in vrows], "RMS angle error, nominal model (mrad)")
+             + _bars(labels, [_num(r["rms_calibrated_rad"]) * 1e3 for r in vrows],
+                     "RMS angle error, calibrated model (mrad)")]
+    for png in sorted((d / "plots").glob("validate_*.png")):
+        data = base64.b64encode(png.read_bytes()).decode("ascii")
+        parts.append(f'<figure><img alt="{html.escape(png.name)}: Bode plot and residual" '
+                     f'src="data:image/png;base64,{data}"><figcaption>{html.escape(png.name)}</figcaption></figure>')
     return parts
 
 

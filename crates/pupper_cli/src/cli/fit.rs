@@ -14,15 +14,17 @@ use pupper_mujoco::bridge::calls;
 
 #[derive(Args, Debug)]
 #[command(after_help = "The log (CSV): `# key: value` lines, then a header
-time,ACTUATOR.target,ACTUATOR.q[,ACTUATOR.qd][,ACTUATOR.tau],... in s, rad, rad/s, N·m.
-Keys: kp and kd (the gains in use: one value, or one per actuator in column order; required),
-mode (servo or torque), base (suspended). Play the file's targets on the robot, hung in the air, at
+time,ACTUATOR.target,ACTUATOR.q[,ACTUATOR.qd][,ACTUATOR.tau],... in s, rad, rad/s, N·m, for any
+subset of the actuators, time stamps as recorded. Keys: kp and kd (the gains in use: one value, or
+one per actuator in column order; required, or --kp/--kd in fit), mode (servo or torque), base
+(suspended), held (what the others hold), columns (a map of the log's own names: fit --columns). Play the file's targets on the robot, hung in the air, at
 its gains; log the measured angles (and velocities, torques where the servos report them) into the
 same columns. The format, the fit and the motor model: docs/fit.md.
 
 Examples:
   pupper excite -o excite.csv                      8 s per joint group at the model's own gains
-  pupper excite --kd 0.3 --signal chirp -o excite_kd03.csv   a second log at another kd")]
+  pupper excite --kd 0.3 --signal chirp -o excite_kd03.csv   a second log at another kd
+  pupper excite --joints leg_front_r_3 --rate 250 -o stand.csv   one motor on a test stand")]
 pub(super) struct ExciteArgs {
     #[command(flatten)]
     model: ModelArg,
@@ -80,6 +82,14 @@ pub(super) struct ExciteArgs {
     /// Seed of the multisine's phases.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// The actuators excited and logged, comma-separated (names, or joint groups haa, hfe, kfe);
+    /// the others hold their rest angle and are not in the log (a test stand) [default: all]
+    #[arg(long, value_name = "NAMES")]
+    joints: Option<String>,
+    /// The log's sample rate (Hz): the physics rate divided by a whole number; the targets are
+    /// held between samples, as the servo holds them [default: the physics rate]
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    rate: Option<f64>,
 }
 
 impl ExciteArgs {
@@ -102,7 +112,7 @@ impl ExciteArgs {
             )));
         }
         // JSON writes NaN as null, which Python would read as "not given"
-        let given = [("kp", self.kp), ("kd", self.kd)];
+        let given = [("kp", self.kp), ("kd", self.kd), ("rate", self.rate)];
         let numbers = [
             ("seconds", Some(self.seconds)),
             ("hold", Some(self.hold)),
@@ -130,6 +140,8 @@ impl ExciteArgs {
             "amplitude": self.amplitude,
             "max_velocity": self.max_velocity,
             "seed": self.seed,
+            "joints": self.joints,
+            "rate": self.rate,
         });
         python_command(&calls::EXCITE, &py.text(&args))
     }
@@ -150,6 +162,7 @@ Examples:
   pupper excite -o ex1.csv && pupper excite --kd 0.3 -o ex2.csv    then play both on the robot
   pupper fit robot1.csv robot2.csv -o runs/fit --plot
   pupper fit robot1.csv --params armature,frictionloss,kp_scale,delay --per group
+  pupper fit stand_kd01.csv stand_kd03.csv --columns stand.map --validate stand_kp25.csv stand_kp75.csv
   pupper response --model runs/fit/calibrated.xml --grid kp=5,20 --grid kd=0.1,0.5"
 )]
 pub(super) struct FitArgs {
@@ -180,6 +193,30 @@ pub(super) struct FitArgs {
     /// Write DIR/plots/fit_<log>.png: measured against simulated angle per joint, before and after.
     #[arg(long)]
     plot: bool,
+    /// The logs' own column names and units: KEY=COLUMN[:UNIT],... (KEY: time or ACTUATOR.FIELD),
+    /// or a file holding the map; over a log's own `# columns:` line.
+    #[arg(long, value_name = "MAP|FILE")]
+    columns: Option<String>,
+    /// Kp in use, for a log that does not say it (one value, or one per logged actuator).
+    #[arg(long, value_name = "KP", allow_hyphen_values = true)]
+    kp: Option<String>,
+    /// Kd in use, for a log that does not say it (one value, or one per logged actuator).
+    #[arg(long, value_name = "KD", allow_hyphen_values = true)]
+    kd: Option<String>,
+    /// What the actuators a log does not cover hold (rad): one angle, or ACTUATOR=RAD,...
+    /// [default: the model's rest pose]
+    #[arg(long, value_name = "RAD|ACT=RAD,...", allow_hyphen_values = true)]
+    held: Option<String>,
+    /// Logs not fitted, replayed through the nominal and the calibrated model: RMS angle error and
+    /// frequency response (stepped sines, chirps) beside the log's own; validation.csv,
+    /// validation_bode.csv and plots/validate_<log>.png.
+    #[arg(long, value_name = "LOG", num_args = 1..)]
+    validate: Vec<PathBuf>,
+    /// Replay through the servo firmware, KEY=VALUE,...: rate (Hz), filter (Hz), counts (the
+    /// encoder's difference velocity), noload (rad/s), noise (the encoder noise the PD reads, rad)
+    /// [default: MuJoCo's ideal servo]
+    #[arg(long, value_name = "KEY=VALUE,...")]
+    motor: Option<String>,
 }
 
 impl FitArgs {
@@ -195,6 +232,12 @@ impl FitArgs {
             "force": self.force,
             "max_iters": self.max_iters,
             "plot": self.plot,
+            "columns": self.columns,
+            "kp": self.kp,
+            "kd": self.kd,
+            "held": self.held,
+            "validate": py.paths(&self.validate),
+            "motor": self.motor,
         });
         python_command(&calls::FIT, &py.text(&args))
     }

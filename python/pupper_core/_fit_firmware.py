@@ -1,0 +1,194 @@
+"""`pupper fit --motor`: the replay through the servo firmware
+(``pupper_core._fit`` fits through it), as torque mode's Rust firmware runs
+it (crates/pupper_core/src/sim/firmware.rs): the PD updated at the
+firmware's rate on the encoder's angle (quantised to ``counts``) and its
+difference over an update period, a first-order derivative filter, the
+command ``delay`` ago, the torque held between updates and delivered within
+the torque limit (falling with speed to 0 at ``noload``).
+
+The motor is MuJoCo's: the actuators become plain torque motors; the
+fitted gains and delay ride in each motor's unused gain parameters
+(gainprm[1]: kp, [2]: kd, [3]: the command delay), which the parameters'
+modifiers set, so that each rollout of a Jacobian carries its own."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from pupper_core._fit_terms import FitError
+
+#: --motor's keys fit replays (the delay is fit's own parameter).
+KEYS = ("rate", "filter", "counts", "noload", "noise")
+#: Where a firmware motor keeps the PD's kp, kd and command delay.
+KP_SLOT, KD_SLOT, DELAY_SLOT = 1, 2, 3
+
+
+@dataclass
+class Firmware:
+    rate: float | None = None
+    filter: float | None = None
+    counts: int | None = None
+    noload: float | None = None
+    #: the encoder's noise (rad, 1 sigma) the PD reads: one seeded draw, the same in every rollout
+    noise: float | None = None
+
+    def spec(self) -> str:
+        return ",".join(f"{k}={getattr(self, k):g}" for k in KEYS if getattr(self, k) is not None)
+
+
+def parse_motor(text: str | None, dt: float) -> Firmware | None:
+    """--motor's text (KEY=VALUE,...): None for the ideal motor (MuJoCo's
+    servo, as without --motor)."""
+    if text is None or not text.strip() or text.strip() == "ideal":
+        return None
+    fw = Firmware()
+    seen: set[str] = set()
+    for part in (p.strip() for p in text.split(",")):
+        key, eq, value = part.partition("=")
+        key = key.strip()
+        if key == "delay":
+            raise FitError("--motor delay=...: fit's command delay is its parameter 'delay' (fitted, or held at 0 "
+                           "when left out of --params): drop delay= from --motor")
+        if not eq or key not in KEYS:
+            raise FitError(f"--motor item '{part}' is not KEY=VALUE with KEY one of {', '.join(KEYS)}: write e.g. "
+                           "--motor rate=500,counts=16384")
+        if key in seen:
+            raise FitError(f"--motor gives '{key}' twice: keep one value")
+        seen.add(key)
+        try:
+            v = float(value) if key != "counts" else int(value)
+        except ValueError:
+            raise FitError(f"--motor {key}={value} is not a {'whole ' if key == 'counts' else ''}number") from None
+        if not (math.isfinite(v) and v > 0) or (key == "counts" and v < 2):
+            raise FitError(f"--motor {key}={value} must be {'>= 2' if key == 'counts' else '> 0 and finite'}")
+        setattr(fw, key, v)
+    if fw.rate is not None and fw.rate * dt > 1 + 1e-9:
+        raise FitError(f"--motor rate={fw.rate:g} Hz is faster than the physics ({1 / dt:g} Hz): give a rate at "
+                       "or below it")
+    return fw
+
+
+class _State:
+    """The firmware of a batch of rollouts: per rollout and actuator the
+    held torque, the last encoder angle and the filtered derivative."""
+
+    def __init__(self, fw: Firmware, shape: tuple[int, int], dt: float, sign: np.ndarray | None = None) -> None:
+        self.fw = fw
+        #: each rollout's sign of the noise it reads (antithetic pairs)
+        self.sign = np.ones((shape[0], 1)) if sign is None else sign
+        self.period = 1 / fw.rate if fw.rate else dt
+        self.alpha = 1 - math.exp(-2 * math.pi * fw.filter * self.period) if fw.filter else None
+        self.held = np.zeros(shape)
+        self.last = np.full(shape, math.nan)
+        self.filtered = np.full(shape, math.nan)
+        self.updates = 0
+        self.draws = np.random.default_rng(0)
+
+    def due(self, t: float) -> bool:
+        due = self.fw.rate is None or t * self.fw.rate + 1e-6 >= self.updates
+        self.updates += int(due)
+        return due
+
+    def update(self, kp: np.ndarray, kd: np.ndarray, target: np.ndarray, q: np.ndarray, v: np.ndarray) -> None:
+        if self.fw.noise:
+            # common random numbers: every rollout reads the same noise, so the replay stays smooth in the
+            # parameters while the PD is dithered as the hardware's is
+            q = q + self.sign * self.fw.noise * np.asarray(self.draws.standard_normal(q.shape[1]))[None, :]
+        if self.fw.counts:
+            # the encoder's difference velocity; its rounding is not replayed: a rounded angle makes the
+            # replay a staircase in the parameters, which no finite-difference Jacobian can follow
+            v = np.where(np.isnan(self.last), v, (q - self.last) / self.period)
+            self.last = q
+        if self.alpha is not None:
+            self.filtered = np.where(np.isnan(self.filtered), v, self.filtered + self.alpha * (v - self.filtered))
+            v = self.filtered
+        self.held = kp * (target - q) - kd * v
+
+    def deliver(self, peak: np.ndarray, speed: np.ndarray) -> np.ndarray:
+        if self.fw.noload:
+            hi = np.clip(peak * (1 - speed / self.fw.noload), -peak, peak)
+            lo = np.clip(peak * (-1 - speed / self.fw.noload), -peak, peak)
+        else:
+            hi, lo = peak, -peak
+        return np.asarray(np.clip(self.held, lo, hi))
+
+
+def _delayed(control: np.ndarray, k: int, lag: np.ndarray) -> np.ndarray:
+    """Each rollout's and actuator's target ``lag`` steps before step k,
+    linearly between steps (the first target before the start)."""
+    at = np.maximum(k - lag, 0.0)
+    i0 = np.floor(at).astype(int)
+    frac = at - i0
+    i1 = np.minimum(i0 + 1, k)
+    b = np.arange(control.shape[0])[:, None]
+    a = np.arange(control.shape[2])[None, :]
+    return np.asarray(control[b, i0, a] * (1 - frac) + control[b, i1, a] * frac)
+
+
+def rollout_fn(sysid: Any, fw: Firmware) -> Any:
+    """sysid's custom rollout through the firmware: every rollout of a call
+    stepped together, the firmware's arithmetic batched over them."""
+    import mujoco
+    from mujoco.sysid._src.trajectory import arrays2traj, sequence2array, timeseries2array
+
+    def rollout(**kw: Any) -> Any:
+        control, control_times = timeseries2array(kw["control_signal"])
+        x0 = sequence2array(kw["initial_states"])
+        state, sens = _run(list(kw["models"]), control, x0)
+        return arrays2traj(kw["models"], x0, control, control_times, state, sens, kw["rollout_signal_mapping"],
+                           kw["rollout_state_mapping"], kw["ctrl_mapping"])
+
+    def _run(models: list[Any], control: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each rollout's state and sensors; with noise, the mean of an
+        antithetic pair (the noise read, and its negative): the response to
+        the noise itself, which no replay can match to the hardware's own
+        draw, cancels to first order, and what the noise does to the
+        friction (it dithers the joint loose) stays."""
+        nb = len(models)
+        if fw.noise:
+            models, control, x0 = models * 2, np.concatenate([control, control]), np.concatenate([x0, x0])
+        nb2, n, nu = control.shape
+        m0 = models[0]
+        dt = float(m0.opt.timestep)
+        datas = [mujoco.MjData(m) for m in models]
+        kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        for m, d, x in zip(models, datas, x0):
+            mujoco.mj_setState(m, d, x, kind)
+        jnt = m0.actuator_trnid[:, 0]
+        qadr, dadr = m0.jnt_qposadr[jnt], m0.jnt_dofadr[jnt]
+        kp, kd, lag = (np.stack([m.actuator_gainprm[:, s] for m in models]) for s in (KP_SLOT, KD_SLOT, DELAY_SLOT))
+        lag = lag / dt
+        peak = np.where(m0.actuator_forcelimited.astype(bool), np.abs(m0.actuator_forcerange).max(axis=1), np.inf)
+        state = np.empty((nb2, n, mujoco.mj_stateSize(m0, kind)))
+        sens = np.empty((nb2, n, m0.nsensordata))
+        sign = np.where(np.arange(nb2) < nb, 1.0, -1.0)[:, None]
+        fs = _State(fw, (nb2, nu), dt, sign)
+        # the torque the PD gives on the replay's own angle, without the noise it reads: what the
+        # torque sensors report (the hardware's dither is its own draw, which no replay can match)
+        clean = _State(replace(fw, noise=None), (nb2, nu), dt) if fw.noise else None
+        tau_cols = slice(2 * nu, 3 * nu)
+        for k in range(n):
+            q = np.stack([d.qpos[qadr] for d in datas])
+            v = np.stack([d.qvel[dadr] for d in datas])
+            if fs.due(k * dt):
+                target = _delayed(control, k, lag)
+                fs.update(kp, kd, target, q, v)
+                if clean is not None:
+                    clean.update(kp, kd, target, q, v)
+            tau = fs.deliver(peak, v)
+            for b, (m, d) in enumerate(zip(models, datas)):
+                d.ctrl[:] = tau[b]
+                mujoco.mj_step(m, d)
+                mujoco.mj_getState(m, d, state[b, k], kind)
+                sens[b, k] = d.sensordata
+            if clean is not None:
+                sens[:, k, tau_cols] = clean.deliver(peak, v)
+        if nb2 > nb:
+            return 0.5 * (state[:nb] + state[nb:]), 0.5 * (sens[:nb] + sens[nb:])
+        return state, sens
+
+    return rollout

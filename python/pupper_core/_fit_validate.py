@@ -1,0 +1,207 @@
+"""`pupper fit --validate`: logs the fit did not use, replayed through the
+nominal and the calibrated model, each beside the log's own behaviour.
+
+Per log and logged joint: the RMS angle error of both models, and the
+frequency response (``pupper_core._fit_freq``: stepped sines and chirps)
+of the log and of both models, from command to angle: gain and phase per
+frequency, the -3 dB bandwidth, the phase at a few frequencies and the
+delay the model leaves unexplained (the pure delay that best explains the
+log's phase lag behind it). Written as ``validation.csv`` (a row per log
+and joint), ``validation_bode.csv`` (a row per log, joint and frequency)
+and ``plots/validate_<log>.png`` (Bode plot of log, nominal and calibrated,
+and the angle error over time)."""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pupper_core._fit_freq import PHASE_AT, Response, bandwidth, delay_left, phase_at, response
+from pupper_core._fit_problem import _Problem, _problem, _Solution
+from pupper_core._fit_sysid import _predictions, _residual_fn
+from pupper_core._fit_terms import FitError
+from pupper_core._joint_log import JointLog
+
+MODELS = ("log", "nominal", "calibrated")
+
+
+@dataclass
+class Trace:
+    """One validated joint of one log: the angles over time (log, nominal
+    model, calibrated model) and their frequency responses (None: no sines)."""
+
+    log: str
+    actuator: str
+    t: np.ndarray
+    q: dict[str, np.ndarray]
+    response: dict[str, Response | None]
+
+
+@dataclass
+class Validation:
+    """``rows``: validation.csv's; ``bode``: validation_bode.csv's."""
+
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    bode: list[dict[str, Any]] = field(default_factory=list)
+    traces: list[Trace] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    #: the validated logs: path, sha256
+    logs: list[tuple[str, str]] = field(default_factory=list)
+
+
+def check_apart(fitted: list[JointLog], held_out: list[JointLog]) -> None:
+    """Refuses a validation log that is one of the fit's (by content)."""
+    for v in held_out:
+        twin = next((lg for lg in fitted if lg.sha256 == v.sha256), None)
+        if twin is not None:
+            raise FitError(f"--validate {v.path} has the same content as the fitted log {twin.path}: validate on "
+                           "logs the fit does not use")
+
+
+def validate(sysid: Any, pb: _Problem, sol: _Solution, read: list[JointLog], names: list[str],
+             per: str) -> Validation:
+    """Replays ``read`` through the nominal model and the calibrated one
+    (the fit's values; nominal where the fit left a parameter out)."""
+    vpb = _problem(sysid, pb.robot, read, names, per, pb.firmware)
+    fitted = {label[0]: float(v) for label, v in zip(pb.labels, sol.x)}
+    x_cal = np.array([fitted.get(label[0], float(x0)) for label, x0 in zip(vpb.labels, vpb.x_nominal)])
+    residual_fn = _residual_fn(sysid, vpb.sequences, vpb.enabled(sysid), None, vpb.firmware)
+    nominal = _predictions(residual_fn, vpb.pdict, vpb.x_nominal)
+    calibrated = _predictions(residual_fn, vpb.pdict, x_cal)
+    out = Validation(warnings=[f"--validate: {w}" for w in vpb.warnings], logs=[(str(lg.path), lg.sha256) for lg in read])
+    for lg, (t, me, p0), (_, _, p1) in zip(read, nominal, calibrated):
+        rel = lg.times - lg.times[0]
+        held = np.clip(np.searchsorted(rel, t + 1e-12, side="right") - 1, 0, len(rel) - 1)
+        for col, k in enumerate(vpb.kept):
+            name = pb.robot.actuators[k]
+            q = {"log": me[:, col], "nominal": p0[:, col], "calibrated": p1[:, col]}
+            command = lg.target[held, k]
+            resp = {m: response(t, command, q[m]) for m in MODELS}
+            out.traces.append(Trace(lg.path.name, name, t, q, resp))
+            out.rows.append(_row(lg.path.name, name, q, resp))
+            out.bode += _bode(lg.path.name, name, resp)
+            if resp["log"] is None:
+                out.warnings.append(f"{lg.path.name}: {name}'s command holds no sine cycles (a multisine, or no "
+                                    "motion): no frequency response; validate on stepped sines or chirps")
+    return out
+
+
+def _rms(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.sqrt(np.mean((a - b) ** 2)))
+
+
+def _row(log: str, actuator: str, q: dict[str, np.ndarray], resp: dict[str, Response | None]) -> dict[str, Any]:
+    row: dict[str, Any] = {"log": log, "actuator": actuator,
+                           "rms_nominal_rad": _rms(q["log"], q["nominal"]),
+                           "rms_calibrated_rad": _rms(q["log"], q["calibrated"])}
+    for m in MODELS:
+        r = resp[m]
+        row[f"bandwidth_hz_{m}"] = bandwidth(r) if r is not None else math.nan
+    for f in PHASE_AT:
+        for m in MODELS:
+            r = resp[m]
+            row[f"phase_{f:g}hz_deg_{m}"] = phase_at(r, f) if r is not None else math.nan
+    for m in ("nominal", "calibrated"):
+        r, lr = resp[m], resp["log"]
+        row[f"delay_left_s_{m}"] = delay_left(lr, r) if r is not None and lr is not None else math.nan
+    return row
+
+
+def _bode(log: str, actuator: str, resp: dict[str, Response | None]) -> list[dict[str, Any]]:
+    r0 = resp["log"]
+    if r0 is None:
+        return []
+    rows = []
+    for i, f in enumerate(r0.freq):
+        row: dict[str, Any] = {"log": log, "actuator": actuator, "frequency_hz": float(f)}
+        for m in MODELS:
+            r = resp[m]
+            row[f"gain_{m}"] = float(r.gain[i]) if r is not None else math.nan
+            row[f"phase_deg_{m}"] = float(r.phase[i]) if r is not None else math.nan
+        rows.append(row)
+    return rows
+
+
+def print_table(rows: list[dict[str, Any]]) -> None:
+    """The validation table: a line per log and joint."""
+    log_w = max([len("validated log")] + [len(r["log"]) for r in rows])
+    act_w = max([len("joint")] + [len(r["actuator"]) for r in rows])
+    print(f"{'validated log':<{log_w}}  {'joint':<{act_w}}  {'RMS error (mrad)':>18}  "
+          f"{'-3 dB (Hz)':>20}  {'phase at 10 Hz (deg)':>22}  {'delay left (ms)':>17}")
+    print(f"{'':<{log_w}}  {'':<{act_w}}  {'nominal':>8} {'calib.':>9}  {'log':>6} {'nom.':>6} {'calib.':>6}  "
+          f"{'log':>6} {'nom.':>7} {'calib.':>7}  {'nom.':>8} {'calib.':>8}")
+    for r in rows:
+        print(f"{r['log']:<{log_w}}  {r['actuator']:<{act_w}}  {r['rms_nominal_rad'] * 1e3:>8.2f} "
+              f"{r['rms_calibrated_rad'] * 1e3:>9.2f}  {r['bandwidth_hz_log']:>6.2f} {r['bandwidth_hz_nominal']:>6.2f} "
+              f"{r['bandwidth_hz_calibrated']:>6.2f}  {r['phase_10hz_deg_log']:>6.1f} "
+              f"{r['phase_10hz_deg_nominal']:>7.1f} {r['phase_10hz_deg_calibrated']:>7.1f}  "
+              f"{r['delay_left_s_nominal'] * 1e3:>8.2f} {r['delay_left_s_calibrated'] * 1e3:>8.2f}")
+
+
+def write(out: Path, v: Validation) -> None:
+    """validation.csv, validation_bode.csv and the Bode plots."""
+    from pupper_core._files import atomic_write
+
+    for name, rows in (("validation.csv", v.rows), ("validation_bode.csv", v.bode)):
+        if not rows:
+            continue
+
+        def table(tmp: Path, rows: list[dict[str, Any]] = rows) -> None:
+            with tmp.open("w", newline="", errors="surrogateescape") as f:
+                w = csv.writer(f, lineterminator="\n")
+                w.writerow(list(rows[0]))
+                for r in rows:
+                    w.writerow([repr(float(x)) if isinstance(x, float) else x for x in r.values()])
+
+        atomic_write(out / name, table)
+    _plot(out, v)
+
+
+def _plot(out: Path, v: Validation) -> None:
+    """plots/validate_<log>.png: per joint, the gain and phase of log,
+    nominal and calibrated against frequency, and both models' angle error
+    over time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from pupper_core._files import atomic_write
+
+    style = {"log": dict(color="black", lw=1.4, marker="o", ms=3), "nominal": dict(color="tab:gray", ls="--", lw=1.0),
+             "calibrated": dict(color="tab:orange", lw=1.0)}
+    (out / "plots").mkdir(exist_ok=True)
+    for log in dict.fromkeys(tr.log for tr in v.traces):
+        traces = [tr for tr in v.traces if tr.log == log]
+        fig, axes = plt.subplots(3, len(traces), figsize=(5 * len(traces), 7.5), squeeze=False)
+        for c, tr in enumerate(traces):
+            gain_ax, phase_ax, err_ax = axes[0][c], axes[1][c], axes[2][c]
+            for m in MODELS:
+                r = tr.response[m]
+                if r is not None:
+                    gain_ax.semilogx(r.freq, 20 * np.log10(r.gain), label=m, **style[m])
+                    phase_ax.semilogx(r.freq, r.phase, label=m, **style[m])
+            gain_ax.set_title(f"{tr.actuator}: command to angle", fontsize=9)
+            gain_ax.set_ylabel("gain (dB)", fontsize=8)
+            phase_ax.set_ylabel("phase (deg)", fontsize=8)
+            phase_ax.set_xlabel("frequency (Hz)", fontsize=8)
+            gain_ax.legend(fontsize=7)
+            for m in ("nominal", "calibrated"):
+                err_ax.plot(tr.t, (tr.q["log"] - tr.q[m]) * 1e3, lw=0.7, label=m,
+                            **{k: x for k, x in style[m].items() if k in ("color", "ls")})
+            err_ax.set_ylabel("log - model (mrad)", fontsize=8)
+            err_ax.set_xlabel("time (s)", fontsize=8)
+            err_ax.legend(fontsize=7)
+            for ax in (gain_ax, phase_ax, err_ax):
+                ax.tick_params(labelsize=7)
+                ax.grid(alpha=0.3)
+        fig.suptitle(f"{log} (not fitted):\nthe log, the nominal and the calibrated model", fontsize=10)
+        fig.tight_layout()
+        path = out / "plots" / f"validate_{Path(log).stem}.png"
+        atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=90))
+        plt.close(fig)

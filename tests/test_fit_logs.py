@@ -1,0 +1,193 @@
+"""`pupper fit` on logs as a robot writes them (issue 38): one motor on a
+test stand, the other joints held and not logged, the control loop's own
+jittered time stamps from an arbitrary start, its own column names through
+a column map, and `pupper excite --joints --rate` for such a stand.
+
+The stand is examples/stand_log.py: a plain MuJoCo loop, not pupper's code."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pupper_core as pc
+import pytest
+
+from conftest import REPO, read_csv
+
+sys.path.insert(0, str(REPO / "examples"))
+from stand_log import COLUMNS, MOTOR, TRUTH, stand_log  # noqa: E402
+
+pytest.importorskip("scipy", reason="the fit extra (make test installs it)")
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory) -> dict[str, Path]:
+    """The stand's logs at kp 5, kd 0.1 and 0.3 (as its loop writes them)."""
+    d = tmp_path_factory.mktemp("bench")
+    return {kd: stand_log(d / f"stand_kd{kd}.csv", kp=5.0, kd=kd, seed=s) for kd, s in ((0.1, 0), (0.3, 1))}
+
+
+def one_line(p, *words: str) -> str:
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and all(w in lines[0] for w in words), p.stderr
+    assert lines[0].startswith("error: ") and "internal error" not in lines[0], p.stderr
+    return lines[0]
+
+
+def test_the_stand_log_is_as_a_ros_loop_writes_it(bench):
+    """What the fit is given: no header lines, the robot's names, time
+    stamps from 1.7e9 s, 4 ms apart give or take up to 2 ms."""
+    text = bench[0.1].read_text().splitlines()
+    assert text[0].startswith("fr_knee_cmd,") and text[0].endswith(",stamp")
+    stamps = np.array([float(r.rsplit(",", 1)[1]) for r in text[1:]])
+    gaps = np.diff(stamps)
+    assert stamps[0] > 1e9 and 0.0035 < gaps.mean() < 0.0045
+    assert gaps.min() < 0.0025 and gaps.max() > 0.0055 and gaps.min() > 0
+
+
+def test_a_bench_log_fits_without_editing_the_file(bench, tmp_path, run):
+    """One motor, the others held: only it is fitted, and the fit finds the
+    stand's motor (its gains and delay as the hardware has them)."""
+    out = tmp_path / "fit"
+    p = run("fit", bench[0.1], bench[0.3], "--columns", COLUMNS, "-o", out, check=0)
+    assert "mean over 1 joint)" in p.stdout, p.stdout
+    _, rows = read_csv(out / "fit.csv")
+    v = {r["parameter"]: float(r["fitted"]) for r in rows}
+    assert all(math.isfinite(float(r[k])) for r in rows for k in ("fitted", "low95", "high95")), rows
+    assert v["kp_scale"] == pytest.approx(TRUTH["kp_scale"], rel=0.02)
+    assert v["armature"] == pytest.approx(TRUTH["armature"], rel=0.10)
+    assert v["frictionloss"] == pytest.approx(TRUTH["frictionloss"], rel=0.20)
+    assert abs(v["delay"] - TRUTH["delay"]) < 0.002
+    _, resid = read_csv(out / "residuals.csv")
+    assert [r["actuator"] for r in resid] == [MOTOR, MOTOR]
+    for r in resid:
+        # from tens of mrad to near the encoder's noise (1 mrad)
+        assert float(r["rms_before_rad"]) > 0.02 and float(r["rms_after_rad"]) < 0.002, r
+
+
+def test_a_held_joints_constant_column_is_said_not_nan(tmp_path):
+    """The stand logs the held hip too, as a constant: it is said and left
+    out, every number of the fit finite."""
+    log = stand_log(tmp_path / "held.csv", kp=5.0, kd=0.1, seed=2, held_columns=True)
+    cols = (COLUMNS.replace(f",{MOTOR}.kp=fr_knee_kp,{MOTOR}.kd=fr_knee_kd", "")
+            + ",leg_front_r_1.target=fr_hip_cmd,leg_front_r_1.q=fr_hip_pos,leg_front_r_1.qd=fr_hip_vel")
+    res = pc.fit(log, columns=cols, kp=5, kd=0.1, params="kp_scale,delay", max_iters=10, progress=False)
+    assert any("leg_front_r_1 never moves" in w and "left out" in w for w in res.warnings), res.warnings
+    assert res.actuators == [MOTOR]
+    assert all(math.isfinite(r[k]) for r in res.table for k in ("fitted", "low95", "high95")), res.table
+
+
+def test_a_header_line_map_and_the_flag_read_the_same(bench, tmp_path):
+    """The map as a `# columns:` line (with the gains) or as --columns (the
+    gains from their columns) reads the same numbers; declared degrees and
+    milliseconds are converted."""
+    from pupper_core._fit import load_robot
+    from pupper_core._joint_log import read_log
+    from pupper_core._log_columns import read_map
+
+    ranges = load_robot("pupper_v3").ranges
+    flag = read_log(bench[0.1], ranges, columns=read_map(COLUMNS))
+    lines = bench[0.1].read_text().splitlines()
+    header = lines[0].split(",")
+    k_pos, k_cmd, k_t = header.index("fr_knee_pos"), header.index("fr_knee_cmd"), header.index("stamp")
+    rows = []
+    for ln in lines[1:]:
+        f = ln.split(",")
+        f[k_pos] = repr(math.degrees(float(f[k_pos])))
+        f[k_cmd] = repr(math.degrees(float(f[k_cmd])))
+        f[k_t] = repr(float(f[k_t]) * 1000)
+        rows.append(",".join(f))
+    own = tmp_path / "own.csv"
+    own.write_text("\n".join([
+        "# kp: 5", "# kd: 0.1",
+        f"# columns: time=stamp:ms, {MOTOR}.target=fr_knee_cmd:deg, {MOTOR}.q=fr_knee_pos:deg, "
+        f"{MOTOR}.qd=fr_knee_vel", lines[0], *rows]) + "\n")
+    got = read_log(own, ranges)
+    assert got.actuators == flag.actuators == [MOTOR]
+    assert np.allclose(got.q, flag.q, atol=1e-12) and np.allclose(got.target, flag.target, atol=1e-12)
+    assert np.allclose(got.times - got.times[0], flag.times - flag.times[0], atol=1e-6)
+    assert float(got.kp[0]) == float(flag.kp[0]) == 5.0 and float(flag.kd[0]) == 0.1
+
+
+def _write_rows(path: Path, lines: list[str]) -> Path:
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("edit, args, words", [
+    # a stamp that goes back: the row and the log's own column are named
+    (lambda ls: ls[:40] + [ls[41], ls[40]] + ls[42:], [], ("bad.csv, column 'stamp', row 42", "time goes back")),
+    (lambda ls: ls, ["--columns", COLUMNS.replace("fr_knee_pos", "fr_knee_angle")],
+     ("bad.csv", "'leg_front_r_3.q=fr_knee_angle' names no column of the log", "fr_knee_cmd")),
+    (lambda ls: ls, ["--columns", COLUMNS + ",leg_front_r_3.q=x"], ("'leg_front_r_3.q' is mapped twice",)),
+    (lambda ls: ls, ["--columns", COLUMNS.replace("fr_knee_pos", "fr_knee_pos:grad")],
+     ("unit 'grad' is not one of rad, deg",)),
+    (lambda ls: ls, ["--columns", COLUMNS.replace("leg_front_r_3.q", "leg_front_r_3.angle")],
+     ("'leg_front_r_3.angle' is not time or ACTUATOR.FIELD",)),
+    (lambda ls: ls, ["--columns", COLUMNS.replace("time=stamp,", "")], ("bad.csv", "has no 'time' column", "--columns time=")),
+    (lambda ls: [ls[0]] + [",".join(r.split(",")[:1] + ["7.5"] + r.split(",")[2:]) if i == 99 else r
+                           for i, r in enumerate(ls[1:])],
+     [], ("bad.csv, column 'fr_knee_kp'", "kp changes during the log", "split the log")),
+    (lambda ls: ["# kp: 4"] + ls, [], ("bad.csv", "the kp columns", "'# kp: 4' disagree")),
+    (lambda ls: ls, ["--columns", COLUMNS, "--held", "leg_front_r_3=0.2"], ("bad.csv: --held", "leg_front_r_3 is in the log")),
+])
+def test_a_robot_log_that_cannot_be_read_is_one_line(bench, tmp_path, run, edit, args, words):
+    lines = edit(bench[0.1].read_text().splitlines())
+    bad = _write_rows(tmp_path / "bad.csv", lines)
+    p = run("fit", bad, *(args or ["--columns", COLUMNS]), "--params", "delay", "--max-iters", "1",
+            "-o", tmp_path / "out", check=2)
+    one_line(p, *words)
+    assert not (tmp_path / "out").exists()
+
+
+def test_held_and_the_gains_flags_fill_what_a_log_does_not_say(bench, tmp_path):
+    """--held sets what the joints the log does not cover hold (the
+    thigh's angle loads the knee differently), --kp/--kd the gains of a log
+    without them."""
+    from pupper_core._fit import load_robot
+    from pupper_core._fit_problem import _read_logs
+    from pupper_core._log_columns import read_map
+
+    robot = load_robot("pupper_v3")
+    no_gains = COLUMNS.replace(f",{MOTOR}.kp=fr_knee_kp,{MOTOR}.kd=fr_knee_kd", "")
+    read = _read_logs([bench[0.1]], robot, read_map(no_gains), {"kp": "5", "kd": "0.1", "held": "leg_front_r_2=0.5"})
+    lg = read[0]
+    assert lg.logged == [MOTOR] and lg.actuators == robot.actuators
+    i2, i3 = robot.actuators.index("leg_front_r_2"), robot.actuators.index(MOTOR)
+    assert np.all(lg.target[:, i2] == 0.5) and np.all(lg.q[:, i2] == 0.5)
+    assert np.all(lg.target[:, 0] == robot.rest[0]) and np.ptp(lg.target[:, i3]) > 0.3
+    assert np.all(lg.kp == 5.0) and np.all(lg.kd == 0.1)
+    with pytest.raises(pc.ConfigError, match=r"no '# kp:' line.*or give --kp"):
+        pc.fit(bench[0.1], columns=no_gains, progress=False)
+
+
+def test_excite_for_a_test_stand_writes_one_motor_at_its_rate(tmp_path, run):
+    """`pupper excite --joints NAME --rate HZ`: the log covers that motor
+    alone, a row per 1/HZ, the targets held between rows; fit reads it."""
+    out = tmp_path / "stand.csv"
+    run("excite", "--joints", MOTOR, "--rate", "250", "--seconds", "2", "--hold", "0.5", "-o", out, check=0)
+    lines = out.read_text().splitlines()
+    header = next(ln for ln in lines if not ln.startswith("#"))
+    assert header == f"time,{MOTOR}.target,{MOTOR}.q,{MOTOR}.qd"
+    data = np.array([[float(x) for x in ln.split(",")] for ln in lines[lines.index(header) + 1:]])
+    assert np.allclose(np.diff(data[:, 0]), 0.004) and data[-1, 0] == pytest.approx(3.0)
+    assert np.ptp(data[:, 1]) > 0.2
+    res = pc.fit(out, params="kp_scale", max_iters=3, progress=False)
+    # the nominal model's own response: its gains are the nominal ones
+    assert res.actuators == [MOTOR] and res.value("kp_scale") == pytest.approx(1.0, abs=0.01)
+    for args, words in ((["--joints", "foo"], "--joints names 'foo'"), (["--rate", "300"], "--rate 300 Hz")):
+        p = run("excite", *args, "-o", tmp_path / "x.csv", check=2)
+        one_line(p, *words)
+        assert not (tmp_path / "x.csv").exists()
+
+
+def test_logs_of_different_joints_fit_what_they_share(tmp_path):
+    """A joint one log covers and another does not is left out, and said."""
+    a = Path(pc.excite(out=tmp_path / "a.csv", joints="kfe", seconds=0.6, hold=0.2, rate=250))
+    b = Path(pc.excite(out=tmp_path / "b.csv", joints=MOTOR, seconds=0.6, hold=0.2, rate=250, seed=1))
+    res = pc.fit([a, b], params="kp_scale", max_iters=2, progress=False)
+    assert res.actuators == [MOTOR]
+    assert any("leg_front_l_3 is logged in a.csv but not in b.csv" in w for w in res.warnings), res.warnings
