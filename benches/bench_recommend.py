@@ -58,9 +58,10 @@ def main() -> None:
     ap.add_argument("--side", type=int, default=8, help="grid points per axis per group")
     ap.add_argument("--cap", type=int, default=512, help="most grid cells (an even subsample)")
     ap.add_argument("--trials", type=int, default=48)
+    ap.add_argument("--polish", type=int, default=4)
     args = ap.parse_args()
     started = time.perf_counter()
-    rec = pc.recommend(trials=args.trials, progress=False)
+    rec = pc.recommend(trials=args.trials, polish=args.polish, progress=False)
     rec_wall = time.perf_counter() - started
     rec_steps = sum(c.cell_steps for c in rec.candidates)
     grid, grid_steps, grid_wall, n = grid_answer(args.side, args.cap)
@@ -71,7 +72,7 @@ def main() -> None:
         dip = f"{c.p95_dip_mm:.4f}" if c else "-"
         print(f"{name:<25} {dip:>15} {steps:>12,} {wall:>10.1f}   {gains}")
 
-    row(f"recommend ({args.trials} trials)", rec.pick, rec_steps, rec_wall)
+    row(f"recommend ({args.trials}+polish {args.polish})", rec.pick, rec_steps, rec_wall)
     row(f"grid ({n} cells)", grid, grid_steps, grid_wall)
     if rec.pick and grid:
         print(f"recommend / grid: p95 dip {rec.pick.p95_dip_mm / grid.p95_dip_mm:.3f}, cell-steps "

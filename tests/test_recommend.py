@@ -157,7 +157,7 @@ def test_exports_load_and_reproduce_the_card(default_run, run):
     cmd = shlex.split(json.loads((d / "manifest.json").read_text())["reproduce"])
     assert cmd[:2] == ["pupper", "sweep"]
     out = d.parent / "again"
-    run(*cmd[1:], "-q", "-o", out, check=0)
+    run(*cmd[1:], "-q", "-o", out, cwd=d.parent.parent, check=0)  # where recommend ran
     with open(out / "replicates.csv", newline="") as f:
         dips = [float(r["push_dip_mm"]) for r in csv.DictReader(f)]
     assert len(dips) == 32
@@ -275,6 +275,6 @@ def test_sigterm_stops_it_in_one_line_keeping_what_ran(pupper_bin, tmp_path):
     p.send_signal(signal.SIGTERM)
     out, err = p.communicate(timeout=120)
     assert p.returncode == 130, err
-    assert len(err.strip().splitlines()) == 1 and "SIGTERM" in err and "trials.csv" in err
+    assert len(err.strip().splitlines()) == 1 and "recommend stopped" in err and "trials.csv" in err, err
     with open(tmp_path / "r" / "trials.csv", newline="") as f:
         assert len(list(csv.DictReader(f))) >= 4

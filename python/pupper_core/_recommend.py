@@ -153,7 +153,14 @@ def recommend(
         # far stay in trials.csv (written after every generation)
         kept = f"the candidates run so far, if any, are in {out_dir / 'trials.csv'}"
         with _locked(out_dir), _stop_on_signals("recommend", kept):
-            return _run(p, out_dir, say, keep=True)
+            try:
+                return _run(p, out_dir, say, keep=True)
+            except KeyboardInterrupt as e:
+                # a signal inside a sweep stops it with the sweep's words
+                # (resume, finished cells): recommend's are these
+                if str(e).startswith("recommend stopped"):
+                    raise
+                raise KeyboardInterrupt(f"recommend stopped: {kept}") from None
     except BaseException:
         if made and not (out_dir / "trials.csv").exists():
             import shutil
