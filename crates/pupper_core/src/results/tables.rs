@@ -24,6 +24,11 @@ pub fn details_of(config: &SweepConfig, nu: usize) -> Vec<Detail> {
     kinds::of(&config.experiment).details(config, nu)
 }
 
+/// Whether `--trace` writes traces.csv for this config's kind.
+pub fn kind_traces_base_z(config: &SweepConfig) -> bool {
+    kinds::of(&config.experiment).traces_base_z()
+}
+
 /// A finished cell's summary row.
 pub fn summary_row(config: &SweepConfig, r: &CellResult) -> Vec<String> {
     kinds::of(&config.experiment).summary_row(config, r)
