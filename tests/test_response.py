@@ -338,3 +338,9 @@ def test_trace_writes_the_joints_and_no_header_only_file_and_noise_is_zero(run, 
     assert line.split()[3] == "0", line
     kept = next(ln for ln in p.stdout.splitlines() if ln.split()[:1] == ["5"])
     assert float(kept.split()[3]) == pytest.approx(float(rows[0]["overshoot_pct.kfe"]), rel=1e-2), kept
+    # read back whole (a traced response once loaded with no rows: its
+    # cells were looked for in a traces.csv it has no reason to hold)
+    res = pc.load_run(d)
+    assert res.complete and res.ids == ["kp5", "kp20"]
+    want = min(rows, key=lambda r: float(r["settling_time_s.kfe"]))
+    assert res.best("settling_time_s.kfe")["id"] == want["id"]

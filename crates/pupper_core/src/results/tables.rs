@@ -71,7 +71,8 @@ pub fn read_run(dir: &Path) -> Result<RunTables> {
     // traces of the cells kept (not of one whose replicates are cut short)
     let traces = read_traces(dir, &rows)?;
     let mut manifest = manifest;
-    let traced = manifest.config.schedule.trace_every > 0;
+    // (a response traces its joints in a table of its own, kept above)
+    let traced = manifest.config.schedule.trace_every > 0 && kind_traces_base_z(&manifest.config);
     if traced {
         rows.retain(|i, _| traces.contains_key(i));
     }
