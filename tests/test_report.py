@@ -199,7 +199,7 @@ def test_a_responses_report(run, tmp_path, baseline):
         assert para and para.group(1) == want["id"], (g, answer[:3000])
         shown_as_in(para.group(2), [h for h in header if h.endswith(f".{g}") or h in ("kp", "kd")], want)
         # its step curve, bold, zoomed to three of its settling times
-        step = re.search(rf'aria-label="{g}: step response[^"]*">(.+?)</svg>', dom)
+        step = re.search(rf'aria-label="{g}: angle change / step[^"]*">(.+?)</svg>', dom)
         assert step and drawn(step.group(1), want["id"]), g
         ends = re.findall(r'text-anchor="middle" font-size="10">([\d.e+-]+)</text>', step.group(1))
         assert float(ends[-1]) <= 3 * float(want[f"settling_time_s.{g}"]) + 1e-9

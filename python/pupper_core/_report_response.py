@@ -55,9 +55,12 @@ def _steps(page: Page, picks: dict[str, str]) -> list[str]:
             ys = [sum((v[k][1] - v[0][1]) / amp for v in per_joint.values()) / len(per_joint) for k in keep]
             series[cell] = (ts, ys)
         if pick in series:
-            zoom = f"the first {SETTLING_TIMES_SHOWN:g} settling times of the pick" if settle > 0 else "the run"
-            out.append(lines(series, f"{g}: step response, angle change / step (dashed: the target), over {zoom}",
-                             "time after the step (s)", "angle change / step", pick=pick, guide=1.0))
+            ts = series[pick][0]
+            dt = ts[1] - ts[0] if len(ts) > 1 else math.nan
+            zoom = f"{SETTLING_TIMES_SHOWN:g} settling times of the pick" if settle > 0 else "the run"
+            out.append(lines(series, f"{g}: angle change / step (dashed: the target) over {zoom}, "
+                             f"sampled every {dt * 1e3:.3g} ms (--trace-every)", "time after the step (s)",
+                             "angle change / step", pick=pick, guide=1.0, height=180))
     return out
 
 

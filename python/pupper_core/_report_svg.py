@@ -162,7 +162,7 @@ def bars(labels: Sequence[str], series: Mapping[str, Sequence[float]], title: st
 
 
 def lines(series: dict[str, tuple[list[float], list[float]]], title: str, xlabel: str, ylabel: str,
-          pick: str | None = None, guide: float | None = None) -> str:
+          pick: str | None = None, guide: float | None = None, height: int = 260) -> str:
     """A line per series; ``pick``'s drawn last, bold and black, named
     first in the legend; ``guide`` a dashed level (a step's target)."""
     pts = [(x, y) for xs, ys in series.values() for x, y in zip(xs, ys) if not math.isnan(y)]
@@ -174,7 +174,7 @@ def lines(series: dict[str, tuple[list[float], list[float]]], title: str, xlabel
         y0, y1 = min(y0, guide), max(y1, guide)
     x1 = x1 if x1 > x0 else x0 + 1
     y1 = y1 if y1 > y0 else y0 + 1e-9
-    W, H, L, T = 640, 260, 70, 24
+    W, H, L, T = 640, height, 70, 24
 
     def at(x: float, y: float) -> str:
         return f"{L + W * (x - x0) / (x1 - x0):.1f},{T + H - H * (y - y0) / (y1 - y0):.1f}"
