@@ -376,6 +376,11 @@ def test_write_effects_two_cells(tmp_path: Path) -> None:
         assert 2 * 160 <= p.width <= 2 * 160 + 20, p.width
         assert p.height > 120
         assert np.asarray(p.convert("RGB"), dtype=float).std() > 10
+    # the still says it is one (last frames), the GIF how fast it plays
+    assert render._captions("Kp", 20, True) == ("Kp  ·  last frames (the GIF is played in real time)",
+                                                "Kp  ·  played in real time")
+    assert render._captions(None, 30, False)[0] == "last frames"
+    assert render._captions(None, 30, True)[1] == "played at 1.11x real time"
     frames = render.draw(recs[:1], width=64, height=48)
     assert len(frames) == 1 and len(frames[0]) == 21 and frames[0][0].shape == (48, 64, 3)
     assert frames[0][0].dtype == np.uint8
