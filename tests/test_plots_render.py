@@ -576,3 +576,15 @@ def test_step_plots_draw_each_groups_pick_zoomed_to_its_settling(run, tmp_path: 
         # the x axis: three of the pick's settling times, not the whole run
         assert ax.get_xlim()[1] == pytest.approx(3 * float(pick[f"settling_time_s.{g}"]), rel=1e-6)
         assert ax.get_xlim()[1] < 0.5
+
+
+def test_an_overshoot_below_the_simulations_resolution_is_drawn_as_none() -> None:
+    table = {"kp": [5.0, 20.0, 5.0, 20.0], "kd": [0.1, 0.1, 0.5, 0.5], "status": ["ok"] * 4,
+             "overshoot_pct.kfe": [8.97, 36.6, 0.0132, 9.91e-10]}
+    fig = plots.heatmap(table, "overshoot_pct.kfe")
+    texts = [t.get_text() for t in fig.axes[0].texts]
+    assert "0" in texts and not any("e-" in t for t in texts), texts
+    # a linear colour scale from 0: noise is no decade of its own
+    assert fig.axes[0].images[0].norm.vmin == 0
+    # the star still goes by summary.csv's digits
+    assert fig.pupper_best[0]["overshoot_pct.kfe"] == 9.91e-10

@@ -40,7 +40,7 @@ from pupper_core._plots_tables import (
     read_run,
 )
 from pupper_core._public import exported_from
-from pupper_core._spec import DEFAULT_METRIC
+from pupper_core._spec import DEFAULT_METRIC, OVERSHOOT_NOISE_PCT
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -239,6 +239,9 @@ def heatmap(
         # each panel's rows, and its grid of values, statuses and cells seen
         rows = [np.ones(len(vals), bool) if bcol is None else (bcol == pv) for pv in panels]
         grids = [_panel_grid(sel, vals, status, (x, xs_all, xv), (y, ys_all, yv)) for sel in rows]
+        if metric.split(":")[-1].startswith("overshoot_pct"):
+            # an overshoot below the simulation's resolution is drawn as none
+            grids = [(np.where(np.abs(g) < OVERSHOOT_NOISE_PCT, 0.0, g), s, n) for g, s, n in grids]
         norm = _colour_scale(grids, log)
         import matplotlib
 

@@ -8,7 +8,8 @@ import html
 import math
 
 from pupper_core._report import Page, _numbers, _read, _table, response_pick
-from pupper_core._report_svg import OVERSHOOT_NOISE_PCT, bars, lines, num
+from pupper_core._report_svg import bars, lines, num
+from pupper_core._spec import OVERSHOOT_NOISE_PCT
 
 GROUPS = ("haa", "hfe", "kfe")
 #: How many settling times of the slowest pick a step plot shows.

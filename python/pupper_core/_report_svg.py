@@ -10,13 +10,13 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from pupper_core._spec import OVERSHOOT_NOISE_PCT
+
 #: The steadiest-first colour ramp of the heatmaps (viridis, reversed: yellow is best).
 RAMP = ["#fde725", "#b5de2b", "#6ece58", "#35b779", "#1f9e89", "#26828e", "#31688e", "#3e4989",
         "#482878", "#440154"]
 PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
            "#bcbd22", "#17becf"]
-#: Below this an overshoot (in %) is the integrator's rounding, not a robot's.
-OVERSHOOT_NOISE_PCT = 1e-6
 
 
 def num(v: Any) -> float:
