@@ -135,7 +135,8 @@ def _inputs(manifest: dict[str, Any], kind: str) -> str:
         items.append(("seconds", str(sch.get("duration"))))
         if sch.get("push"):
             p = sch["push"]
-            items.append(("push", f"{p.get('force')} N at {p.get('start')} s for {p.get('duration')} s"))
+            force = ", ".join(f"{f:.4g}" for f in p.get("force", []))
+            items.append(("push", f"[{force}] N at {p.get('start')} s for {p.get('duration')} s"))
         if sch.get("sine"):
             items.append(("sine force", json.dumps(sch["sine"])))
         if cfg.get("replicates"):

@@ -93,8 +93,9 @@ def heatmap(rows: list[dict[str, str]], xa: str, ya: str, metric: str, best: str
             mark = ' stroke="#000" stroke-width="3"' if picked else ' stroke="#fff"'
             out.append(f'<rect x="{px}" y="{py}" width="{w}" height="{h}" fill="{fill}"{mark}>'
                        f'<title>{html.escape(xa)} {x:g}, {html.escape(ya)} {y:g}: {html.escape(tip)}</title></rect>')
-            out.append(f'<text x="{px + w / 2}" y="{py + h / 2 + 4}" text-anchor="middle" font-size="10">'
-                       f'{html.escape(label)}{" ★" if picked else ""}</text>')
+            ink = "#fff" if fill in RAMP[6:] else "#000"  # legible on the dark end of the ramp
+            out.append(f'<text x="{px + w / 2}" y="{py + h / 2 + 4}" text-anchor="middle" font-size="10" '
+                       f'fill="{ink}">{html.escape(label)}{" ★" if picked else ""}</text>')
     for i, x in enumerate(xs):
         out.append(f'<text x="{left + i * w + w / 2}" y="{top + h * len(ys) + 16}" text-anchor="middle" '
                    f'font-size="11">{x:g}</text>')
