@@ -659,6 +659,7 @@ mod tests {
                 name: "m".into(),
                 source: "builtin".into(),
                 sha256: "0".repeat(64),
+                timestep: None,
             },
             torque_limits: vec![],
             cells_done: 0,
