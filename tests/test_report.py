@@ -161,6 +161,16 @@ def test_a_sweeps_report(run, tmp_path, baseline):
     assert 'href="summary.csv"' in dom
 
 
+def test_a_saturated_run_says_so_beside_no_pick(run, tmp_path):
+    """Every cell at its torque limit: the answer is that no cell is
+    eligible, and the warning beside it says why."""
+    out = tmp_path / "sat"
+    run("sweep", "-g", "kp=30,60", "-g", "kd=0.5", "--max-torque", "0.9", "--seconds", "3", "-q", "-o", out, check=0)
+    answer = answer_of((out / "report.html").read_text())
+    assert '<p class="pick"' not in answer and "no cell is eligible" in answer
+    assert "2 of 2 cells saturated (at the torque limit in 5 % or more of actuator-steps)" in answer
+
+
 def test_a_labs_report(run, tmp_path, baseline):
     out = tmp_path / "lab"
     run("lab", "--seconds", "3", "-q", "-o", out, check=0)

@@ -343,8 +343,9 @@ def _grid_sections(page: Page) -> list[str]:
             page.warnings.append(f"{len(ties)} other cell{'s' * (len(ties) > 1)} ({', '.join(ties[:6])}"
                                  f"{', …' if len(ties) > 6 else ''}) tie with the pick on {metric}: "
                                  f"{by} decided")
-    page.answer.append(f"<p class='note'>Rule: {html.escape(rule)}.</p>" if best else
-                       f"<p>{html.escape(rule or 'no cell is ranked')}</p>")
+    none = ("no cell is eligible: each fell, diverged, saturated or lay past the stability bound, or the run "
+            "is too short to measure (the warnings say which)")
+    page.answer.append(f"<p class='note'>Rule: {html.escape(rule)}.</p>" if best else f"<p>{html.escape(none)}</p>")
     parts = ["<h2>Figures</h2>"]
     axes = [a.get("axis") for a in page.manifest.get("config", {}).get("grid", {}).get("axes", [])]
     if metric and len(axes) >= 2 and {"kp", "kd"} <= set(header):
