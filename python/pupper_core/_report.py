@@ -70,8 +70,9 @@ def _read(path: Path) -> tuple[list[str], list[dict[str, str]]]:
         return list(r.fieldnames or []), list(r)
 
 
-def _table(header: list[str], rows: list[dict[str, str]], picks: set[str], key: str = "id") -> str:
-    """A sortable table; the rows of ``picks`` (by ``key``) in bold."""
+def _table(header: list[str], rows: list[dict[str, str]], picks: str | set[str] | None, key: str = "id") -> str:
+    """A sortable table; the rows of ``picks`` (one key, a set, or None; by ``key``) in bold."""
+    picks = {picks} if isinstance(picks, str) else picks or set()
     out = ['<table class="sortable"><thead><tr>']
     for h in header:
         out.append(f'<th class="{"text" if h in ("id", "name", "status", "parameter", "actuators") else ""}">'
