@@ -376,6 +376,11 @@ def test_write_effects_two_cells(tmp_path: Path) -> None:
         assert 2 * 160 <= p.width <= 2 * 160 + 20, p.width
         assert p.height > 120
         assert np.asarray(p.convert("RGB"), dtype=float).std() > 10
+    # the still says it is one (last frames), the GIF how fast it plays
+    assert render._captions("Kp", 20, True) == ("Kp  ·  last frames (the GIF is played in real time)",
+                                                "Kp  ·  played in real time")
+    assert render._captions(None, 30, False)[0] == "last frames"
+    assert render._captions(None, 30, True)[1] == "played at 1.11x real time"
     frames = render.draw(recs[:1], width=64, height=48)
     assert len(frames) == 1 and len(frames[0]) == 21 and frames[0][0].shape == (48, 64, 3)
     assert frames[0][0].dtype == np.uint8
@@ -530,3 +535,56 @@ def test_lab_figures_name_the_disturbance_number_the_cells_and_hint_at_the_edge(
     assert fig.axes[0].images[0].get_cmap().name.startswith("viridis_r")
     png = mpimg.imread(tmp_path / "lab" / "plots" / "lab_heatmaps.png")
     assert png.std() > 0.05, "blank figure"
+
+
+def test_every_plot_takes_a_result_or_its_run_directory_alike(chapter_grid: Path) -> None:
+    """heatmap, base_z and the run-directory plots draw the same from a
+    result (load_run's, or a sweep's with out=) as from its directory."""
+    import pupper_core as pc
+
+    res = pc.load_run(chapter_grid)
+    from_table = plots.heatmap(plots.read_run(chapter_grid)[0], "last_1s_std_mm").pupper_best
+    assert plots.heatmap(chapter_grid, "last_1s_std_mm").pupper_best == from_table
+    assert plots.heatmap(str(chapter_grid), "last_1s_std_mm").pupper_best == from_table
+    assert plots.heatmap(res, "last_1s_std_mm").pupper_best == from_table
+    for given in (chapter_grid, res):
+        lines = plots.base_z(given).axes[0].get_lines()
+        # 16 cells, the 8 past the bound dashed, the push shaded in both panels
+        assert len(lines) == 16 and sum(ln.get_linestyle() == "--" for ln in lines) == 8
+        assert len(plots.base_z(given).axes) == 2
+    with pytest.raises(ValueError, match="no run directory"):
+        plots.response_steps(pc.sweep({"kp": [10]}, seconds=2, progress=False))
+
+
+def test_step_plots_draw_each_groups_pick_zoomed_to_its_settling(run, tmp_path: Path) -> None:
+    import pupper_core as pc
+    from pupper_core._report import _read, response_pick
+
+    d = tmp_path / "r"
+    run("response", "--grid", "kp=5,10,20,30", "--grid", "kd=0.1,0.3,0.5", "--seconds", "2", "--trace", "-q",
+        "-o", d, check=0)
+    header, rows = _read(d / "summary.csv")
+    fig = plots.response_steps(pc.load_run(d))
+    assert fig is not None and fig.pupper_cells == plots.response_steps(d).pupper_cells
+    panels = [a for a in fig.axes if a.get_title()]
+    for ax, g in zip(panels, ("haa", "hfe", "kfe")):
+        pick = response_pick(header, rows, g)
+        assert pick is not None and fig.pupper_picks[g] == pick["id"]
+        # drawn, whatever its place in the grid, and the boldest line
+        bold = max(ax.get_lines(), key=lambda ln: ln.get_linewidth())
+        assert bold.get_label() == pick["id"]
+        # the x axis: three of the pick's settling times, not the whole run
+        assert ax.get_xlim()[1] == pytest.approx(3 * float(pick[f"settling_time_s.{g}"]), rel=1e-6)
+        assert ax.get_xlim()[1] < 0.5
+
+
+def test_an_overshoot_below_the_simulations_resolution_is_drawn_as_none() -> None:
+    table = {"kp": [5.0, 20.0, 5.0, 20.0], "kd": [0.1, 0.1, 0.5, 0.5], "status": ["ok"] * 4,
+             "overshoot_pct.kfe": [8.97, 36.6, 0.0132, 9.91e-10]}
+    fig = plots.heatmap(table, "overshoot_pct.kfe")
+    texts = [t.get_text() for t in fig.axes[0].texts]
+    assert "0" in texts and not any("e-" in t for t in texts), texts
+    # a linear colour scale from 0: noise is no decade of its own
+    assert fig.axes[0].images[0].norm.vmin == 0
+    # the star still goes by summary.csv's digits
+    assert fig.pupper_best[0]["overshoot_pct.kfe"] == 9.91e-10

@@ -317,3 +317,30 @@ def test_replicates_draw_each_joint_its_own_robot(run, tmp_path):
         by_joint.setdefault(r["joint"], []).append(float(r["rise_time_s"]))
     # each replicate's motor gain differs: so does its rise time
     assert all(len(set(v)) == 3 for v in by_joint.values()), by_joint
+
+
+def test_trace_writes_the_joints_and_no_header_only_file_and_noise_is_zero(run, tmp_path):
+    """--trace on a response keeps the joints' angles (response_traces.csv)
+    and writes no traces.csv (the base hangs: it would hold its header
+    alone); an overshoot below the simulation's resolution prints as 0
+    while summary.csv keeps its digits."""
+    d = tmp_path / "t"
+    p = run("response", "--joints", "kfe", "--grid", "kp=5,20", "--kd", "0.5", "--trace",
+            "-o", d, "-q", check=0)
+    assert not (d / "traces.csv").exists()
+    _, traces = read_csv(d / "response_traces.csv")
+    assert {r["id"] for r in traces} == {"kp5", "kp20"}
+    _, rows = read_csv(d / "summary.csv")
+    noise = next(r for r in rows if r["id"] == "kp20")
+    assert 0 < float(noise["overshoot_pct.kfe"]) < 1e-6, noise
+    # kp, rise, settling, overshoot, ...
+    line = next(ln for ln in p.stdout.splitlines() if ln.split()[:1] == ["20"])
+    assert line.split()[3] == "0", line
+    kept = next(ln for ln in p.stdout.splitlines() if ln.split()[:1] == ["5"])
+    assert float(kept.split()[3]) == pytest.approx(float(rows[0]["overshoot_pct.kfe"]), rel=1e-2), kept
+    # read back whole (a traced response once loaded with no rows: its
+    # cells were looked for in a traces.csv it has no reason to hold)
+    res = pc.load_run(d)
+    assert res.complete and res.ids == ["kp5", "kp20"]
+    want = min(rows, key=lambda r: float(r["settling_time_s.kfe"]))
+    assert res.best("settling_time_s.kfe")["id"] == want["id"]

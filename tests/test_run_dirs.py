@@ -378,3 +378,30 @@ def test_motors_without_ranges_run_unclipped_and_say_so(run, tmp_path):
     _, rows = read_csv(tmp_path / "run" / "summary.csv")
     assert [r["status"] for r in rows] == ["ok", "ok"]
     assert all(float(r["saturation_frac"]) == 0.0 for r in rows)
+
+
+@pytest.mark.filterwarnings("ignore:seconds=")
+def test_a_run_read_back_knows_its_cell_steps_where_the_manifest_does(tmp_path):
+    """load_run says each cell's steps as the run that wrote it did (the
+    schedule's steps at the cell's timestep, its grid's or the model's
+    recorded in the manifest, times its simulations), and None where the
+    manifest cannot know: a replicate failed, or a manifest from before
+    the model's timestep was recorded."""
+    pc = pytest.importorskip("pupper_core")
+    runs = {
+        "fell": lambda o: pc.sweep({"kp": [0.5, 60]}, seconds=3, progress=False, out=o),
+        "timestep": lambda o: pc.sweep({"kp": [60], "timestep": [0.001, 0.002]}, seconds=2, progress=False, out=o),
+        "response": lambda o: pc.response({"kp": [5, 20]}, kd=0.5, seconds=1, joints="kfe", progress=False, out=o),
+    }
+    for name, sweep in runs.items():
+        fresh = sweep(tmp_path / name)
+        assert pc.load_run(tmp_path / name).cell_steps == fresh.cell_steps, name
+        assert all(n is not None for n in fresh.cell_steps)
+    fresh = pc.sweep({"kp": [0.5, 60]}, seconds=3, replicates=3, progress=False, out=tmp_path / "reps")
+    assert list(fresh["failure_fraction"]) == [1.0, 0.0]
+    assert pc.load_run(tmp_path / "reps").cell_steps == [None, fresh.cell_steps[1]] == [None, 3 * 1501]
+    m = tmp_path / "fell" / "manifest.json"
+    old = json.loads(m.read_text())
+    del old["model"]["timestep"]
+    m.write_text(json.dumps(old))
+    assert pc.load_run(tmp_path / "fell").cell_steps == [None, None]

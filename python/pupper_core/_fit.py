@@ -22,7 +22,8 @@ Outputs (a run directory): ``fit.csv``, ``calibrated.xml`` (the model with
 the fitted values, written through `MjSpec`; every command loads it with
 ``--model``), ``residuals.csv``, ``manifest.json``, ``warnings.csv`` (when
 there are warnings) and, with ``plot``, ``plots/fit_<log>.png`` (measured
-against simulated angle per joint, before and after).
+against simulated angle per joint, before and after, each joint's residual
+beneath).
 
 The code is split by concern: the terms and the error in ``_fit_terms``,
 the robot in ``_fit_robot``, excite in ``_fit_excite``, the logs and the

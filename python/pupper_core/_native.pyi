@@ -101,8 +101,12 @@ class SweepResult:
     config: dict[str, Any]
     """The inputs that decide the numbers, as stored in manifest.json."""
     cell_steps: list[int | None]
-    """Cell-steps each row's cell took when it ran in this call (fewer for
-    a robot stopped by stop_fallen); None for a row read back or resumed."""
+    """Cell-steps each row's cell took (fewer for a robot stopped by
+    stop_fallen). A row resumed from disk has None; a run read back
+    (load_run) has what its manifest knows: the schedule's steps at the
+    cell's timestep times its simulations, None for a cell that diverged,
+    a replicate that failed, a fall under stop_fallen, or a manifest that
+    did not record the model's timestep."""
     tables: dict[str, SweepResult]
     """Every table beside summary.csv by name: "replicates"; a response
     run's "response" (a row per cell and joint) and "bode"."""

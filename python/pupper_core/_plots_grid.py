@@ -5,6 +5,7 @@ axis, and bars per cell."""
 from __future__ import annotations
 
 import math
+import os
 from typing import TYPE_CHECKING, Any, Mapping, Sequence, cast
 
 import numpy as np
@@ -24,6 +25,7 @@ from pupper_core._plots_style import (
     label_of,
 )
 from pupper_core._plots_tables import (
+    RunLike,
     TableLike,
     Traces,
     _as_table,
@@ -35,9 +37,10 @@ from pupper_core._plots_tables import (
     _rankable,
     _rule_best,
     _status,
+    read_run,
 )
 from pupper_core._public import exported_from
-from pupper_core._spec import DEFAULT_METRIC
+from pupper_core._spec import DEFAULT_METRIC, OVERSHOOT_NOISE_PCT
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -45,9 +48,23 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
 
+def _traces_of(run: "RunLike", push: Any, status: Mapping[str, str] | None) -> tuple[Traces, Any, Mapping[str, str]]:
+    """A result's or a run directory's traces, push (unless given) and status."""
+    if isinstance(run, (str, os.PathLike)):
+        table, manifest, traces = read_run(run)
+        config = manifest.get("config", {})
+    else:
+        table, traces, config = run.table, run.traces, run.config
+    if push is None:
+        push = config.get("schedule", {}).get("push")
+    if status is None:
+        status = {str(i): str(s) for i, s in zip(table["id"], table["status"])}
+    return traces, push, status
+
+
 @exported_from("pupper_core.plots")
 def base_z(
-    traces: Traces,
+    traces: "Traces | RunLike",
     push: Any = None,
     ax: "Axes | None" = None,
     labels: Mapping[str, str] | Sequence[str] | None = None,
@@ -68,7 +85,11 @@ def base_z(
     dashed and set no axis range. The whole-run panel's range is that of the
     robots after ``landing`` s, so a millimetre push dip is visible beside a
     drop of centimetres (the drop runs off the top, said in the panel title).
+    ``traces`` may be a result or a run directory instead: its traces, its
+    push and its cells' status.
     """
+    if not isinstance(traces, Mapping):
+        traces, push, status = _traces_of(traces, push, status)
     with _style():
         p = _push_tuple(push)
         zoom = (p is not None and ax is None) if zoom is None else (zoom and p is not None and ax is None)
@@ -218,6 +239,9 @@ def heatmap(
         # each panel's rows, and its grid of values, statuses and cells seen
         rows = [np.ones(len(vals), bool) if bcol is None else (bcol == pv) for pv in panels]
         grids = [_panel_grid(sel, vals, status, (x, xs_all, xv), (y, ys_all, yv)) for sel in rows]
+        if metric.split(":")[-1].startswith("overshoot_pct"):
+            # an overshoot below the simulation's resolution is drawn as none
+            grids = [(np.where(np.abs(g) < OVERSHOOT_NOISE_PCT, 0.0, g), s, n) for g, s, n in grids]
         norm = _colour_scale(grids, log)
         import matplotlib
 

@@ -13,7 +13,7 @@ import numpy as np
 from pupper_core._plots_grid import base_z, heatmap
 from pupper_core._plots_replicates import replicate_spread
 from pupper_core._plots_style import _BAD_GREY, LABELS, _cell_text, _fmt, _ink, _new_figure, _save, _style
-from pupper_core._plots_tables import describe, read_run
+from pupper_core._plots_tables import RunLike, describe, read_run, run_dir_of
 from pupper_core._public import exported_from
 from pupper_core._spec import DEFAULT_METRIC, ROBUST_METRIC
 
@@ -90,12 +90,12 @@ def lab_heatmaps(
 
 
 @exported_from("pupper_core.plots")
-def write_lab_plots(run_dir: str | os.PathLike) -> list[Path]:
+def write_lab_plots(run_dir: RunLike) -> list[Path]:
     """`pupper lab`'s figures in ``<run_dir>/plots/``: ``lab_heatmaps.png``
     (Kp × Kd per body, shared colour scale, best starred; blank where a
     cell fell or diverged) and ``lab_best_base_z.png`` (each body's
     base height at its best gains). Reads summary.csv, best.csv, traces.csv."""
-    d = Path(run_dir)
+    d = run_dir_of(run_dir)
     with open(d / "summary.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     with open(d / "best.csv", newline="") as f:

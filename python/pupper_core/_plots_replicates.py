@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 import numpy as np
 
 from pupper_core._plots_style import _new_figure, _style, label_of
-from pupper_core._plots_tables import FIRST_METRIC, read_replicates
+from pupper_core._plots_tables import FIRST_METRIC, RunLike, read_replicates, run_dir_of
 from pupper_core._public import exported_from
 from pupper_core._spec import DEFAULT_METRIC
 
@@ -69,7 +69,7 @@ def _best_cells(rows: list[dict[str, str]], key: str, cells: int) -> tuple[list[
 
 
 @exported_from("pupper_core.plots")
-def replicate_spread(run_dir: str | os.PathLike, metric: str = DEFAULT_METRIC,
+def replicate_spread(run_dir: RunLike, metric: str = DEFAULT_METRIC,
                      cells: int = 6, by: str | None = None) -> "Figure | None":
     """The spread of ``metric`` over every replicate at the best cells: a
     box (quartiles) with each replicate that stayed up as a dot, coloured by
@@ -80,7 +80,7 @@ def replicate_spread(run_dir: str | os.PathLike, metric: str = DEFAULT_METRIC,
     among those where no replicate failed (then the rest), always with the
     cell pupper's rule picks (starred); or with ``by`` the best of each
     group as best.csv has them. None when the run has no replicates."""
-    d = Path(run_dir)
+    d = run_dir_of(run_dir)
     if not (d / "replicates.csv").exists():
         return None
     reps = read_replicates(d)

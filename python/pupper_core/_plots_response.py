@@ -24,6 +24,8 @@ from pupper_core._plots_tables import (
     describe,
     grid_axes,
     read_run,
+    run_dir_of,
+    RunLike,
 )
 from pupper_core._public import exported_from
 
@@ -33,24 +35,54 @@ if TYPE_CHECKING:  # pragma: no cover
 GROUP_TITLES = {"haa": "hip abduction (haa)", "hfe": "hip pitch (hfe)", "kfe": "knee (kfe)"}
 
 
+#: How many settling times of a group's pick a step panel shows.
+SETTLING_TIMES_SHOWN = 3.0
+
+
+def _step_picks(d: Path) -> dict[str, str]:
+    """Each joint group's pick: the cell that settles soonest (report.html's rule)."""
+    from pupper_core._report import _read, response_pick
+
+    header, rows = _read(d / "summary.csv")
+    picks = {}
+    for g in ("haa", "hfe", "kfe"):
+        r = response_pick(header, rows, g)
+        if r is not None:
+            picks[g] = r["id"]
+    return picks
+
+
+def _settling(d: Path, cell: str, group: str) -> float:
+    row = next((r for r in _read_csv(d / "summary.csv") if r["id"] == cell), {})
+    try:
+        return float(row.get(f"settling_time_s.{group}", "nan") or "nan")
+    except ValueError:
+        return math.nan
+
+
 @exported_from("pupper_core.plots")
-def response_steps(run_dir: str | os.PathLike, cells: Sequence[str] | None = None) -> "Figure | None":
-    """Step responses of a response run, a panel per joint group: each
-    chosen cell's angle change over the step, averaged over the group's
-    joints and divided by the step, against time after the step; the target
-    (1) dashed and the 2 % settling band shaded. Needs response_traces.csv
-    (`--trace` or `--plot`). ``cells``: cell ids (default: up to 6 spread
-    over the grid)."""
-    d = Path(run_dir)
+def response_steps(run: RunLike, cells: Sequence[str] | None = None) -> "Figure | None":
+    """Step responses of a response run (its directory, or its result), a
+    panel per joint group: each chosen cell's angle change over the step,
+    averaged over the group's joints and divided by the step, against time
+    after the step; the group's pick (the cell that settles soonest) bold,
+    always drawn; the target (1) dashed and the 2 % settling
+    band shaded; the time axis zoomed to three settling times of the pick.
+    Needs response_traces.csv (`--trace` or `--plot`). ``cells``: cell ids
+    (default: the picks, then others spread over the grid, 6 in all)."""
+    d = run_dir_of(run)
     if not (d / "response_traces.csv").exists():
         return None
     traces = _read_csv(d / "response_traces.csv")
     joints = _read_csv(d / "response.csv")
     group_of = {r["joint"]: r["group"] for r in joints}
     ids = list(dict.fromkeys(r["id"] for r in traces))
+    picks = _step_picks(d)
     if cells is None:
-        step = max(1, math.ceil(len(ids) / 6))
-        cells = ids[::step][:6]
+        chosen = list(dict.fromkeys(i for i in picks.values() if i in ids))
+        rest = [i for i in ids if i not in chosen]
+        step = max(1, math.ceil(len(rest) / max(1, 6 - len(chosen))))
+        cells = chosen + rest[::step][: max(0, 6 - len(chosen))]
     manifest = json.loads((d / "manifest.json").read_text())
     amp = float(manifest["config"]["response"]["signal"]["amplitude"])
     groups = [g for g in ("haa", "hfe", "kfe") if g in group_of.values()] + sorted(
@@ -74,27 +106,35 @@ def response_steps(run_dir: str | os.PathLike, cells: Sequence[str] | None = Non
                 n = min(len(v) for v in per_joint.values())
                 t = np.array([p[0] for p in next(iter(per_joint.values()))[:n]])
                 rel = np.mean([[(p[1] - v[0][1]) / amp for p in v[:n]] for v in per_joint.values()], axis=0)
-                ax.plot(t, rel, color=colour, lw=1.4, label=c)
+                picked = picks.get(g) == c
+                # the pick in its own colour (the legend's), bold
+                ax.plot(t, rel, color=colour, lw=3.2 if picked else 1.1, label=c, zorder=3 if picked else 2)
                 tmax = max(tmax, float(t[-1]))
             ax.axhline(1.0, color="black", ls="--", lw=1, label="target")
             ax.axhspan(0.98, 1.02, color="tab:green", alpha=0.15, lw=0, label="±2 % band")
+            settle = _settling(d, picks[g], g) if g in picks else math.nan
+            zoom = SETTLING_TIMES_SHOWN * settle if settle > 0 else tmax
             ax.set_title(GROUP_TITLES.get(g, g), fontsize=11)
+            if g in picks:
+                ax.text(0.97, 0.04, f"bold: {picks[g]}, settles soonest", transform=ax.transAxes, ha="right",
+                        va="bottom", fontsize=9)
             ax.set_xlabel("time after the step (s)")
-            ax.set_xlim(0, tmax if tmax > 0 else None)
+            ax.set_xlim(0, min(zoom, tmax) if tmax > 0 else None)
             ax.grid(True, alpha=0.3)
         axes[0].set_ylabel("angle change / step size")
         axes[-1].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False, fontsize=9)
         fig.pupper_cells = list(cells)
+        fig.pupper_picks = dict(picks)
         return fig
 
 
 @exported_from("pupper_core.plots")
-def response_bode(run_dir: str | os.PathLike, cells: Sequence[str] | None = None) -> "Figure | None":
+def response_bode(run: RunLike, cells: Sequence[str] | None = None) -> "Figure | None":
     """Bode plot of a sine or chirp response run: gain (dB) and phase (deg)
     against frequency, a column per joint group (the mean over the group's
     joints), a line per chosen cell (default: up to 6 spread over the
-    grid); the −3 dB line dotted."""
-    d = Path(run_dir)
+    grid); the −3 dB line dotted. ``run``: the run directory, or its result."""
+    d = run_dir_of(run)
     if not (d / "bode.csv").exists():
         return None
     rows = [r for r in _read_csv(d / "bode.csv") if r["replicate"] == "0"]
@@ -135,12 +175,13 @@ def response_bode(run_dir: str | os.PathLike, cells: Sequence[str] | None = None
 
 
 @exported_from("pupper_core.plots")
-def write_response_plots(run_dir: str | os.PathLike) -> list[Path]:
+def write_response_plots(run_dir: RunLike) -> list[Path]:
     """`pupper response --plot`: into ``<run_dir>/plots/``,
     ``response_steps.png`` (step responses per joint group), ``bode.png``
     (sine, chirp) and, for a Kp x Kd product grid, ``response_<figure>.png``
-    heatmaps (rise time, overshoot, settling time; a panel per group)."""
-    d = Path(run_dir)
+    heatmaps (rise time, overshoot, settling time; a panel per group).
+    ``run_dir``: the run directory, or its result."""
+    d = run_dir_of(run_dir)
     out = d / "plots"
     out.mkdir(parents=True, exist_ok=True)
     table, manifest, _ = read_run(d)

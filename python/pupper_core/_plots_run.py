@@ -13,6 +13,7 @@ from pupper_core._plots_grid import bars, base_z, heatmap, metric_vs_axis
 from pupper_core._plots_replicates import replicate_spread
 from pupper_core._plots_style import SHORT, _fmt, _key_line, _save, _say_setting, _wrap_parts, label_of
 from pupper_core._plots_tables import (
+    RunLike,
     Traces,
     _distinct,
     _is_product,
@@ -23,6 +24,7 @@ from pupper_core._plots_tables import (
     describe,
     grid_axes,
     read_run,
+    run_dir_of,
 )
 from pupper_core._public import exported_from
 from pupper_core._spec import DEFAULT_METRIC, ROBUST_METRIC
@@ -33,7 +35,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 
 @exported_from("pupper_core.plots")
-def write_hold_plots(run_dir: str | os.PathLike) -> list[Path]:
+def write_hold_plots(run_dir: RunLike) -> list[Path]:
     """A hold's plots in ``<run_dir>/plots/``: ``base_z.png`` (the height
     sagging as the load ramps on, the shove shaded), and the sag per newton
     and the sway per cell (a heatmap for a Kp × Kd grid), as
@@ -42,7 +44,7 @@ def write_hold_plots(run_dir: str | os.PathLike) -> list[Path]:
 
 
 @exported_from("pupper_core.plots")
-def write_run_plots(run_dir: str | os.PathLike, metrics: Sequence[str] | None = None,
+def write_run_plots(run_dir: RunLike, metrics: Sequence[str] | None = None,
                     during: str = "the sweep") -> list[Path]:
     """Writes the standard plots of a run into ``<run_dir>/plots/``; returns their paths.
 
@@ -53,7 +55,7 @@ def write_run_plots(run_dir: str | os.PathLike, metrics: Sequence[str] | None = 
     non-product grids) ``bars_<metric>.png``; metrics last_1s_std_mm and
     push_dip_mm. Files are written atomically.
     """
-    d = Path(run_dir)
+    d = run_dir_of(run_dir)
     table, manifest, traces = read_run(d)
     out = d / "plots"
     out.mkdir(parents=True, exist_ok=True)

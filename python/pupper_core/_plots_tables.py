@@ -22,8 +22,10 @@ if TYPE_CHECKING:  # pragma: no cover
 
 Table = Mapping[str, Union[Sequence[Any], np.ndarray]]
 Traces = Mapping[str, tuple[np.ndarray, np.ndarray]]
-#: A table, or a result whose ``.table`` is one.
-TableLike = Union[Table, "SweepResult"]
+#: A table, a result whose ``.table`` is one, or a run directory.
+TableLike = Union[Table, "SweepResult", str, os.PathLike]
+#: A run directory, or a result written to one (its ``.out``).
+RunLike = Union[str, os.PathLike, "SweepResult"]
 
 #: Columns of summary.csv that are text, not numbers.
 TEXT_COLUMNS = ("id", "name", "status", "joint", "group", "status.haa", "status.hfe", "status.kfe", "status.other")
@@ -34,11 +36,25 @@ FIRST_METRIC = "final_z"
 
 
 def _as_table(table: TableLike) -> Table:
-    """A column mapping from what the user has: a mapping, or a result
-    (``SweepResult``, whose ``.table`` is one)."""
+    """A column mapping from what the user has: a mapping, a result
+    (``SweepResult``, whose ``.table`` is one) or a run directory."""
     if isinstance(table, Mapping):
         return table
+    if isinstance(table, (str, os.PathLike)):
+        return read_run(table)[0]
     return table.table
+
+
+def run_dir_of(run: RunLike) -> Path:
+    """The run directory of what the user has: its path, or a result
+    written to one (``out=``)."""
+    if isinstance(run, (str, os.PathLike)):
+        return Path(run)
+    out = getattr(run, "out", None)
+    if out is None:
+        raise ValueError("this result has no run directory (it ran with out=None): give out= to keep one, "
+                         "or pass its table")
+    return Path(out)
 
 
 def _col(table: Table, name: str) -> np.ndarray:

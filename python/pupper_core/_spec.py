@@ -20,6 +20,11 @@ METRICS: tuple[str, ...] = tuple(_native.METRICS)
 DEFAULT_METRIC: str = _native.DEFAULT_METRIC
 ROBUST_METRIC: str = f"p95:{DEFAULT_METRIC}"
 
+#: Below this an overshoot (%) is the integrator's rounding, not a robot's:
+#: tables and figures show it as 0 (summary.csv keeps every digit; the
+#: CLI's table says the same, print/response.rs).
+OVERSHOOT_NOISE_PCT: float = 1e-6
+
 #: Defaults of every sweep keyword, as the Rust core's SweepSpec holds them
 #: (the CLI's --help shows the same ones; tests/test_spec.py checks).
 DEFAULTS: dict[str, Any] = _native.sweep_defaults()

@@ -300,6 +300,15 @@ def simulate_frames(
 # Pictures
 
 
+def _captions(caption: str | None, fps: float, gif: bool) -> tuple[str, str]:
+    """The still's caption (each robot's last frame) and the GIF's (how
+    fast it plays: a GIF counts whole centiseconds)."""
+    head = caption + "  ·  " if caption else ""
+    speed = (1000 / fps) / (max(1, round(100 / fps)) * 10)
+    played = "played in real time" if abs(speed - 1) < 1e-9 else f"played at {speed:.2f}x real time"
+    return head + (f"last frames (the GIF is {played})" if gif else "last frames"), head + played
+
+
 def write_effects(
     recordings: Sequence["Recording"],
     out_dir: str | os.PathLike[str],
@@ -357,11 +366,9 @@ def write_effects(
     fps = _fps_of(recordings[0])
     # a GIF counts in centiseconds: the real-time frame duration, rounded
     centis = max(1, round(100 / fps))
-    speed = (1000 / fps) / (centis * 10)
-    line = (caption + "  ·  " if caption else "") + (
-        "played in real time" if abs(speed - 1) < 1e-9 else f"played at {speed:.2f}x real time")
+    still, moving = _captions(caption, fps, gif)
 
-    def captioned(img: "PILImage.Image") -> "PILImage.Image":
+    def captioned(img: "PILImage.Image", line: str = moving) -> "PILImage.Image":
         from PIL import ImageDraw
 
         font = fonts[1]
@@ -372,7 +379,7 @@ def write_effects(
         both.paste(strip, (0, img.height))
         return both
 
-    finals = [captioned(f) for f in [_compose(finals)]]
+    finals = [captioned(f, still) for f in [_compose(finals)]]
     gif_frames = [captioned(f) for f in gif_frames]
     _atomic_save(finals[0], png_path, "PNG")
     if gif:

@@ -6,6 +6,10 @@ use pupper_mujoco::api::SweepOutcome;
 
 use super::{Sig, short};
 
+/// Below this an overshoot (%) is the integrator's rounding, not a robot's
+/// (report.html draws it as 0 too).
+const OVERSHOOT_NOISE_PCT: f64 = 1e-6;
+
 /// A response run's summary: a table per joint group, a row per cell.
 pub fn response(o: &SweepOutcome) -> String {
     let status_at = o.header.iter().position(|h| h == "status");
@@ -56,8 +60,10 @@ pub fn response(o: &SweepOutcome) -> String {
             for (i, _) in &axes {
                 let _ = write!(line, "{:>8} ", short(&r[*i]));
             }
-            for (i, _) in &cols {
+            for (i, m) in &cols {
                 let text = match r[*i].parse::<f64>() {
+                    // an overshoot below the simulation's resolution is none
+                    Ok(v) if *m == "overshoot_pct" && v.abs() < OVERSHOOT_NOISE_PCT => "0".into(),
                     Ok(v) => format!("{}", Sig(v)),
                     Err(_) => "-".into(),
                 };

@@ -171,6 +171,11 @@ pub struct ModelRecord {
     pub name: String,
     pub source: String,
     pub sha256: String,
+    /// The model's own timestep (s), a cell's unless its grid sets one:
+    /// what a run read back needs to say each cell's steps. None in a
+    /// manifest written before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timestep: Option<f64>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

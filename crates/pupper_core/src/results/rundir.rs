@@ -246,7 +246,8 @@ impl RunWriter {
             header: header_of(&manifest.config),
             rows: BTreeMap::new(),
             traces: BTreeMap::new(),
-            want_traces: manifest.config.schedule.trace_every > 0,
+            want_traces: manifest.config.schedule.trace_every > 0
+                && tables::kind_traces_base_z(&manifest.config),
             details: tables::details_of(&manifest.config, manifest.torque_limits.len()),
             detail_rows: Vec::new(),
             manifest,
@@ -658,6 +659,7 @@ mod tests {
                 name: "m".into(),
                 source: "builtin".into(),
                 sha256: "0".repeat(64),
+                timestep: None,
             },
             torque_limits: vec![],
             cells_done: 0,

@@ -24,6 +24,11 @@ pub fn details_of(config: &SweepConfig, nu: usize) -> Vec<Detail> {
     kinds::of(&config.experiment).details(config, nu)
 }
 
+/// Whether `--trace` writes traces.csv for this config's kind.
+pub fn kind_traces_base_z(config: &SweepConfig) -> bool {
+    kinds::of(&config.experiment).traces_base_z()
+}
+
 /// A finished cell's summary row.
 pub fn summary_row(config: &SweepConfig, r: &CellResult) -> Vec<String> {
     kinds::of(&config.experiment).summary_row(config, r)
@@ -66,7 +71,8 @@ pub fn read_run(dir: &Path) -> Result<RunTables> {
     // traces of the cells kept (not of one whose replicates are cut short)
     let traces = read_traces(dir, &rows)?;
     let mut manifest = manifest;
-    let traced = manifest.config.schedule.trace_every > 0;
+    // (a response traces its joints in a table of its own, kept above)
+    let traced = manifest.config.schedule.trace_every > 0 && kind_traces_base_z(&manifest.config);
     if traced {
         rows.retain(|i, _| traces.contains_key(i));
     }

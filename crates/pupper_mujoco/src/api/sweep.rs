@@ -214,6 +214,7 @@ fn manifest_of(
             name: info.name.clone(),
             source: info.source.clone(),
             sha256: info.sha256.clone(),
+            timestep: Some(info.timestep),
         },
         torque_limits: match cfg.defaults.max_torque {
             Some(t) => vec![t; info.nu],

@@ -33,7 +33,7 @@ pub(crate) fn merge(
 #[pyfunction]
 pub(crate) fn load_run(py: Python<'_>, run_dir: PathBuf) -> PyResult<SweepResult> {
     let run = pupper_core::results::tables::read_run(&run_dir).map_err(to_py)?;
-    let cell_steps = vec![None; run.rows.len()];
+    let cell_steps = steps_of(&run);
     SweepResult::new(
         py,
         Parts {
@@ -49,6 +49,34 @@ pub(crate) fn load_run(py: Python<'_>, run_dir: PathBuf) -> PyResult<SweepResult
             tables: run.details,
         },
     )
+}
+
+/// Each row's cell-steps as the manifest knows them: the schedule's steps
+/// at the cell's timestep (its grid's, else the model's), times the
+/// simulations per cell. None where the manifest cannot say: a manifest
+/// from before it recorded the model's timestep, a cell that diverged or
+/// has a replicate that failed (a simulation stops where it diverges), or,
+/// with `stop_fallen`, one whose robot fell.
+fn steps_of(run: &pupper_core::results::tables::RunTables) -> Vec<Option<u64>> {
+    let cfg = &run.manifest.config;
+    let col = |name: &str| run.header.iter().position(|h| h == name);
+    let (dt_at, status_at, failed_at) = (col("timestep"), col("status"), col("failure_fraction"));
+    run.rows
+        .iter()
+        .map(|r| {
+            let status = status_at.map_or("", |i| r[i].as_str());
+            let failed = failed_at.is_some_and(|i| r[i].parse::<f64>().is_ok_and(|f| f > 0.0));
+            if status == "diverged" || failed || (cfg.schedule.stop_fallen && status == "fell") {
+                return None;
+            }
+            let dt = match dt_at.and_then(|i| r[i].parse::<f64>().ok()) {
+                Some(dt) => dt,
+                None => run.manifest.model.timestep?,
+            };
+            let steps = cfg.schedule.plan(dt).ok()?.steps as u64;
+            Some(steps * cfg.sims_per_cell() as u64)
+        })
+        .collect()
 }
 
 /// The manifest of a run directory, as a dict.

@@ -22,6 +22,12 @@ pub trait KindTables {
     /// A finished cell's rows of each table of [`KindTables::details`], in
     /// that order.
     fn detail_rows(&self, config: &SweepConfig, r: &CellResult) -> Vec<Vec<Vec<String>>>;
+    /// Whether `--trace` records the base's height (traces.csv); a kind
+    /// that traces something else in a table of its own writes none, so
+    /// no run directory holds a traces.csv of its header alone.
+    fn traces_base_z(&self) -> bool {
+        true
+    }
 }
 
 /// The registry: the tables of an experiment's kind.

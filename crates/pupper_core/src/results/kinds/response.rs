@@ -131,6 +131,11 @@ impl KindTables for Excitation {
         }
         out
     }
+
+    /// The joints' angles go to response_traces.csv; the base hangs.
+    fn traces_base_z(&self) -> bool {
+        false
+    }
 }
 
 /// The figures a response run's summary shows per joint group.

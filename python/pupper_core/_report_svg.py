@@ -1,0 +1,210 @@
+"""The figures of `report.html`, drawn as inline SVG from a run's tables:
+a Kp x Kd heatmap (the pick starred, cells no rule may pick greyed), bars
+(one scale for all, logarithmic where the values span decades) and lines
+(the pick drawn bold and black, always). No charting library, no file."""
+
+from __future__ import annotations
+
+import html
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from pupper_core._spec import OVERSHOOT_NOISE_PCT
+
+#: The steadiest-first colour ramp of the heatmaps (viridis, reversed: yellow is best).
+RAMP = ["#fde725", "#b5de2b", "#6ece58", "#35b779", "#1f9e89", "#26828e", "#31688e", "#3e4989",
+        "#482878", "#440154"]
+PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+           "#bcbd22", "#17becf"]
+
+
+def num(v: Any) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def fmt(v: str, column: str = "") -> str:
+    """A table's text rounded to what a reader uses (4 significant digits);
+    an overshoot below the simulation's resolution is 0."""
+    x = num(v)
+    if math.isnan(x) or v.strip() == "":
+        return html.escape(v)
+    if column.startswith("overshoot_pct") and abs(x) < OVERSHOOT_NOISE_PCT:
+        return "0"
+    return f"{x:.4g}"
+
+
+def rounded(v: str, column: str = "") -> str:
+    """``v`` rounded, every digit in its tooltip."""
+    return f'<span title="{html.escape(v)}">{fmt(v, column)}</span>'
+
+
+def _colour(x: float, lo: float, hi: float, log: bool) -> str:
+    if math.isnan(x):
+        return "#ffffff"
+    if log and lo > 0:
+        x, lo, hi = math.log10(max(x, lo)), math.log10(lo), math.log10(hi)
+    f = 0.0 if hi <= lo else min(max((x - lo) / (hi - lo), 0.0), 1.0)
+    return RAMP[min(int(f * len(RAMP)), len(RAMP) - 1)]
+
+
+def _cell(r: dict[str, str] | None, metric: str) -> tuple[float, str, str, str]:
+    """A heatmap cell's value, fill (None: on the ramp), label and tooltip."""
+    v = num(r.get(metric)) if r else math.nan
+    status = r.get("status", "") if r else ""
+    if status == "ok":
+        label = "–" if math.isnan(v) else f"{v:.3g}"
+        return v, "", label, label
+    if status in ("past_bound", "saturated"):
+        label = "past bound" if status == "past_bound" else "saturated"
+        why = "the integrator's number" if status == "past_bound" else "at the torque limit"
+        return v, "#d0d0d0", label, label if math.isnan(v) else f"{label} ({v:.3g}: {why})"
+    return v, "#f0c0c0" if r else "#ffffff", status, status
+
+
+def heatmap(rows: list[dict[str, str]], xa: str, ya: str, metric: str, best: str | None,
+            title: str = "") -> str:
+    """``metric`` over the ``xa`` x ``ya`` grid, yellow lowest; a cell past
+    the stability bound or saturated is grey (no rule picks it), one that
+    fell or diverged red; ★ the pick."""
+    xs = sorted({num(r[xa]) for r in rows})
+    ys = sorted({num(r[ya]) for r in rows})
+    cells = {(num(r[xa]), num(r[ya])): r for r in rows}
+    # the ramp spans the cells a rule may pick: no grey cell sets its scale
+    vals = [num(r.get(metric)) for r in rows if r.get("status") == "ok"]
+    vals = [v for v in vals if not math.isnan(v)]
+    lo, hi = (min(vals), max(vals)) if vals else (0.0, 1.0)
+    log = lo > 0 and hi / max(lo, 1e-300) > 20
+    w, h, left, top = 64, 34, 70, 46
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{max(left + w * len(xs) + 20, 640)}" '
+           f'height="{top + h * len(ys) + 50}" role="img" aria-label="{html.escape(metric)} heatmap">']
+    for j, y in enumerate(reversed(ys)):
+        out.append(f'<text x="{left - 6}" y="{top + j * h + h / 2 + 4}" text-anchor="end" font-size="11">'
+                   f'{y:g}</text>')
+        for i, x in enumerate(xs):
+            r = cells.get((x, y))
+            v, fill, label, tip = _cell(r, metric)
+            fill = fill or _colour(v, lo, hi, log)
+            px, py = left + i * w, top + j * h
+            picked = r is not None and best is not None and r.get("id") == best
+            mark = ' stroke="#000" stroke-width="3"' if picked else ' stroke="#fff"'
+            out.append(f'<rect x="{px}" y="{py}" width="{w}" height="{h}" fill="{fill}"{mark}>'
+                       f'<title>{html.escape(xa)} {x:g}, {html.escape(ya)} {y:g}: {html.escape(tip)}</title></rect>')
+            ink = "#fff" if fill in RAMP[6:] else "#000"  # legible on the dark end of the ramp
+            out.append(f'<text x="{px + w / 2}" y="{py + h / 2 + 4}" text-anchor="middle" font-size="10" '
+                       f'fill="{ink}">{html.escape(label)}{" ★" if picked else ""}</text>')
+    for i, x in enumerate(xs):
+        out.append(f'<text x="{left + i * w + w / 2}" y="{top + h * len(ys) + 16}" text-anchor="middle" '
+                   f'font-size="11">{x:g}</text>')
+    out.append(f'<text x="{left + w * len(xs) / 2}" y="{top + h * len(ys) + 36}" text-anchor="middle" '
+               f'font-size="12">{html.escape(xa)}</text>')
+    out.append(f'<text x="12" y="{top + h * len(ys) / 2}" font-size="12" transform="rotate(-90 12 '
+               f'{top + h * len(ys) / 2})" text-anchor="middle">{html.escape(ya)}</text>')
+    out.append(f'<text x="{left}" y="16" font-size="12" font-weight="bold">{html.escape(title or metric)}</text>'
+               f'<text x="{left}" y="32" font-size="10">yellow is lower; red: fell or diverged; grey: past the '
+               'stability bound or saturated; ★ the pick</text></svg>')
+    return "".join(out)
+
+
+def bars(labels: Sequence[str], series: Mapping[str, Sequence[float]], title: str, best: int | None = None,
+         unit: str = "") -> str:
+    """Horizontal bars, a group per label and a bar per series, all on one
+    scale: logarithmic where the positive values span more than two
+    decades (the axis says so); the ``best`` label's bars orange."""
+    flat = [v for vs in series.values() for v in vs if not math.isnan(v)]
+    pos = [v for v in flat if v > 0]
+    log = bool(pos) and max(pos) / min(pos) > 100
+    if log:
+        lo, hi = math.floor(math.log10(min(pos))), math.ceil(math.log10(max(pos)))
+        hi = hi if hi > lo else lo + 1
+    top = max([v for v in flat if v > 0], default=1.0)
+    bh, left, width = 14, 190, 420
+    k = len(series)
+    gh = bh * k + 6
+    height = 50 + gh * len(labels)
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{left + width + 110}" height="{height}" '
+           f'role="img" aria-label="{html.escape(title)}"><text x="4" y="14" font-size="12">{html.escape(title)}'
+           f'{" (log scale)" if log else ""}</text>']
+
+    def length(v: float) -> float:
+        if math.isnan(v) or v <= 0:
+            return 0.0
+        if log:
+            return width * (math.log10(v) - lo) / (hi - lo)
+        return width * v / top
+
+    if k > 1:
+        for s, name in enumerate(series):
+            out.append(f'<rect x="{left + 150 * s}" y="{height - 14}" width="10" height="10" '
+                       f'fill="{PALETTE[s % len(PALETTE)]}"/><text x="{left + 150 * s + 14}" y="{height - 5}" '
+                       f'font-size="10">{html.escape(name)}</text>')
+    if log:
+        for e in range(lo, hi + 1):
+            x = left + width * (e - lo) / (hi - lo)
+            out.append(f'<line x1="{x:.1f}" y1="20" x2="{x:.1f}" y2="{height - 30}" stroke="#ddd"/>'
+                       f'<text x="{x:.1f}" y="{height - 20}" text-anchor="middle" font-size="9">1e{e}</text>')
+    for i, lab in enumerate(labels):
+        y0 = 22 + i * gh
+        out.append(f'<text x="{left - 4}" y="{y0 + gh / 2 + 3}" text-anchor="end" font-size="10">'
+                   f'{html.escape(lab)}</text>')
+        for s, vs in enumerate(series.values()):
+            v, y = vs[i], y0 + s * bh
+            fill = "#f0a030" if i == best else PALETTE[s % len(PALETTE)]
+            wv = length(v)
+            shown = "–" if math.isnan(v) else f"{v:.3g}{unit}"
+            out.append(f'<rect x="{left}" y="{y + 2}" width="{wv:.1f}" height="{bh - 3}" fill="{fill}">'
+                       f'<title>{html.escape(repr(v))}</title></rect>'
+                       f'<text x="{left + wv + 4:.1f}" y="{y + 11}" font-size="10">{html.escape(shown)}</text>')
+    out.append("</svg>")
+    return "".join(out)
+
+
+def lines(series: dict[str, tuple[list[float], list[float]]], title: str, xlabel: str, ylabel: str,
+          pick: str | None = None, guide: float | None = None, height: int = 260) -> str:
+    """A line per series; ``pick``'s drawn last, bold and black, named
+    first in the legend; ``guide`` a dashed level (a step's target)."""
+    pts = [(x, y) for xs, ys in series.values() for x, y in zip(xs, ys) if not math.isnan(y)]
+    if not pts:
+        return ""
+    x0, x1 = min(p[0] for p in pts), max(p[0] for p in pts)
+    y0, y1 = min(p[1] for p in pts), max(p[1] for p in pts)
+    if guide is not None:
+        y0, y1 = min(y0, guide), max(y1, guide)
+    x1 = x1 if x1 > x0 else x0 + 1
+    y1 = y1 if y1 > y0 else y0 + 1e-9
+    W, H, L, T = 640, height, 70, 24
+
+    def at(x: float, y: float) -> str:
+        return f"{L + W * (x - x0) / (x1 - x0):.1f},{T + H - H * (y - y0) / (y1 - y0):.1f}"
+
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W + L + 200}" height="{H + T + 44}" role="img" '
+           f'aria-label="{html.escape(title)}"><text x="{L}" y="16" font-size="12">{html.escape(title)}</text>',
+           f'<rect x="{L}" y="{T}" width="{W}" height="{H}" fill="none" stroke="#999"/>']
+    if guide is not None:
+        out.append(f'<polyline points="{at(x0, guide)} {at(x1, guide)}" stroke="#555" stroke-dasharray="4 3" '
+                   'fill="none"/>')
+    order = [n for n in series if n != pick] + ([pick] if pick in series else [])
+    legend = ([pick] if pick in series else []) + [n for n in series if n != pick]
+    colour = {n: PALETTE[k % len(PALETTE)] for k, n in enumerate(n for n in series if n != pick)}
+    colour.update({pick: "#000"} if pick in series else {})
+    for name in order:
+        xs, ys = series[name]
+        path = " ".join(at(x, y) for x, y in zip(xs, ys) if not math.isnan(y))
+        wide = "2.6" if name == pick else "1.1"
+        out.append(f'<polyline points="{path}" fill="none" stroke="{colour[name]}" stroke-width="{wide}" '
+                   f'data-id="{html.escape(name)}"/>')
+    for k, name in enumerate(legend[:14]):
+        star, weight = ("★ ", ' font-weight="bold"') if name == pick else ("", "")
+        out.append(f'<text x="{L + W + 8}" y="{T + 12 + 13 * k}" font-size="10" fill="{colour[name]}"'
+                   f'{weight}>{star}{html.escape(name)}</text>')
+    for f in (0.0, 0.5, 1.0):
+        out.append(f'<text x="{L - 4}" y="{T + H - H * f + 4}" text-anchor="end" font-size="10">'
+                   f'{y0 + f * (y1 - y0):.4g}</text>'
+                   f'<text x="{L + W * f}" y="{T + H + 14}" text-anchor="middle" font-size="10">{x0 + f * (x1 - x0):.4g}</text>')
+    out.append(f'<text x="{L + W / 2}" y="{T + H + 32}" text-anchor="middle" font-size="11">{html.escape(xlabel)}</text>'
+               f'<text x="14" y="{T + H / 2}" font-size="11" transform="rotate(-90 14 {T + H / 2})" '
+               f'text-anchor="middle">{html.escape(ylabel)}</text></svg>')
+    return "".join(out)
