@@ -65,18 +65,6 @@ def _step_response(plan: Plan, xml: Path) -> dict[str, dict[str, float]]:
             for g in plan.groups}
 
 
-def _limits(plan: Plan) -> dict[str, float]:
-    from pupper_core._api import info
-
-    def limit(a: dict[str, Any]) -> float:
-        # the force range, else (a motor) the control range, as the runs take it
-        r = a["forcerange"] or a["ctrlrange"]
-        return float(r[1]) if r else math.inf
-
-    acts = info(plan.model)["actuators"]
-    return {g.name: min(limit(dict(acts[a])) for a in g.actuators) for g in plan.groups}
-
-
 def _edges(plan: Plan, pick: Candidate) -> list[str]:
     """A pick on the edge of its searched range, said."""
     out = []
@@ -111,11 +99,10 @@ def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], 
         # six digits, which moves a chaotic push dip in its fourth
         pick = _on_export(plan, pick, xml, say, warnings)
     step = _step_response(plan, xml)
-    limits = _limits(plan)
     cards = []
     for g in plan.groups:
         kp, kd = pick.gains[g.name]
-        lim = limits[g.name]
+        lim = g.torque_limit
         cards.append(Card(g.name, kp, kd, pick.phase_deg[g.name], pick.gain_db[g.name],
                           step[g.name]["rise_time_s"], step[g.name]["overshoot_pct"],
                           step[g.name]["settling_time_s"], pick.p95_dip_mm,

@@ -53,6 +53,9 @@ class Group:
     kd_range: tuple[float, float]
     #: the least and most reflected inertia its joints may have (kg·m²)
     inertia: tuple[float, float]
+    #: the smallest torque limit of its actuators (N·m): the force range,
+    #: else (a motor) the control range, as the runs take it
+    torque_limit: float
 
 
 @dataclass
@@ -147,13 +150,17 @@ def _numerics(model: str) -> dict[str, float]:
     return out
 
 
-def _groups(model: str, kp_max: float | None, kd_max: float | None, leg: float,
-            armature_low: Mapping[str, float]) -> tuple[list[str], list[Group], float]:
-    """The model's actuators, its joint groups with their searched ranges,
-    and its timestep."""
-    from pupper_core._api import gains, info
+def _limit(actuator: Mapping[str, Any]) -> float:
+    r = actuator["forcerange"] or actuator["ctrlrange"]
+    return float(r[1]) if r else math.inf
 
-    inf = info(model)
+
+def _groups(model: str, inf: Mapping[str, Any], kp_max: float | None, kd_max: float | None, leg: float,
+            armature_low: Mapping[str, float]) -> tuple[list[str], list[Group], float]:
+    """The model's actuators (from its `info`), its joint groups with their
+    searched ranges, and its timestep."""
+    from pupper_core._api import gains
+
     names = [str(a["name"]) for a in inf["actuators"]]
     own_kp = [float(a["gainprm"][0]) for a in inf["actuators"]]
     own_kd = [-float(a["biasprm"][2]) for a in inf["actuators"]]
@@ -182,7 +189,8 @@ def _groups(model: str, kp_max: float | None, kd_max: float | None, leg: float,
         hi_p = min([kp0 * 20, *caps_p, *([kp_max] if kp_max else [])])
         hi_d = min([kd0 * 50, *caps_d, *([kd_max] if kd_max else [])])
         lo_p, lo_d = min(kp0 / 10, hi_p / 2), min(kd0 / 10, hi_d / 2)
-        groups.append(Group(name, tuple(acts), (lo_p, hi_p), (lo_d, hi_d), (lo_i[name], hi_i[name])))
+        groups.append(Group(name, tuple(acts), (lo_p, hi_p), (lo_d, hi_d), (lo_i[name], hi_i[name]),
+                            min(_limit(inf["actuators"][a]) for a in acts)))
     return names, groups, float(rep["timestep"])
 
 
@@ -307,8 +315,9 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
             base.append(f"motor_delay={min(a for a, _ in delays):.6g}:{max(b for _, b in delays):.6g}")
     from pupper_core._api import info
 
-    low = _armature_low(rows, [str(a["name"]) for a in info(model)["actuators"]])
-    names, groups, dt = _groups(model, kp_max, kd_max, leg, low)
+    inf = info(model)
+    low = _armature_low(rows, [str(a["name"]) for a in inf["actuators"]])
+    names, groups, dt = _groups(model, inf, kp_max, kd_max, leg, low)
     motor_spec = _motor(motor, command_delay)
     from pupper_core._native import loop_margins
 

@@ -53,9 +53,6 @@ class Candidate:
     def feasible(self) -> bool:
         return not self.failed and math.isfinite(self.p95_dip_mm)
 
-    def value(self) -> float:
-        return self.p95_dip_mm if self.feasible else PENALTY
-
     def row(self, groups: Sequence[Group]) -> dict[str, Any]:
         out: dict[str, Any] = {"trial": self.number, "stage": self.stage}
         for g in groups:
