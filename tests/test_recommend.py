@@ -110,6 +110,77 @@ def test_the_card_holds_every_constraint_on_every_robot(default_run):
     assert pick and float(pick[0]["p95_push_dip_mm"]) == pytest.approx(float(c["kfe"]["p95_push_dip_mm"]), rel=0.01)
 
 
+def stance_height(model: str = "pupper_v3") -> float:
+    """The base height with the lowest foot sphere on the floor at the
+    model's keyframe, from MuJoCo directly."""
+    import pupper_core as pc
+
+    m = mujoco.MjModel.from_xml_path(str(Path(pc.__file__).parent / "models" / model / "scene.xml"))
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, 0)
+    mujoco.mj_kinematics(m, d)
+    feet = [g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE
+            and (m.geom_contype[g] or m.geom_conaffinity[g])]
+    assert len(feet) == 4
+    return float(d.qpos[2] - min(d.geom_xpos[g][2] - m.geom_size[g][0] for g in feet))
+
+
+def test_no_ranked_candidate_sags_and_the_tradeoff_set_is_undominated(default_run):
+    d, p = default_run
+    stance = stance_height()
+    m = json.loads((d / "manifest.json").read_text())
+    assert m["inputs"]["stance_m"] == pytest.approx(stance, rel=1e-9) and m["inputs"]["max_sag"] == 0.1
+    assert f"none ends more than 10 % below its {1000 * stance:.1f} mm stance height" in p.stdout
+    with open(d / "trials.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    ok = [r for r in rows if r["status"] == "ok"]
+    # every ranked candidate's lowest robot stands within 10 % of the stance;
+    # a candidate refused for sagging is said so with its height
+    assert ok and all(float(r["min_height_m"]) >= 0.9 * stance for r in ok)
+    for r in rows:
+        if r["status"].startswith("sags to"):
+            assert float(r["min_height_m"]) < 0.9 * stance and r["fell"] == "0"
+    # the trade-off set, checked from trials.csv: no ranked candidate is at
+    # least as good on dip, slowest group's frequency and height, and better on one
+    inertia = {g: hi for g, (_, hi) in m["inputs"]["inertia"].items()}
+
+    def keys(r: dict[str, str]) -> tuple[float, float, float]:
+        hz = min(np.sqrt(float(r[f"kp.{g}"]) / inertia[g]) for g in inertia) / (2 * np.pi)
+        return float(r["p95_push_dip_mm"]), -hz, -float(r["min_height_m"])
+
+    with open(d / "tradeoffs.csv", newline="") as f:
+        front = list(csv.DictReader(f))
+    assert front
+    every = [keys(r) for r in ok]
+    for r in front:
+        k = keys(r)
+        assert float(r["slowest_hz"]) == pytest.approx(-k[1], rel=1e-12)
+        assert not any(all(a <= b for a, b in zip(o, k)) and o != k for o in every), r["trial"]
+    in_front = {r["trial"] for r in front}
+    for r, k in zip(ok, every):
+        if r["trial"] not in in_front:
+            assert any(all(a <= b for a, b in zip(keys(f), k)) for f in front), r["trial"]
+    assert "Trade-off set" in (d / "report.html").read_text() or len(front) == 1
+
+
+def test_a_crouch_that_barely_dips_is_refused():
+    # gains that leave the robot standing 19 % low: no fall, a small dip, no answer
+    from pupper_core._recommend_plan import plan as make_plan
+    from pupper_core._recommend_search import Candidate, simulate
+
+    plan = make_plan(robots=8)
+    crouch = Candidate({"hfe": (2.104, 0.5014), "haa": (0.8152, 0.1214), "kfe": (3.362, 0.2498)})
+    simulate(plan, [crouch], [plan.model], lambda s: None)
+    assert crouch.fell == 0 and crouch.robots == 8
+    assert crouch.min_height_m < 0.9 * stance_height()
+    assert crouch.failed.startswith(f"sags to {1000 * crouch.min_height_m:.1f} mm on its lowest robot"), crouch.failed
+    # and with room for it (--max-sag 0.3) the same robots rank it
+    loose = make_plan(robots=8, max_sag=0.3)
+    again = Candidate(dict(crouch.gains))
+    simulate(loose, [again], [loose.model], lambda s: None)
+    assert again.feasible and again.min_height_m == crouch.min_height_m
+
+
 def test_the_docs_show_what_the_quick_answer_prints(default_run):
     # docs/recommend.md shows this run's output (stdout, then the files said on stderr)
     from conftest import REPO
@@ -227,6 +298,17 @@ def test_sensing_delay_lowers_kd_command_delay_shifts_the_step(run, tmp_path, de
     for g in crisp:
         shift = float(c[g]["settling_time_s"]) - float(base[g]["settling_time_s"])
         assert abs(shift - 0.01) <= 0.0021, (g, shift)
+
+
+def test_a_slower_firmware_lowers_kd(run, tmp_path, default_run):
+    d0, _ = default_run
+    base = cards(d0)
+    slow = tmp_path / "rate250"
+    run("recommend", *QUICK, "--motor", "rate=250,counts=16384", "-q", "-o", slow, check=0)
+    s = cards(slow)
+    # half the update rate: a period more of latency in the loop, less kd, the margin kept
+    assert all(float(s[g]["kd"]) < float(base[g]["kd"]) for g in base)
+    assert all(float(s[g]["phase_margin_deg"]) >= 30 and float(s[g]["gain_margin_db"]) >= 6 for g in s)
 
 
 def test_from_fit_draws_stay_inside_the_fits_intervals(run, tmp_path):

@@ -172,6 +172,10 @@ def sweep_defaults() -> dict[str, Any]:
 def stand(**options: Unpack[SimOptions]) -> StandReport:
     """What `pupper stand --json` prints, as a dict."""
 
+def stance(**options: Unpack[SimOptions]) -> float:
+    """The stance height (m) a run of these options starts from: the base
+    height with the lowest foot on the floor in the start pose."""
+
 def pose(model: str = ..., variant: str = ..., depth: float | None = ...) -> dict[str, Any]:
     """What `pupper pose --json` prints, as a dict."""
 

@@ -86,6 +86,7 @@ def recommend(
     min_phase_margin: float = 30.0,
     min_gain_margin: float = 6.0,
     max_saturation: float = 0.05,
+    max_sag: float = 0.1,
     kp_max: float | None = None,
     kd_max: float | None = None,
     joint_order: Sequence[str] | str | None = None,
@@ -101,7 +102,10 @@ def recommend(
 
     Constraints, each checked on every robot: none falls, diverges or lies
     past the stability bound; none saturates its torque limit on more than
-    ``max_saturation`` of its steps; and each group's loop, as the firmware
+    ``max_saturation`` of its steps; none ends lower than ``max_sag`` of its
+    stance height (the base height with the lowest foot on the floor in the
+    start pose) below it, so a crouch that barely dips is no answer; and
+    each group's loop, as the firmware
     ``motor`` (default ``rate=500,counts=16384``) closes it with
     ``sensing_delay`` s old measurements (drawn 0 to it in whole steps on
     the robots), keeps ``min_phase_margin`` degrees and ``min_gain_margin``
@@ -121,7 +125,8 @@ def recommend(
     ``pupper:kp_max:ACT``/``pupper:kd_max:ACT`` numerics or ``kp_max``/``kd_max``.
 
     ``out``: the run directory (recommend.csv: a card per group;
-    trials.csv; recommended.yaml: a ROS 2 parameter file with ``kps`` and
+    trials.csv; tradeoffs.csv: the candidates no other beats at once on push
+    dip, tracking speed and stand height; recommended.yaml: a ROS 2 parameter file with ``kps`` and
     ``kds`` for ``controller`` in ``joint_order``; recommended.xml: the
     model with the gains in its actuators; report.html; manifest.json).
     """
@@ -134,7 +139,7 @@ def recommend(
     p = make_plan(model, robots=robots, trials=trials, batch=batch, seed=seed, seconds=seconds,
                   push_force=push_force, motor=motor, sensing_delay=sensing_delay, command_delay=command_delay,
                   spread=spread, from_fit=from_fit, min_phase_margin=min_phase_margin,
-                  min_gain_margin=min_gain_margin, max_saturation=max_saturation, kp_max=kp_max, kd_max=kd_max,
+                  min_gain_margin=min_gain_margin, max_saturation=max_saturation, max_sag=max_sag, kp_max=kp_max, kd_max=kd_max,
                   joint_order=joint_order, controller=controller, polish=polish)
     out_dir = None if out is None else Path(out)
     if out_dir is None:
@@ -195,5 +200,5 @@ def _cli(args_json: str) -> list[str]:
     sys.stdout.flush()
     if rec.out is None:
         return []
-    return [str(rec.out / f) for f in ("recommend.csv", "trials.csv", "recommended.yaml", "recommended.xml",
-                                       "report.html") if (rec.out / f).exists()]
+    return [str(rec.out / f) for f in ("recommend.csv", "trials.csv", "tradeoffs.csv", "recommended.yaml",
+                                       "recommended.xml", "report.html") if (rec.out / f).exists()]

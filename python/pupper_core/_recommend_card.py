@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING, Any
 
 from pupper_core._files import atomic_write, atomic_write_text
 from pupper_core._recommend_plan import Plan
-from pupper_core._recommend_search import OBJECTIVE, Candidate, better, gains_per_actuator, simulate, why_lost
+from pupper_core._recommend_search import (OBJECTIVE, Candidate, better, gains_per_actuator, simulate, slowest_hz,
+                                           tradeoffs, why_lost)
 
 if TYPE_CHECKING:
     from pupper_core._recommend import Recommendation
@@ -183,19 +184,35 @@ def reproduce(plan: Plan, d: Path) -> str:
     return shlex.join(args)
 
 
-def write_trials(d: Path, plan: Plan, cands: Sequence[Candidate]) -> None:
-    rows = [c.row(plan.groups) for c in cands]
-    if not rows:
-        return
-
+def _write_rows(path: Path, rows: Sequence[dict[str, Any]]) -> None:
     def write(tmp: Path) -> None:
         with open(tmp, "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=list(rows[0]), lineterminator="\n")
             w.writeheader()
             w.writerows(rows)
 
-    d.mkdir(parents=True, exist_ok=True)
-    atomic_write(d / "trials.csv", write)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(path, write)
+
+
+def write_trials(d: Path, plan: Plan, cands: Sequence[Candidate]) -> None:
+    rows = [c.row(plan.groups) for c in cands]
+    if rows:
+        _write_rows(d / "trials.csv", rows)
+
+
+def tradeoff_rows(plan: Plan, cands: Sequence[Candidate], pick: Candidate | None) -> list[dict[str, Any]]:
+    """The trade-off set as tradeoffs.csv holds it: each candidate's gains,
+    push dip, slowest group's natural frequency, lowest stand height, and
+    whether it is the pick."""
+    rows = []
+    for c in tradeoffs(plan, cands):
+        r = c.row(plan.groups)
+        rows.append({"trial": r["trial"], **{k: v for k, v in r.items() if k.startswith(("kp.", "kd."))},
+                     OBJECTIVE: c.p95_dip_mm, "slowest_hz": slowest_hz(plan, c), "min_height_m": c.min_height_m,
+                     "p95_peak_torque": c.p95_peak_torque,
+                     "pick": pick is not None and c.number == pick.number})
+    return rows
 
 
 def write_outputs(rec: Recommendation, d: Path, keep: bool, wall: float) -> tuple[str, str]:
@@ -206,6 +223,9 @@ def write_outputs(rec: Recommendation, d: Path, keep: bool, wall: float) -> tupl
     xml_text = (d / "recommended.xml").read_text() if pick and (d / "recommended.xml").exists() else ""
     if not keep:
         return yaml_text, xml_text
+    front = tradeoff_rows(plan, rec.candidates, rec.searched)
+    if front:
+        _write_rows(d / "tradeoffs.csv", front)
     if pick:
         atomic_write_text(d / "recommended.yaml", yaml_text)
 
@@ -247,7 +267,9 @@ def _manifest(rec: Recommendation, wall: float) -> dict[str, Any]:
 
 
 def constraints_line(plan: Plan) -> str:
-    return (f"none fell, saturation under {100 * plan.max_saturation:g} % of steps, phase margin >= "
+    sag = (f"none ends more than {100 * plan.max_sag:g} % below its {1000 * plan.stance:.1f} mm stance height, "
+           if math.isfinite(plan.stance) else "")
+    return (f"none fell, saturation under {100 * plan.max_saturation:g} % of steps, {sag}phase margin >= "
             f"{plan.min_phase_deg:g}°, gain margin >= {plan.min_gain_db:g} dB (firmware {plan.motor or 'ideal'}, "
             f"sensing delay {plan.sensing_delay:g} s)")
 
@@ -282,6 +304,10 @@ def print_card(rec: Recommendation) -> None:
             print(f"  {r}")
     for w in rec.warnings:
         print(f"warning: {w}")
+    front = tradeoffs(plan, rec.candidates)
+    if len(front) > 1:
+        print(f"trade-off set: {len(front)} candidates that no other beats at once on push dip, tracking speed "
+              "and stand height (tradeoffs.csv)")
     polished = sum(1 for c in ran if c.stage == "polish")
     print(f"{len(ran)} candidates on the robots ({len(rec.candidates)} asked, {polished} of them neighbours "
           f"in the polish), {steps} cell-steps")

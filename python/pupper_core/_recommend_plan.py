@@ -84,11 +84,21 @@ class Plan:
     controller: str
     #: how many times the pick may move to a better neighbour
     polish: int = 4
+    #: the most a robot may sag below its stance height (a share of it)
+    max_sag: float = 0.1
+    #: the stance height (m): the base height with the lowest foot on the
+    #: floor in the start pose (NaN for a fixed base: no sag constraint)
+    stance: float = math.nan
     from_fit: Path | None = None
     #: the fitted values and intervals (rows of fit.csv)
     fit_rows: list[dict[str, str]] = field(default_factory=list)
     #: with a fit: each drawn joint model's values, (parameter, actuators, value)
     fit_draws: list[list[tuple[str, list[str], float]]] = field(default_factory=list)
+
+    def sags(self, height: float) -> bool:
+        """Whether a robot whose lowest final base height is `height` (m)
+        sags past the limit (never, on a fixed base)."""
+        return math.isfinite(self.stance) and not height >= (1 - self.max_sag) * self.stance
 
     @property
     def per_model(self) -> int:
@@ -114,6 +124,7 @@ class Plan:
             "kp_factors": list(self.kp_factors), "kd_factors": list(self.kd_factors),
             "inertia": {g.name: list(g.inertia) for g in self.groups}, "min_phase_margin_deg": self.min_phase_deg,
             "min_gain_margin_db": self.min_gain_db, "max_saturation": self.max_saturation,
+            "max_sag": self.max_sag, "stance_m": self.stance,
             "ranges": {g.name: {"kp": list(g.kp_range), "kd": list(g.kd_range)} for g in self.groups},
             "joint_order": self.joint_order, "controller": self.controller, "polish": self.polish,
             "from_fit": None if self.from_fit is None else os.fspath(self.from_fit),
@@ -277,7 +288,7 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
          from_fit: str | os.PathLike[str] | None = None, min_phase_margin: float = 30.0,
          min_gain_margin: float = 6.0, max_saturation: float = 0.05, kp_max: float | None = None,
          kd_max: float | None = None, joint_order: Sequence[str] | str | None = None,
-         controller: str = "neural_controller", polish: int = 4) -> Plan:
+         controller: str = "neural_controller", polish: int = 4, max_sag: float = 0.1) -> Plan:
     """Every input checked, the model read; one line per mistake."""
     if robots < 1 or trials < 1 or batch < 1:
         raise RecommendError(f"robots {robots}, trials {trials}, batch {batch}: each must be a whole number >= 1")
@@ -288,6 +299,8 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
     _positive("seconds of command delay, e.g. 0.01", command_delay, "--command-delay", zero=True)
     _positive("degrees, e.g. 30", min_phase_margin, "--min-phase-margin", zero=True)
     _positive("decibels, e.g. 6", min_gain_margin, "--min-gain-margin", zero=True)
+    if not (0 < max_sag < 1):
+        raise RecommendError(f"--max-sag {max_sag} must lie in (0, 1): a share of the stance height, e.g. 0.1")
     if not (0 < max_saturation <= 1):
         raise RecommendError(f"--max-saturation {max_saturation} must lie in (0, 1]: a fraction of steps, e.g. 0.05")
     for v, flag in ((kp_max, "--kp-max"), (kd_max, "--kd-max")):
@@ -319,7 +332,7 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
     low = _armature_low(rows, [str(a["name"]) for a in inf["actuators"]])
     names, groups, dt = _groups(model, inf, kp_max, kd_max, leg, low)
     motor_spec = _motor(motor, command_delay)
-    from pupper_core._native import loop_margins
+    from pupper_core._native import loop_margins, stance
 
     loop_margins(1.0, 1.0, 0.1, motor=motor_spec, sensing_delay=sensing_delay, timestep=dt)  # checks the spec
     steps = math.ceil(sensing_delay / dt - 1e-9)
@@ -337,7 +350,7 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
         raise RecommendError(f"--controller '{controller}' is not a ROS 2 node name: letters, digits, _ and /")
     return Plan(model, names, groups, dt, motor_spec, sensing_delay, command_delay, drawn, kp_factors,
                 kd_factors, robots, trials, batch, seed, seconds, push_force, min_phase_margin, min_gain_margin,
-                max_saturation, order, controller, polish, fit_dir, rows,
+                max_saturation, order, controller, polish, max_sag, stance(model=model), fit_dir, rows,
                 _fit_draws(rows, names, seed) if rows else [])
 
 

@@ -44,6 +44,9 @@ class Candidate:
     robots: int = 0
     max_saturation: float = math.nan
     p95_peak_torque: float = math.nan
+    #: the lowest final base height over the robots (m): how far the
+    #: softest-standing robot sags
+    min_height_m: float = math.nan
     cell_steps: int = 0
     number: int = -1
     #: "search" (asked by the sampler) or "polish" (a neighbour of a pick)
@@ -61,7 +64,8 @@ class Candidate:
             out[f"phase_margin_deg.{g.name}"] = self.phase_deg.get(g.name, math.nan)
             out[f"gain_margin_db.{g.name}"] = self.gain_db.get(g.name, math.nan)
         out.update({OBJECTIVE: self.p95_dip_mm, "fell": self.fell, "robots": self.robots,
-                    "max_saturation": self.max_saturation, "p95_peak_torque": self.p95_peak_torque,
+                    "max_saturation": self.max_saturation, "min_height_m": self.min_height_m,
+                    "p95_peak_torque": self.p95_peak_torque,
                     "cell_steps": self.cell_steps, "status": "ok" if self.feasible else self.failed})
         return out
 
@@ -172,6 +176,7 @@ def simulate(plan: Plan, cands: Sequence[Candidate], robot_models: Sequence[str]
     cells: Any = None if own_gains else [_cell(plan, c.gains, f"c{i}") for i, c in enumerate(cands)]
     dips: list[list[float]] = [[] for _ in cands]
     peaks: list[list[float]] = [[] for _ in cands]
+    heights: list[list[float]] = [[] for _ in cands]
     for model in robot_models:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -180,8 +185,8 @@ def simulate(plan: Plan, cands: Sequence[Candidate], robot_models: Sequence[str]
             say(f"note: {w.message}")
         # one robot with nothing drawn is a plain sweep: its table is the robots'
         reps = res.replicates if res.replicates is not None else res
-        for i, status, dip, sat, peak in zip(reps["index"], reps["status"], reps["push_dip_mm"],
-                                             reps["saturation_frac"], reps["peak_torque"]):
+        for i, status, dip, sat, peak, z in zip(reps["index"], reps["status"], reps["push_dip_mm"],
+                                                reps["saturation_frac"], reps["peak_torque"], reps["final_z"]):
             c = cands[int(i)]
             c.robots += 1
             if status not in ("ok", "saturated"):
@@ -190,16 +195,22 @@ def simulate(plan: Plan, cands: Sequence[Candidate], robot_models: Sequence[str]
             c.max_saturation = float(np.nanmax([c.max_saturation, float(sat)]))
             dips[int(i)].append(float(dip))
             peaks[int(i)].append(float(peak))
+            heights[int(i)].append(float(z))
         for i, steps in enumerate(res.cell_steps):
             cands[i].cell_steps += int(steps or 0)
-    for c, d, p in zip(cands, dips, peaks):
+    for c, d, p, h in zip(cands, dips, peaks, heights):
         c.p95_dip_mm = float(np.percentile(d, 95)) if d and all(math.isfinite(x) for x in d) else math.nan
         c.p95_peak_torque = float(np.percentile(p, 95)) if p else math.nan
+        c.min_height_m = min(h) if h else math.nan
         if c.fell:
             c.failed = f"{c.fell} of {c.robots} robots fell, diverged or lay past the stability bound"
         elif not c.max_saturation < plan.max_saturation:
             c.failed = (f"saturated {100 * c.max_saturation:.1f} % of steps on its worst robot "
                         f"(limit {100 * plan.max_saturation:g} %)")
+        elif plan.sags(c.min_height_m):
+            c.failed = (f"sags to {1000 * c.min_height_m:.1f} mm on its lowest robot, "
+                        f"{100 * c.min_height_m / plan.stance:.1f} % of its {1000 * plan.stance:.1f} mm stance "
+                        f"(limit {100 * (1 - plan.max_sag):g} %)")
         elif not math.isfinite(c.p95_dip_mm):
             c.failed = "no push dip measured (the run ends too early)"
 
@@ -320,6 +331,21 @@ def best_of(plan: Plan, cands: Sequence[Candidate]) -> Candidate | None:
     low = min(c.p95_dip_mm for c in ok)
     near = [c for c in ok if c.p95_dip_mm <= low * (1 + TIE)]
     return max(near, key=lambda c: (slowest_hz(plan, c), -c.p95_dip_mm, -c.number))
+
+
+def tradeoffs(plan: Plan, cands: Sequence[Candidate]) -> list[Candidate]:
+    """The trade-off set: feasible candidates no other beats at once on the
+    push dip (lower), the slowest group's tracking (faster) and the stand
+    height (higher), ordered by push dip. The pick is one of them whenever
+    it stands no lower than its ties."""
+    ok = [c for c in cands if c.feasible]
+    keys = [(c.p95_dip_mm, -slowest_hz(plan, c), -c.min_height_m) for c in ok]
+
+    def beaten(k: tuple[float, ...]) -> bool:
+        return any(all(a <= b for a, b in zip(o, k)) and o != k for o in keys)
+
+    front = {id(c): c for c, k in zip(ok, keys) if not beaten(k)}
+    return sorted(front.values(), key=lambda c: (c.p95_dip_mm, c.number))
 
 
 def neighbours(plan: Plan, pick: Candidate) -> list[tuple[str, Candidate]]:

@@ -482,7 +482,11 @@ def _recommend_sections(page: Page) -> list[str]:
     ch, cards = _read(d / "recommend.csv")
     inp = manifest.get("inputs", {})
     rule = (f"the lowest p95 push dip over {inp.get('robots')} drawn robots among gains that hold on every one: "
-            f"none fell, saturation under {100 * float(inp.get('max_saturation', 0.05)):g} % of steps, phase "
+            f"none fell, saturation under {100 * float(inp.get('max_saturation', 0.05)):g} % of steps, "
+            + (f"none ends more than {100 * float(inp['max_sag']):g} % below its "
+               f"{1000 * float(inp['stance_m']):.1f} mm stance height, "
+               if inp.get("max_sag") is not None and math.isfinite(float(inp.get("stance_m") or "nan")) else "")
+            + "phase "
             f"margin >= {inp.get('min_phase_margin_deg')}° and gain margin >= {inp.get('min_gain_margin_db')} dB "
             f"for the loop the firmware ({inp.get('motor')}) closes with {inp.get('sensing_delay')} s of sensing "
             "delay; push dips within 2 % tie, won by the faster slowest group")
@@ -496,6 +500,12 @@ def _recommend_sections(page: Page) -> list[str]:
                                                "phase margin at the spread's worst corner (deg)", unit="°"))
     else:
         page.answer.append(f"<p class='pick'>No gains held every constraint.</p><p>Rule: {html.escape(rule)}.</p>")
+    fh, front = _read(d / "tradeoffs.csv")
+    if len(front) > 1:
+        parts.append("<h2>Trade-off set (tradeoffs.csv)</h2><p>The candidates that held every constraint and "
+                     "that no other beats at once on push dip (lower), the slowest group's natural frequency "
+                     "(faster tracking) and the lowest robot's stand height (higher): where the rule's pick "
+                     "gives one up for another.</p>" + _table(fh, front, None, key="trial"))
     if manifest.get("neighbours"):
         parts.append("<h2>Why the neighbours lost</h2><ul>"
                      + "".join(f"<li>{html.escape(n)}</li>" for n in manifest["neighbours"]) + "</ul>")

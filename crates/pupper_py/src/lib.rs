@@ -49,6 +49,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     }
     m.add_function(wrap_pyfunction!(model::info, m)?)?;
     m.add_function(wrap_pyfunction!(model::stand, m)?)?;
+    m.add_function(wrap_pyfunction!(model::stance, m)?)?;
     m.add_function(wrap_pyfunction!(model::pose, m)?)?;
     m.add_function(wrap_pyfunction!(model::gains, m)?)?;
     m.add_function(wrap_pyfunction!(model::loop_margins, m)?)?;

@@ -19,6 +19,9 @@ use pupper_mujoco::bridge::calls;
 (95th percentile) push dip among gains that hold on EVERY drawn robot:
   - no robot falls, diverges or lies past the stability bound of the PD;
   - no robot saturates its torque limit on more than --max-saturation of its steps;
+  - no robot ends lower than --max-sag of its stance height (the base height with the lowest
+    foot on the floor in the start pose) below it: a crouch barely dips, so the push alone
+    would reward one;
   - each group's loop, as the firmware (--motor) closes it on measurements --sensing-delay old,
     keeps --min-phase-margin and --min-gain-margin: the joint linearised at the stand pose (its
     reflected inertia, kp + kd s, the feedback path's latency: sensing delay, half the update
@@ -34,7 +37,8 @@ the manifest names. With --from-fit DIR the robot is the fit's calibrated model 
 its 95 % intervals: 8 joint models drawn inside them, the gain scales and the delay per robot.
 
 Writes, in the run directory: recommend.csv (a card per group: gains, margins, predicted step
-response, p95 push dip, torque headroom), trials.csv (every candidate), recommended.yaml (a ROS 2
+response, p95 push dip, torque headroom), trials.csv (every candidate), tradeoffs.csv (those no
+other beats at once on push dip, slowest group's tracking and stand height), recommended.yaml (a ROS 2
 parameter file: joint_names, kps, kds for --controller in --joint-order), recommended.xml (the
 model with the gains in its actuators), report.html, manifest.json. Needs the tune extra (Optuna).
 
@@ -123,6 +127,14 @@ pub(super) struct RecommendArgs {
         allow_negative_numbers = true
     )]
     max_saturation: f64,
+    /// Most a robot's final base height may lie below its stance height, as a share of it.
+    #[arg(
+        long,
+        default_value_t = 0.1,
+        value_name = "F",
+        allow_negative_numbers = true
+    )]
+    max_sag: f64,
     /// The motors' largest kp [default: the model's pupper:kp_max:ACT numerics, else 20x its own].
     #[arg(long, value_name = "KP", allow_negative_numbers = true)]
     kp_max: Option<f64>,
@@ -157,6 +169,7 @@ impl RecommendArgs {
             ("min-phase-margin", Some(self.min_phase_margin)),
             ("min-gain-margin", Some(self.min_gain_margin)),
             ("max-saturation", Some(self.max_saturation)),
+            ("max-sag", Some(self.max_sag)),
             ("push-force", self.push_force),
             ("kp-max", self.kp_max),
             ("kd-max", self.kd_max),
@@ -186,6 +199,7 @@ impl RecommendArgs {
             "min_phase_margin": self.min_phase_margin,
             "min_gain_margin": self.min_gain_margin,
             "max_saturation": self.max_saturation,
+            "max_sag": self.max_sag,
             "kp_max": self.kp_max,
             "kd_max": self.kd_max,
             "joint_order": self.joint_order,

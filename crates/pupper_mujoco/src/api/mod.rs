@@ -204,6 +204,27 @@ pub struct StandReport {
     pub notes: Vec<String>,
 }
 
+/// The stance height (m) of the first cell of `spec` (its grid's first
+/// cell, or the model's own gains): the base height at which its lowest foot
+/// touches the floor in its start pose. Falls are judged against it, and
+/// `recommend` its robots' sag. NaN for a fixed base.
+pub fn stance(spec: &SweepSpec) -> Result<f64> {
+    let spec = SweepSpec {
+        grid: GridInput::None,
+        push: false,
+        out: None,
+        resume: false,
+        ..spec.clone()
+    };
+    let sweep = spec.build()?;
+    let cfg = &sweep.config;
+    bridge::with_config_model(cfg, |model| {
+        let cells = cfg.grid.cells();
+        let setup = cfg.setup(&cells[0], model.info());
+        bridge::start_stance(model, &setup, &cfg.schedule.initial)
+    })
+}
+
 /// Stands one cell of `spec` (its grid is ignored, no push) and reports.
 pub fn stand(spec: &SweepSpec) -> Result<StandReport> {
     let spec = SweepSpec {

@@ -60,6 +60,17 @@ pub(crate) struct StartStates {
     pub stance: Vec<f64>,
 }
 
+/// The stance height (m) of one cell's start: the base height at which its
+/// lowest foot touches the floor in its start pose, what falls are judged
+/// against (NaN for a fixed base).
+pub fn start_stance(
+    owner: &LoadedModel<'_>,
+    cell: &CellSetup,
+    initial: &InitialState,
+) -> Result<f64> {
+    Ok(StartStates::new(owner, std::slice::from_ref(cell), initial)?.stance[0])
+}
+
 impl StartStates {
     pub fn new(
         owner: &LoadedModel<'_>,

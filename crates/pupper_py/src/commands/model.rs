@@ -123,6 +123,16 @@ pub(crate) fn stand<'py>(
     to_dict(py, &api::stand(&spec).map_err(to_py)?)
 }
 
+/// The stance height (m) a run of these options starts from: the base
+/// height with the lowest foot on the floor in the start pose, what falls
+/// are judged against. Keyword arguments are those of `sweep`.
+#[pyfunction]
+#[pyo3(signature = (**options))]
+pub(crate) fn stance<'py>(py: Python<'py>, options: Option<&Bound<'py, PyDict>>) -> PyResult<f64> {
+    let spec = spec_from(py, options)?;
+    api::stance(&spec).map_err(to_py)
+}
+
 /// A built-in model compiled as the CLI compiles it, as a `mujoco.MjModel`
 /// (for rendering, viewers and hand-written loops).
 #[pyfunction]
