@@ -13,12 +13,7 @@ use pupper_core::robot::model::ModelSource;
 #[derive(Args, Debug)]
 pub(super) struct GridArg {
     /// A grid axis and its values, AXIS=VALUES; repeat for more axes.
-    #[arg(
-        long = "grid",
-        short = 'g',
-        value_name = "AXIS=VALUES",
-        allow_hyphen_values = true
-    )]
+    #[arg(long = "grid", short = 'g', value_name = "AXIS=VALUES", allow_hyphen_values = true)]
     pub(super) grid: Vec<String>,
 }
 
