@@ -197,6 +197,18 @@ pub(super) struct OutputArgs {
     pub(super) force: bool,
 }
 
+/// What sweep and tune both take after their own flags: the simulation,
+/// its push and sine, and where the run goes (in that order in `--help`).
+#[derive(Args, Debug)]
+pub(super) struct SetupArgs {
+    #[command(flatten)]
+    pub(super) sim: SimArgs,
+    #[command(flatten)]
+    pub(super) schedule: ScheduleArgs,
+    #[command(flatten)]
+    pub(super) output: OutputArgs,
+}
+
 /// Randomized replicates: a population of plausible robots per cell.
 #[derive(Args, Debug)]
 #[command(next_help_heading = "Randomized replicates")]
