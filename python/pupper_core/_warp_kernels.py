@@ -6,12 +6,17 @@ Warp reads kernel annotations at definition time.
 
 import warp as wp
 
+# the kernels' array types, each named once (as MuJoCo Warp names its own)
+floats2d = wp.array2d(dtype=wp.float32)
+floats3d = wp.array3d(dtype=wp.float32)
+ints = wp.array(dtype=wp.int32)
+
 
 @wp.kernel
 def push(
-    table: wp.array3d(dtype=wp.float32),
-    per_step: wp.array(dtype=wp.int32),
-    step: wp.array(dtype=wp.int32),
+    table: floats3d,
+    per_step: ints,
+    step: ints,
     body: int,
     xfrc: wp.array2d(dtype=wp.spatial_vector),
 ):
@@ -23,10 +28,10 @@ def push(
 
 @wp.kernel
 def drive(
-    table: wp.array3d(dtype=wp.float32),
-    driven: wp.array(dtype=wp.int32),
-    step: wp.array(dtype=wp.int32),
-    ctrl: wp.array2d(dtype=wp.float32),
+    table: floats3d,
+    driven: ints,
+    step: ints,
+    ctrl: floats2d,
 ):
     """Writes this step's ctrl (moving targets), when the call drives it."""
     w, a = wp.tid()
@@ -42,17 +47,17 @@ def _huge(x: wp.float32) -> bool:
 
 @wp.kernel
 def record(
-    qpos: wp.array2d(dtype=wp.float32),
-    qvel: wp.array2d(dtype=wp.float32),
-    qacc: wp.array2d(dtype=wp.float32),
-    warmstart: wp.array2d(dtype=wp.float32),
-    force: wp.array2d(dtype=wp.float32),
-    nefc: wp.array(dtype=wp.int32),
+    qpos: floats2d,
+    qvel: floats2d,
+    qacc: floats2d,
+    warmstart: floats2d,
+    force: floats2d,
+    nefc: ints,
     njmax: int,
-    q0: wp.array2d(dtype=wp.float32),
-    step: wp.array(dtype=wp.int32),
-    out_q: wp.array3d(dtype=wp.float32),
-    out_f: wp.array3d(dtype=wp.float32),
+    q0: floats2d,
+    step: ints,
+    out_q: floats3d,
+    out_f: floats3d,
 ):
     """Copies qpos and actuator forces into row ``step`` of the records.
 
@@ -86,6 +91,6 @@ def record(
 
 
 @wp.kernel
-def tick(step: wp.array(dtype=wp.int32)):
+def tick(step: ints):
     """The next record row."""
     step[0] = step[0] + 1

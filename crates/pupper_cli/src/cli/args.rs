@@ -13,12 +13,7 @@ use pupper_core::robot::model::ModelSource;
 #[derive(Args, Debug)]
 pub(super) struct GridArg {
     /// A grid axis and its values, AXIS=VALUES; repeat for more axes.
-    #[arg(
-        long = "grid",
-        short = 'g',
-        value_name = "AXIS=VALUES",
-        allow_hyphen_values = true
-    )]
+    #[arg(long = "grid", short = 'g', value_name = "AXIS=VALUES", allow_hyphen_values = true)]
     pub(super) grid: Vec<String>,
 }
 
@@ -200,6 +195,18 @@ pub(super) struct OutputArgs {
     /// Overwrite pupper's files in an existing --out directory.
     #[arg(long)]
     pub(super) force: bool,
+}
+
+/// What sweep and tune both take after their own flags: the simulation,
+/// its push and sine, and where the run goes (in that order in `--help`).
+#[derive(Args, Debug)]
+pub(super) struct SetupArgs {
+    #[command(flatten)]
+    pub(super) sim: SimArgs,
+    #[command(flatten)]
+    pub(super) schedule: ScheduleArgs,
+    #[command(flatten)]
+    pub(super) output: OutputArgs,
 }
 
 /// Randomized replicates: a population of plausible robots per cell.

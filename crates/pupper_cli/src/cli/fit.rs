@@ -47,37 +47,17 @@ pub(super) struct ExciteArgs {
     #[arg(long, default_value = "0.3,6", value_name = "F0,F1")]
     band: String,
     /// Seconds of excitation per joint group.
-    #[arg(
-        long,
-        default_value_t = 8.0,
-        value_name = "S",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 8.0, value_name = "S", allow_negative_numbers = true)]
     seconds: f64,
     /// Seconds held at the rest pose before and between groups.
-    #[arg(
-        long,
-        default_value_t = 1.0,
-        value_name = "S",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 1.0, value_name = "S", allow_negative_numbers = true)]
     hold: f64,
     /// Largest swing of a joint from its rest angle (rad); smaller where the range, the speed
     /// limit or the torque limit at the gains asks.
-    #[arg(
-        long,
-        default_value_t = 0.3,
-        value_name = "RAD",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 0.3, value_name = "RAD", allow_negative_numbers = true)]
     amplitude: f64,
     /// Fastest commanded joint speed (rad/s).
-    #[arg(
-        long,
-        default_value_t = 8.0,
-        value_name = "RAD_S",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 8.0, value_name = "RAD_S", allow_negative_numbers = true)]
     max_velocity: f64,
     /// Seed of the multisine's phases.
     #[arg(long, default_value_t = 0)]

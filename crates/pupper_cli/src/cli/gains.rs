@@ -40,12 +40,7 @@ pub(super) struct GainsArgs {
     #[arg(long, value_name = "HZ", allow_negative_numbers = true, conflicts_with_all = ["kp", "kd"])]
     bandwidth: Option<f64>,
     /// The damping ratio with --bandwidth.
-    #[arg(
-        long,
-        default_value_t = 0.7,
-        value_name = "ZETA",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 0.7, value_name = "ZETA", allow_negative_numbers = true)]
     damping: f64,
     /// Given gains: their natural frequency, damping ratio and stability margin per joint.
     #[arg(long, allow_negative_numbers = true, requires = "kd")]

@@ -36,12 +36,7 @@ pub(super) struct LabArgs {
     #[arg(long, default_value_t = pupper_core::request::lab::SECONDS, value_name = "S")]
     seconds: f64,
     /// The vertical disturbance AMPLITUDE*sin(2π·FREQUENCY·t) (N, Hz).
-    #[arg(
-        long,
-        default_value = "2,1.2",
-        value_name = "AMP,HZ",
-        allow_hyphen_values = true
-    )]
+    #[arg(long, default_value = "2,1.2", value_name = "AMP,HZ", allow_hyphen_values = true)]
     sine: String,
     /// Aim each body's stand pose at this depth of the feet below the hips (m) [default: the
     /// chapter's 0.14 m on Pupper v3's legs, scaled to each body's leg length]

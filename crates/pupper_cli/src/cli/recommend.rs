@@ -67,12 +67,7 @@ pub(super) struct RecommendArgs {
     #[arg(long, default_value_t = 0, value_name = "S")]
     seed: u64,
     /// Simulated seconds per robot (the push comes at 2 s).
-    #[arg(
-        long,
-        default_value_t = 4.0,
-        value_name = "S",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 4.0, value_name = "S", allow_negative_numbers = true)]
     seconds: f64,
     /// The push's vertical force (N) [default: sweep's].
     #[arg(long, value_name = "N", allow_negative_numbers = true)]
@@ -82,20 +77,10 @@ pub(super) struct RecommendArgs {
     motor: String,
     /// Age of the measurements the firmware's PD reads (s): in the loop margins, and drawn 0 to it
     /// (whole physics steps) on the robots.
-    #[arg(
-        long,
-        default_value_t = 0.002,
-        value_name = "S",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 0.002, value_name = "S", allow_negative_numbers = true)]
     sensing_delay: f64,
     /// Delay of the commanded target (s): the firmware's command delay; shifts the step response.
-    #[arg(
-        long,
-        default_value_t = 0.0,
-        value_name = "S",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 0.0, value_name = "S", allow_negative_numbers = true)]
     command_delay: f64,
     /// What differs between robots, as --randomize specs; repeat. Replaces the default spread.
     #[arg(long, value_name = "QUANTITY=DIST", allow_hyphen_values = true)]
@@ -104,28 +89,13 @@ pub(super) struct RecommendArgs {
     #[arg(long, value_name = "DIR")]
     from_fit: Option<PathBuf>,
     /// Least phase margin of every group's loop on every robot (degrees).
-    #[arg(
-        long,
-        default_value_t = 30.0,
-        value_name = "DEG",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 30.0, value_name = "DEG", allow_negative_numbers = true)]
     min_phase_margin: f64,
     /// Least gain margin of every group's loop on every robot (dB).
-    #[arg(
-        long,
-        default_value_t = 6.0,
-        value_name = "DB",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 6.0, value_name = "DB", allow_negative_numbers = true)]
     min_gain_margin: f64,
     /// Largest share of steps a robot may spend at its torque limit.
-    #[arg(
-        long,
-        default_value_t = 0.05,
-        value_name = "F",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 0.05, value_name = "F", allow_negative_numbers = true)]
     max_saturation: f64,
     /// Most a robot's final base height may lie below its stance height, as a share of it.
     #[arg(

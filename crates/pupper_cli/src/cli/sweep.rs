@@ -16,9 +16,7 @@ use pupper_core::{Error, Result};
 use pupper_mujoco::api::{self, SweepOutcome, SweepRequest, SweepUi};
 use pupper_mujoco::bridge;
 
-use super::args::{
-    GridArg, OutputArgs, PopulationArgs, RunArgs, RunnerArgs, ScheduleArgs, SimArgs,
-};
+use super::args::{GridArg, PopulationArgs, RunArgs, RunnerArgs, SetupArgs};
 use super::python::{write_files, write_report};
 use super::rundir_name;
 use crate::print;
@@ -51,11 +49,7 @@ pub(super) struct SweepArgs {
     #[arg(long, value_name = "NAME", conflicts_with = "grid")]
     preset: Option<String>,
     #[command(flatten)]
-    sim: SimArgs,
-    #[command(flatten)]
-    schedule: ScheduleArgs,
-    #[command(flatten)]
-    output: OutputArgs,
+    setup: SetupArgs,
     /// Keep base-z traces (traces.csv), every --trace-every-th step.
     #[arg(long)]
     trace: bool,
@@ -101,10 +95,11 @@ pub(super) struct SweepArgs {
 impl SweepArgs {
     /// These arguments over the spec's defaults.
     fn spec(&self) -> Result<SweepSpec> {
-        let sine = self.schedule.sine()?;
+        let sine = self.setup.schedule.sine()?;
         let sim = self
+            .setup
             .schedule
-            .apply(sine, self.population.apply(self.sim.spec()?));
+            .apply(sine, self.population.apply(self.setup.sim.spec()?));
         Ok(SweepSpec {
             grid: match &self.preset {
                 Some(p) => GridInput::Preset(p.clone()),
@@ -112,7 +107,7 @@ impl SweepArgs {
             },
             stop_fallen: self.stop_fallen,
             max_cells: self.max_cells,
-            force: self.output.force,
+            force: self.setup.output.force,
             // plots draw the base-z curves from the traces
             ..self.runner.apply(self.trace || self.plot, sim)
         })
@@ -178,7 +173,7 @@ pub(super) fn run(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
             spec: a.spec()?,
             baseline: SweepSpec::default(),
             resume_alone: a.grid.grid.is_empty() && a.preset.is_none(),
-            out: a.output.out,
+            out: a.setup.output.out,
             resume: a.runner.run.resume,
             preset: a.preset,
             quiet: a.runner.run.quiet,

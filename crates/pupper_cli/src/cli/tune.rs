@@ -8,7 +8,7 @@ use pupper_core::request::spec::SweepSpec;
 use pupper_core::{Error, Result};
 use serde_json::Value;
 
-use super::args::{BackendArgs, BatchArgs, OutputArgs, PopulationArgs, ScheduleArgs, SimArgs};
+use super::args::{BackendArgs, BatchArgs, PopulationArgs, SetupArgs};
 use super::python::python_command;
 use super::rundir_name;
 use crate::pyargs::PyArgs;
@@ -63,11 +63,7 @@ pub(super) struct TuneArgs {
     #[arg(long, default_value_t = 0, value_name = "ETA")]
     halving: u64,
     #[command(flatten)]
-    sim: SimArgs,
-    #[command(flatten)]
-    schedule: ScheduleArgs,
-    #[command(flatten)]
-    output: OutputArgs,
+    setup: SetupArgs,
     /// Continue an interrupted study in DIR (the same inputs, or --resume DIR alone).
     #[arg(long, value_name = "DIR")]
     resume: Option<PathBuf>,
@@ -94,7 +90,7 @@ pub(super) struct TuneArgs {
 impl TuneArgs {
     pub(super) fn run(&self) -> Result<u8> {
         let options = self.options()?;
-        let out = match (&self.resume, &self.output.out) {
+        let out = match (&self.resume, &self.setup.output.out) {
             (Some(d), _) | (None, Some(d)) => d.clone(),
             (None, None) => rundir_name("tune"),
         };
@@ -112,7 +108,7 @@ impl TuneArgs {
             "halving": self.halving,
             "out": py.path(&out),
             "resume": self.resume.is_some(),
-            "force": self.output.force,
+            "force": self.setup.output.force,
             "progress": !self.quiet,
             "plot": self.plot,
             "compare": self.compare.as_ref().map(|c| py.path(c)),
@@ -130,10 +126,11 @@ impl TuneArgs {
     /// defaults, as before tune took those flags; a keyframe whenever named,
     /// even `home`).
     fn options(&self) -> Result<serde_json::Map<String, Value>> {
-        let sim = self.sim.spec()?;
-        let sine = self.schedule.sine()?;
+        let sim = self.setup.sim.spec()?;
+        let sine = self.setup.schedule.sine()?;
         let spec = self.batching.apply(
-            self.schedule
+            self.setup
+                .schedule
                 .apply(sine, self.backend.apply(self.population.apply(sim))),
         );
         let d = SweepSpec::default();
@@ -160,7 +157,7 @@ impl TuneArgs {
             ("backend", spec.backend != d.backend),
             ("device", spec.device.is_some()),
             ("ray", spec.ray.is_some()),
-            ("keyframe", self.sim.keyframe.is_some()),
+            ("keyframe", self.setup.sim.keyframe.is_some()),
             ("pose", spec.pose.is_some()),
             ("integrator", spec.integrator.is_some()),
         ];

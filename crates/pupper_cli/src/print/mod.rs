@@ -17,29 +17,44 @@ pub fn json<T: Serialize>(v: &T) -> Result<String> {
     serde_json::to_string_pretty(v).map_err(|e| Error::Internal(format!("json: {e}")))
 }
 
-/// Columns of the table, by summary.csv name: (header, width, decimals).
-const SHOWN: [(&str, &str, usize, usize); 9] = [
-    ("final_z", "final z m", 9, 3),
-    ("last_1s_std_mm", "std mm", 7, 2),
-    ("push_dip_mm", "dip mm", 7, 2),
-    ("settle_time_s", "settle s", 8, 2),
-    ("max_tilt_deg", "tilt °", 7, 2),
-    ("peak_torque", "peak N·m", 8, 2),
-    ("saturation_frac", "sat %", 6, 1),
-    ("tracking_rms", "track rad", 9, 4),
-    ("status", "status", 8, 0),
-];
+/// A column of the table: (summary.csv name, header, width, decimals).
+type Column = (&'static str, &'static str, usize, usize);
 
-/// The table of a replicated sweep: statistics over the replicates.
-const SHOWN_REPLICATED: [(&str, &str, usize, usize); 8] = [
-    ("failure_fraction", "fail %", 6, 0),
-    ("mean:final_z", "z m", 6, 3),
-    ("mean:last_1s_std_mm", "std mm", 7, 3),
-    ("p95:last_1s_std_mm", "p95 std", 7, 3),
-    ("p95:push_dip_mm", "p95 dip", 7, 2),
-    ("p95:max_tilt_deg", "p95 tilt", 8, 2),
-    ("p95:peak_torque", "p95 N·m", 7, 2),
-    ("p95:saturation_frac", "p95 sat%", 8, 1),
+/// The table's columns, a row per metric: its column in a sweep's table,
+/// then those of the statistics over it in a replicated sweep's (in that
+/// order: each kind of table reads its own down this list).
+const SHOWN: [(Option<Column>, &[Column]); 10] = [
+    (None, &[("failure_fraction", "fail %", 6, 0)]),
+    (
+        Some(("final_z", "final z m", 9, 3)),
+        &[("mean:final_z", "z m", 6, 3)],
+    ),
+    (
+        Some(("last_1s_std_mm", "std mm", 7, 2)),
+        &[
+            ("mean:last_1s_std_mm", "std mm", 7, 3),
+            ("p95:last_1s_std_mm", "p95 std", 7, 3),
+        ],
+    ),
+    (
+        Some(("push_dip_mm", "dip mm", 7, 2)),
+        &[("p95:push_dip_mm", "p95 dip", 7, 2)],
+    ),
+    (Some(("settle_time_s", "settle s", 8, 2)), &[]),
+    (
+        Some(("max_tilt_deg", "tilt °", 7, 2)),
+        &[("p95:max_tilt_deg", "p95 tilt", 8, 2)],
+    ),
+    (
+        Some(("peak_torque", "peak N·m", 8, 2)),
+        &[("p95:peak_torque", "p95 N·m", 7, 2)],
+    ),
+    (
+        Some(("saturation_frac", "sat %", 6, 1)),
+        &[("p95:saturation_frac", "p95 sat%", 8, 1)],
+    ),
+    (Some(("tracking_rms", "track rad", 9, 4)), &[]),
+    (Some(("status", "status", 8, 0)), &[]),
 ];
 
 /// An axis value in at most 8 characters: as written when it fits, else
@@ -90,10 +105,13 @@ fn col(o: &SweepOutcome, name: &str) -> Option<usize> {
 /// A sweep's rows as a table: the case, the axes, the metrics shown.
 fn table(o: &SweepOutcome, replicated: bool) -> String {
     let col = |name: &str| col(o, name);
-    let shown: &[(&str, &str, usize, usize)] = if replicated {
-        &SHOWN_REPLICATED
+    let shown: Vec<Column> = if replicated {
+        SHOWN
+            .iter()
+            .flat_map(|(_, stats)| stats.iter().copied())
+            .collect()
     } else {
-        &SHOWN
+        SHOWN.iter().filter_map(|(plain, _)| *plain).collect()
     };
     let metrics_at = col("final_z")
         .or_else(|| col("replicates"))
@@ -114,7 +132,7 @@ fn table(o: &SweepOutcome, replicated: bool) -> String {
     for (_, a) in &axes {
         let _ = write!(head, "{:>8} ", a);
     }
-    for &(_, h, w, _) in shown {
+    for &(_, h, w, _) in &shown {
         let _ = write!(head, "{:>w$} ", h);
     }
     let _ = writeln!(s, "{}", head.trim_end());
@@ -126,7 +144,7 @@ fn table(o: &SweepOutcome, replicated: bool) -> String {
         for (i, _) in &axes {
             let _ = write!(line, "{:>8} ", short(&r[*i]));
         }
-        for &(name, _, w, d) in shown {
+        for &(name, _, w, d) in &shown {
             let text = col(name).map(|i| r[i].as_str()).unwrap_or("");
             let shown = match text.parse::<f64>() {
                 Ok(v) if name.ends_with("saturation_frac") || name == "failure_fraction" => {

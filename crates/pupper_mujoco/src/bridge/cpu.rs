@@ -42,29 +42,6 @@ impl Physics for LoadedModel<'_> {
     }
 }
 
-/// The cpu backend beside warp's, for code that picks one at run time.
-pub struct CpuPhysics<'a, 'py>(pub &'a LoadedModel<'py>);
-
-impl Physics for CpuPhysics<'_, '_> {
-    fn info(&self) -> &ModelInfo {
-        Physics::info(self.0)
-    }
-
-    fn layout(&self) -> &Layout {
-        Physics::layout(self.0)
-    }
-
-    fn start(
-        &self,
-        cells: &[CellSetup],
-        mode: Mode,
-        initial: &InitialState,
-        threads: usize,
-    ) -> Result<Box<dyn SimBatch + '_>> {
-        self.0.start(cells, mode, initial, threads)
-    }
-}
-
 /// Offsets of state components within a state row.
 #[derive(Debug, Clone, Copy)]
 struct Offsets {

@@ -5,7 +5,6 @@ use crate::bridge::calls::PyCall;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use super::cpu::CpuPhysics;
 use super::model::LoadedModel;
 use super::python::{Mujoco, PyResultExt, exception_name, python_message};
 use super::warp::WarpPhysics;
@@ -46,15 +45,30 @@ pub fn with_config_model<T>(
     })
 }
 
+/// What steps a model's physics, as a backend picked at run time:
+/// `as_ref` gives either as a [`Physics`].
+pub enum Picked<'a, 'py> {
+    /// MuJoCo's CPU batch: the model itself.
+    Cpu(&'a LoadedModel<'py>),
+    /// MuJoCo Warp over the model.
+    Warp(WarpPhysics<'a, 'py>),
+}
+
+impl<'a> AsRef<dyn Physics + 'a> for Picked<'a, '_> {
+    fn as_ref(&self) -> &(dyn Physics + 'a) {
+        match self {
+            Picked::Cpu(model) => *model,
+            Picked::Warp(warp) => warp,
+        }
+    }
+}
+
 /// What steps `model`'s physics on `backend`: the model itself (MuJoCo's
 /// CPU batch), or MuJoCo Warp over it (checked: installed, device there).
-pub fn physics<'a, 'py>(
-    model: &'a LoadedModel<'py>,
-    backend: &Backend,
-) -> Result<Box<dyn Physics + 'a>> {
+pub fn physics<'a, 'py>(model: &'a LoadedModel<'py>, backend: &Backend) -> Result<Picked<'a, 'py>> {
     Ok(match backend {
-        Backend::Cpu => Box::new(CpuPhysics(model)),
-        Backend::Warp { device, .. } => Box::new(WarpPhysics::new(model, device)?),
+        Backend::Cpu => Picked::Cpu(model),
+        Backend::Warp { device, .. } => Picked::Warp(WarpPhysics::new(model, device)?),
     })
 }
 

@@ -11,7 +11,7 @@ pub mod ray;
 mod setup;
 pub mod warp;
 
-pub use helpers::{call_helper, physics, with_config_model, with_model};
+pub use helpers::{Picked, call_helper, physics, with_config_model, with_model};
 pub use model::LoadedModel;
 pub use python::{MUJOCO_MAJOR, Mujoco, PythonReport, doctor};
 pub use setup::start_stance;
