@@ -98,12 +98,7 @@ pub(super) struct RecommendArgs {
     #[arg(long, default_value_t = 0.05, value_name = "F", allow_negative_numbers = true)]
     max_saturation: f64,
     /// Most a robot's final base height may lie below its stance height, as a share of it.
-    #[arg(
-        long,
-        default_value_t = 0.1,
-        value_name = "F",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 0.1, value_name = "F", allow_negative_numbers = true)]
     max_sag: f64,
     /// The motors' largest kp [default: the model's pupper:kp_max:ACT numerics, else 20x its own].
     #[arg(long, value_name = "KP", allow_negative_numbers = true)]
