@@ -255,6 +255,7 @@ def test_joint_order_and_controller_name_the_yaml(run, tmp_path):
     (("--robots", "0"), "robots 0"),
     (("--joint-order", "leg_front_r_1,elbow"), "'elbow'"),
     (("--min-phase-margin", "-5"), "--min-phase-margin"),
+    (("--max-sag", "1.5"), "--max-sag"),
     (("--motor", "rate=-3"), "rate"),
     (("--command-delay", "0.01", "--motor", "rate=500,delay=0.01"), "keep one"),
 ])
