@@ -322,7 +322,7 @@ pub(crate) trait Options: Sized {
     /// In the signature's order, the order they are taken and checked in.
     const KEYWORDS: &'static [&'static str];
 
-    fn from(k: &Keywords<'_, '_>) -> PyResult<Self>;
+    fn read(k: &Keywords<'_, '_>) -> PyResult<Self>;
 
     /// `name=default, ...` as Python writes the defaults: what the
     /// command's `text_signature` shows.
@@ -337,7 +337,7 @@ macro_rules! keywords {
         impl $crate::convert::Options for $ty {
             const KEYWORDS: &'static [&'static str] = &[$(stringify!($field)),+];
 
-            fn from(k: &$crate::convert::Keywords<'_, '_>) -> pyo3::PyResult<Self> {
+            fn read(k: &$crate::convert::Keywords<'_, '_>) -> pyo3::PyResult<Self> {
                 let d = <$ty as Default>::default();
                 Ok(Self {
                     $($field: k.get(stringify!($field), d.$field)?),+

@@ -78,7 +78,7 @@ pub(crate) fn run_kind<K: Kind>(
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<SweepResult> {
     let (keywords, rest) = Keywords::split(options, K::KEYWORDS)?;
-    let own = K::from(&keywords)?;
+    let own = K::read(&keywords)?;
     let mut base = spec_of(py, grid, None, out, rest.as_ref())?;
     if !given(options, "seconds") {
         base.seconds = own.seconds();
