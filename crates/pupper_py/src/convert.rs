@@ -271,6 +271,24 @@ impl<'a, 'py> Keywords<'a, 'py> {
         Ok(Keywords(options))
     }
 
+    /// The keywords `own` of `options`, taken with [`get`](Self::get), and
+    /// the others (None when there are none), left for [`spec_from`].
+    pub(crate) fn split(
+        options: Option<&'a Bound<'py, PyDict>>,
+        own: &[&str],
+    ) -> PyResult<(Self, Option<Bound<'py, PyDict>>)> {
+        let Some(given) = options else {
+            return Ok((Keywords(None), None));
+        };
+        let rest = given.copy()?;
+        for k in own {
+            if rest.contains(k)? {
+                rest.del_item(k)?;
+            }
+        }
+        Ok((Keywords(options), (!rest.is_empty()).then_some(rest)))
+    }
+
     /// The keyword `name` as a `T`, or `default` when it is not given.
     pub(crate) fn get<T>(&self, name: &str, default: T) -> PyResult<T>
     where
@@ -295,4 +313,123 @@ where
             .call_method1("add_note", (format!("while processing '{name}'"),));
         e
     })
+}
+
+/// A command's own keywords, as a struct whose fields bear their names: the
+/// list of them, and the struct as [`Keywords`] give it (what is not given
+/// keeps the struct's `Default`). [`keywords!`] writes it from the fields.
+pub(crate) trait Options: Sized {
+    /// In the signature's order, the order they are taken and checked in.
+    const KEYWORDS: &'static [&'static str];
+
+    fn read(k: &Keywords<'_, '_>) -> PyResult<Self>;
+
+    /// `name=default, ...` as Python writes the defaults: what the
+    /// command's `text_signature` shows.
+    #[cfg(test)]
+    fn shown() -> String;
+}
+
+/// `keywords!(Type { field, ... })`: [`Options`] for `Type`, its keywords
+/// the fields named, in that order.
+macro_rules! keywords {
+    ($ty:ty { $($field:ident),+ $(,)? }) => {
+        impl $crate::convert::Options for $ty {
+            const KEYWORDS: &'static [&'static str] = &[$(stringify!($field)),+];
+
+            fn read(k: &$crate::convert::Keywords<'_, '_>) -> pyo3::PyResult<Self> {
+                let d = <$ty as Default>::default();
+                Ok(Self {
+                    $($field: k.get(stringify!($field), d.$field)?),+
+                })
+            }
+
+            #[cfg(test)]
+            fn shown() -> String {
+                let d = <$ty as Default>::default();
+                let shown = [$(format!(
+                    "{}={}",
+                    stringify!($field),
+                    $crate::convert::shown::Repr::repr(&d.$field)
+                )),+];
+                shown.join(", ")
+            }
+        }
+    };
+}
+pub(crate) use keywords;
+
+/// What a command's `text_signature` shows, as its tests check it.
+#[cfg(test)]
+pub(crate) mod shown {
+    /// A default as Python's `repr()` writes it (a sequence as a tuple).
+    pub(crate) trait Repr {
+        fn repr(&self) -> String;
+    }
+
+    /// Panics unless `source` holds the `text_signature` `shown` as a string.
+    pub(crate) fn assert_declares(source: &str, shown: &str) {
+        assert!(
+            source.contains(&format!("\"{shown}\"")),
+            "the text_signature should read {shown}"
+        );
+    }
+
+    impl Repr for f64 {
+        fn repr(&self) -> String {
+            format!("{self:?}")
+        }
+    }
+
+    impl Repr for usize {
+        fn repr(&self) -> String {
+            self.to_string()
+        }
+    }
+
+    impl Repr for i128 {
+        fn repr(&self) -> String {
+            self.to_string()
+        }
+    }
+
+    impl Repr for bool {
+        fn repr(&self) -> String {
+            if *self { "True" } else { "False" }.into()
+        }
+    }
+
+    impl Repr for String {
+        fn repr(&self) -> String {
+            format!("'{self}'")
+        }
+    }
+
+    impl<T: Repr> Repr for Option<T> {
+        fn repr(&self) -> String {
+            self.as_ref().map_or("None".into(), Repr::repr)
+        }
+    }
+
+    impl<T: Repr> Repr for [T] {
+        fn repr(&self) -> String {
+            let items: Vec<String> = self.iter().map(Repr::repr).collect();
+            match items.as_slice() {
+                [one] => format!("({one},)"),
+                _ => format!("({})", items.join(", ")),
+            }
+        }
+    }
+
+    impl<T: Repr> Repr for Vec<T> {
+        fn repr(&self) -> String {
+            self.as_slice().repr()
+        }
+    }
+
+    impl<T: Repr, const N: usize> Repr for [T; N] {
+        fn repr(&self) -> String {
+            self.as_slice().repr()
+        }
+    }
 }

@@ -11,7 +11,7 @@ use pupper_core::plan::grid::Cell;
 use pupper_core::plan::mode::Mode;
 use pupper_core::plan::setup::CellSetup;
 use pupper_core::plan::stability::Damping;
-use pupper_core::request::spec::{GridInput, SweepSpec};
+use pupper_core::request::spec::{GridInput, Sweep, SweepSpec};
 use pupper_core::results::best;
 use pupper_core::results::output;
 use pupper_core::robot::model::{ModelInfo, ModelSource};
@@ -204,19 +204,25 @@ pub struct StandReport {
     pub notes: Vec<String>,
 }
 
-/// The stance height (m) of the first cell of `spec` (its grid's first
-/// cell, or the model's own gains): the base height at which its lowest foot
-/// touches the floor in its start pose. Falls are judged against it, and
-/// `recommend` its robots' sag. NaN for a fixed base.
-pub fn stance(spec: &SweepSpec) -> Result<f64> {
-    let spec = SweepSpec {
+/// The sweep of `spec` for one cell: its grid ignored (the model's own
+/// gains, or the spec's), no push, nothing written.
+fn one_cell(spec: &SweepSpec) -> Result<Sweep> {
+    SweepSpec {
         grid: GridInput::None,
         push: false,
         out: None,
         resume: false,
         ..spec.clone()
-    };
-    let sweep = spec.build()?;
+    }
+    .build()
+}
+
+/// The stance height (m) of the first cell of `spec` (its grid's first
+/// cell, or the model's own gains): the base height at which its lowest foot
+/// touches the floor in its start pose. Falls are judged against it, and
+/// `recommend` its robots' sag. NaN for a fixed base.
+pub fn stance(spec: &SweepSpec) -> Result<f64> {
+    let sweep = one_cell(spec)?;
     let cfg = &sweep.config;
     bridge::with_config_model(cfg, |model| {
         let cells = cfg.grid.cells();
@@ -227,14 +233,7 @@ pub fn stance(spec: &SweepSpec) -> Result<f64> {
 
 /// Stands one cell of `spec` (its grid is ignored, no push) and reports.
 pub fn stand(spec: &SweepSpec) -> Result<StandReport> {
-    let spec = SweepSpec {
-        grid: GridInput::None,
-        push: false,
-        out: None,
-        resume: false,
-        ..spec.clone()
-    };
-    let sweep = spec.build()?;
+    let sweep = one_cell(spec)?;
     let cfg = &sweep.config;
     let (results, note, setup) = bridge::with_config_model(cfg, |model| {
         let note = check_start(model.info(), &cfg.schedule.initial, true)?;

@@ -4,40 +4,61 @@
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use pupper_core::plan::hold::{LOAD, RAMP, SHOVE, SHOVE_DURATION};
 use pupper_core::request::hold::{self as request, HoldInput};
+use pupper_core::request::spec::SweepSpec;
 use pupper_core::results::best;
 
-use super::sweep::{kind_spec, run_spec};
-use crate::result::SweepResult;
+use super::sweep::{Kind, kind_command};
+use crate::convert::keywords;
 
-/// `pupper_core.hold`: the hold experiment; `options` are the sweep
-/// keywords (model, mode, kp, kd, seconds, pose, threads, ...). Writes
-/// best.csv (the stiffest cell) into a run directory.
-#[pyfunction]
-#[pyo3(signature = (grid=None, *, out=None, progress=None, load=LOAD, ramp=RAMP, shove=SHOVE, shove_at=None, shove_duration=SHOVE_DURATION, **options))]
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn hold(
-    py: Python<'_>,
-    grid: Option<&Bound<'_, PyAny>>,
-    out: Option<&Bound<'_, PyAny>>,
-    progress: Option<Bound<'_, PyAny>>,
-    load: f64,
-    ramp: f64,
-    shove: f64,
-    shove_at: Option<f64>,
-    shove_duration: f64,
-    options: Option<&Bound<'_, PyDict>>,
-) -> PyResult<SweepResult> {
-    let input = HoldInput {
-        load,
-        ramp,
-        shove,
-        shove_at,
-        shove_duration,
-    };
-    let base = kind_spec(py, grid, out, options, request::seconds(&input))?;
-    let spec = request::spec(base, &input);
-    let rule = best::Rule::new(spec.experiment.plan().default_metric(), &[]);
-    run_spec(py, spec, progress, "python: pupper_core.hold", Some(&rule))
+kind_command! {
+    /// `pupper_core.hold`: the hold experiment; `options` are its own
+    /// keywords (load, ramp, shove, shove_at, shove_duration) and the sweep
+    /// keywords (model, mode, kp, kd, seconds, pose, threads, ...). Writes
+    /// best.csv (the stiffest cell) into a run directory.
+    hold(HoldInput)
+    // as inspect and help() show it: HoldInput's defaults, kept equal by a
+    // test below
+    "(grid=None, *, out=None, progress=None, load=1.0, ramp=2.0, shove=0.25, shove_at=None, shove_duration=0.25, **options)"
+}
+
+keywords!(HoldInput {
+    load,
+    ramp,
+    shove,
+    shove_at,
+    shove_duration
+});
+
+impl Kind for HoldInput {
+    const COMMAND: &'static str = "python: pupper_core.hold";
+
+    fn seconds(&self) -> f64 {
+        request::seconds(self)
+    }
+
+    fn spec(self, base: SweepSpec, _: Option<&Bound<'_, PyDict>>) -> PyResult<SweepSpec> {
+        Ok(request::spec(base, &self))
+    }
+
+    /// The stiffest cell.
+    fn rule(spec: &SweepSpec) -> Option<best::Rule> {
+        Some(best::Rule::new(
+            spec.experiment.plan().default_metric(),
+            &[],
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use pupper_core::request::hold::HoldInput;
+
+    use crate::commands::sweep::kind_signature;
+    use crate::convert::shown::assert_declares;
+
+    #[test]
+    fn the_text_signature_shows_the_defaults() {
+        assert_declares(include_str!("hold.rs"), &kind_signature::<HoldInput>());
+    }
 }

@@ -9,7 +9,7 @@ use pupper_core::request::spec::SweepSpec;
 use pupper_core::results::best;
 
 use super::sweep::run_spec;
-use crate::convert::{Keywords, argument, out_from};
+use crate::convert::{Keywords, Options, argument, keywords, out_from};
 use crate::result::SweepResult;
 
 /// The chapter's lab (what `pupper lab` runs): every body from its own
@@ -29,10 +29,10 @@ pub(crate) fn lab(
     progress: Option<Bound<'_, PyAny>>,
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<SweepResult> {
-    let keywords = Keywords::of("lab", options, &LabOptions::KEYWORDS)?;
+    let keywords = Keywords::of("lab", options, LabOptions::KEYWORDS)?;
     let variants: Option<Vec<String>> = variants.map(|v| argument("variants", v)).transpose()?;
     let grid: Option<Vec<String>> = grid.map(|g| argument("grid", g)).transpose()?;
-    let lab = LabOptions::from(&keywords)?;
+    let lab = LabOptions::read(&keywords)?;
     let (spec, rule) = lab.spec(variants, grid, out)?;
     run_spec(py, spec, progress, "python: pupper_core.lab", Some(&rule))
 }
@@ -82,53 +82,28 @@ impl Default for LabOptions {
     }
 }
 
+// as `lab` has always taken them: pyo3's conversions, not `spec_from`'s,
+// so `seconds=True` is 1.0 and a huge `replicates` a ValueError saying so
+keywords!(LabOptions {
+    seconds,
+    sine,
+    model,
+    force,
+    resume,
+    threads,
+    max_saturation,
+    rank,
+    replicates,
+    seed,
+    randomize,
+    backend,
+    device,
+    ray,
+    depth,
+    motor,
+});
+
 impl LabOptions {
-    /// In the order they are checked (the signature's).
-    const KEYWORDS: [&'static str; 16] = [
-        "seconds",
-        "sine",
-        "model",
-        "force",
-        "resume",
-        "threads",
-        "max_saturation",
-        "rank",
-        "replicates",
-        "seed",
-        "randomize",
-        "backend",
-        "device",
-        "ray",
-        "depth",
-        "motor",
-    ];
-
-    /// The options given, each converted and checked as a declared argument
-    /// (as `lab` has always taken them: pyo3's conversions, not
-    /// `spec_from`'s, so `seconds=True` is 1.0 and a huge `replicates` a
-    /// ValueError saying so).
-    fn from(k: &Keywords<'_, '_>) -> PyResult<Self> {
-        let d = LabOptions::default();
-        Ok(LabOptions {
-            seconds: k.get("seconds", d.seconds)?,
-            sine: k.get("sine", d.sine)?,
-            model: k.get("model", d.model)?,
-            force: k.get("force", d.force)?,
-            resume: k.get("resume", d.resume)?,
-            threads: k.get("threads", d.threads)?,
-            max_saturation: k.get("max_saturation", d.max_saturation)?,
-            rank: k.get("rank", d.rank)?,
-            replicates: k.get("replicates", d.replicates)?,
-            seed: k.get("seed", d.seed)?,
-            randomize: k.get("randomize", d.randomize)?,
-            backend: k.get("backend", d.backend)?,
-            device: k.get("device", d.device)?,
-            ray: k.get("ray", d.ray)?,
-            depth: k.get("depth", d.depth)?,
-            motor: k.get("motor", d.motor)?,
-        })
-    }
-
     /// The lab's sweep over `variants` (default: every body) and `grid`
     /// (CLI strings; default: the lab's gains), and the rule of its best.csv.
     fn spec(
@@ -188,40 +163,14 @@ fn whole(name: &str, v: i128, most: u64) -> PyResult<u64> {
 #[cfg(test)]
 mod tests {
     use super::LabOptions;
-
-    /// A Python literal of a default, as `repr()` writes it.
-    fn py<T: std::fmt::Debug>(v: &Option<T>) -> String {
-        v.as_ref().map_or("None".into(), |v| format!("{v:?}"))
-    }
+    use crate::convert::Options;
+    use crate::convert::shown::assert_declares;
 
     #[test]
     fn the_text_signature_shows_the_defaults() {
-        let d = LabOptions::default();
-        let b = |x: bool| if x { "True" } else { "False" };
-        let shown = format!(
-            "(variants=None, grid=None, *, seconds={:?}, sine=({:?}, {:?}), model='{}', out=None, force={}, resume={}, threads={}, max_saturation={:?}, rank={}, replicates={}, seed={}, randomize=(), backend='{}', device={}, ray={}, depth={}, motor={}, progress=None)",
-            d.seconds,
-            d.sine[0],
-            d.sine[1],
-            d.model,
-            b(d.force),
-            b(d.resume),
-            d.threads,
-            d.max_saturation,
-            py(&d.rank),
-            d.replicates,
-            d.seed,
-            d.backend,
-            py(&d.device),
-            py(&d.ray),
-            py(&d.depth),
-            py(&d.motor),
-        );
-        assert!(d.randomize.is_empty());
-        let source = include_str!("lab.rs");
-        assert!(
-            source.contains(&format!("text_signature = \"{shown}\"")),
-            "lab's text_signature should read {shown}"
-        );
+        // `out` among them, after `model`, as the signature has always had it
+        let options = LabOptions::shown().replacen(", force=", ", out=None, force=", 1);
+        let shown = format!("(variants=None, grid=None, *, {options}, progress=None)");
+        assert_declares(include_str!("lab.rs"), &shown);
     }
 }

@@ -5,23 +5,26 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use pupper_core::request::response::{self as request, SignalInput};
+use pupper_core::request::spec::SweepSpec;
 
-use super::sweep::{kind_spec, run_spec};
-use crate::convert::given;
+use super::sweep::{Kind, kind_command};
+use crate::convert::{given, keywords};
 use crate::error::to_py;
-use crate::result::SweepResult;
 
-/// `pupper_core.response`: the response experiment, as `pupper response`
-/// runs it. `options` are the sweep keywords (model, mode, kp, kd, seconds,
-/// pose, threads, replicates, ...); the signal comes in its own keywords.
-#[pyfunction]
-#[pyo3(signature = (grid=None, *, out=None, progress=None, signal="step".to_string(), amplitude=pupper_core::plan::excitation::AMPLITUDE, frequency=None, chirp=None, hold=request::DEFAULT_HOLD, joints=Vec::new(), standing=false, **options))]
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn response(
-    py: Python<'_>,
-    grid: Option<&Bound<'_, PyAny>>,
-    out: Option<&Bound<'_, PyAny>>,
-    progress: Option<Bound<'_, PyAny>>,
+kind_command! {
+    /// `pupper_core.response`: the response experiment, as `pupper response`
+    /// runs it. `options` are its own keywords (the signal, hold, joints,
+    /// standing) and the sweep keywords (model, mode, kp, kd, seconds, pose,
+    /// threads, replicates, ...).
+    response(ResponseOptions)
+    // as inspect and help() show it: ResponseOptions' defaults, kept equal
+    // by a test below
+    "(grid=None, *, out=None, progress=None, signal='step', amplitude=0.2, frequency=None, chirp=None, hold=0.5, joints=(), standing=False, **options)"
+}
+
+/// `response`'s own keywords: the signal (`SignalInput`'s fields), the
+/// hold before it, the joints it excites, and whether the robot stands.
+struct ResponseOptions {
     signal: String,
     amplitude: f64,
     frequency: Option<f64>,
@@ -29,23 +32,72 @@ pub(crate) fn response(
     hold: f64,
     joints: Vec<String>,
     standing: bool,
-    options: Option<&Bound<'_, PyDict>>,
-) -> PyResult<SweepResult> {
-    let base = kind_spec(py, grid, out, options, request::SECONDS)?;
-    let input = SignalInput {
-        kind: signal,
-        amplitude,
-        frequency,
-        chirp,
-    };
-    let spec = request::spec(
-        base,
-        &input,
-        hold,
-        &joints,
-        standing,
-        given(options, "keyframe"),
-    )
-    .map_err(to_py)?;
-    run_spec(py, spec, progress, "python: pupper_core.response", None)
+}
+
+impl Default for ResponseOptions {
+    fn default() -> Self {
+        let signal = SignalInput::default();
+        ResponseOptions {
+            signal: signal.kind,
+            amplitude: signal.amplitude,
+            frequency: signal.frequency,
+            chirp: signal.chirp,
+            hold: request::DEFAULT_HOLD,
+            joints: Vec::new(),
+            standing: false,
+        }
+    }
+}
+
+keywords!(ResponseOptions {
+    signal,
+    amplitude,
+    frequency,
+    chirp,
+    hold,
+    joints,
+    standing
+});
+
+impl Kind for ResponseOptions {
+    const COMMAND: &'static str = "python: pupper_core.response";
+
+    fn seconds(&self) -> f64 {
+        request::SECONDS
+    }
+
+    /// From its searched stand pose unless a pose or keyframe is given.
+    fn spec(self, base: SweepSpec, options: Option<&Bound<'_, PyDict>>) -> PyResult<SweepSpec> {
+        let signal = SignalInput {
+            kind: self.signal,
+            amplitude: self.amplitude,
+            frequency: self.frequency,
+            chirp: self.chirp,
+        };
+        let keyframe = given(options, "keyframe");
+        request::spec(
+            base,
+            &signal,
+            self.hold,
+            &self.joints,
+            self.standing,
+            keyframe,
+        )
+        .map_err(to_py)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ResponseOptions;
+    use crate::commands::sweep::kind_signature;
+    use crate::convert::shown::assert_declares;
+
+    #[test]
+    fn the_text_signature_shows_the_defaults() {
+        assert_declares(
+            include_str!("response.rs"),
+            &kind_signature::<ResponseOptions>(),
+        );
+    }
 }

@@ -9,7 +9,7 @@ use pupper_core::request::spec::SweepSpec;
 use pupper_core::results::best;
 use pupper_mujoco::api::{self, SweepRequest};
 
-use crate::convert::{given, grid_from, out_from, spec_from, to_dict};
+use crate::convert::{Keywords, Options, given, grid_from, out_from, spec_from, to_dict};
 use crate::error::{pythonic, to_py};
 use crate::progress::{Active, PyUi};
 use crate::result::{Parts, SweepResult};
@@ -50,20 +50,72 @@ fn spec_of(
     })
 }
 
-/// The spec of an experiment kind's command (response, hold): as
-/// [`sweep`]'s, with the kind's own `seconds` unless the keywords give some.
-pub(crate) fn kind_spec(
+/// An experiment kind run as its own command (response, hold): its own
+/// keywords, and the sweep it makes of the sweep keywords' spec.
+pub(crate) trait Kind: Options {
+    /// The command as the run's manifest records it.
+    const COMMAND: &'static str;
+
+    /// Simulated seconds unless the keywords give `seconds`.
+    fn seconds(&self) -> f64;
+
+    /// The kind's sweep on `base`; `options` are every keyword given.
+    fn spec(self, base: SweepSpec, options: Option<&Bound<'_, PyDict>>) -> PyResult<SweepSpec>;
+
+    /// The rule of the best.csv it writes, if it writes one.
+    fn rule(_spec: &SweepSpec) -> Option<best::Rule> {
+        None
+    }
+}
+
+/// Runs kind `K`'s command: its own keywords taken out of `options` (as
+/// [`Keywords`] take them), the rest the sweep keywords, as [`sweep`]'s.
+pub(crate) fn run_kind<K: Kind>(
     py: Python<'_>,
     grid: Option<&Bound<'_, PyAny>>,
     out: Option<&Bound<'_, PyAny>>,
+    progress: Option<Bound<'_, PyAny>>,
     options: Option<&Bound<'_, PyDict>>,
-    seconds: f64,
-) -> PyResult<SweepSpec> {
-    let mut spec = spec_of(py, grid, None, out, options)?;
+) -> PyResult<SweepResult> {
+    let (keywords, rest) = Keywords::split(options, K::KEYWORDS)?;
+    let own = K::read(&keywords)?;
+    let mut base = spec_of(py, grid, None, out, rest.as_ref())?;
     if !given(options, "seconds") {
-        spec.seconds = seconds;
+        base.seconds = own.seconds();
     }
-    Ok(spec)
+    let spec = own.spec(base, options)?;
+    let rule = K::rule(&spec);
+    run_spec(py, spec, progress, K::COMMAND, rule.as_ref())
+}
+
+/// `kind_command! { /// doc  name(Kind) "text_signature" }`: the pyfunction
+/// `name(grid=None, *, out=None, progress=None, **options)` running
+/// [`Kind`] `Kind`, shown to inspect and help() with the text signature.
+macro_rules! kind_command {
+    ($(#[$doc:meta])* $name:ident($kind:ty) $text:literal) => {
+        $(#[$doc])*
+        #[pyfunction]
+        #[pyo3(signature = (grid=None, *, out=None, progress=None, **options), text_signature = $text)]
+        pub(crate) fn $name(
+            py: Python<'_>,
+            grid: Option<&Bound<'_, PyAny>>,
+            out: Option<&Bound<'_, PyAny>>,
+            progress: Option<Bound<'_, PyAny>>,
+            options: Option<&Bound<'_, PyDict>>,
+        ) -> PyResult<$crate::result::SweepResult> {
+            $crate::commands::sweep::run_kind::<$kind>(py, grid, out, progress, options)
+        }
+    };
+}
+pub(crate) use kind_command;
+
+/// The `text_signature` of a kind's command whose own keywords are `K`.
+#[cfg(test)]
+pub(crate) fn kind_signature<K: Options>() -> String {
+    format!(
+        "(grid=None, *, out=None, progress=None, {}, **options)",
+        K::shown()
+    )
 }
 
 /// Checks grid axis names as `--grid` does (GridError naming the known
