@@ -72,29 +72,17 @@ class Recommendation:
 def recommend(
     model: str | os.PathLike[str] = "pupper_v3",
     *,
-    robots: int = 32,
-    trials: int = 48,
-    batch: int = 16,
-    seed: int = 0,
-    seconds: float = 4.0,
-    push_force: float | None = None,
-    motor: str | None = None,
-    sensing_delay: float = 0.002,
-    command_delay: float = 0.0,
-    spread: Sequence[str] | None = None,
-    from_fit: str | os.PathLike[str] | None = None,
-    min_phase_margin: float = 30.0,
-    min_gain_margin: float = 6.0,
-    max_saturation: float = 0.05,
-    max_sag: float = 0.1,
-    kp_max: float | None = None,
-    kd_max: float | None = None,
-    joint_order: Sequence[str] | str | None = None,
-    controller: str = "neural_controller",
-    polish: int = 4,
-    out: str | os.PathLike[str] | None = None,
-    force: bool = False,
-    progress: bool | Callable[[str], None] = True,
+    # the search
+    robots: int = 32, trials: int = 48, batch: int = 16, seed: int = 0, polish: int = 4,
+    # the robots, their firmware and their push
+    seconds: float = 4.0, push_force: float | None = None, motor: str | None = None, sensing_delay: float = 0.002,
+    command_delay: float = 0.0, spread: Sequence[str] | None = None, from_fit: str | os.PathLike[str] | None = None,
+    # the constraints and the motors' limits
+    min_phase_margin: float = 30.0, min_gain_margin: float = 6.0, max_saturation: float = 0.05, max_sag: float = 0.1,
+    kp_max: float | None = None, kd_max: float | None = None,
+    # the exports and the run directory
+    joint_order: Sequence[str] | str | None = None, controller: str = "neural_controller",
+    out: str | os.PathLike[str] | None = None, force: bool = False, progress: bool | Callable[[str], None] = True,
 ) -> Recommendation:
     """Gains per joint group (kp, kd) to put on the robot: the lowest
     worst-side (95th percentile) push dip among candidates that hold on
@@ -130,17 +118,15 @@ def recommend(
     ``kds`` for ``controller`` in ``joint_order``; recommended.xml: the
     model with the gains in its actuators; report.html; manifest.json).
     """
+    # every keyword but these four is the plan's, checked there
+    options = {k: v for k, v in locals().items() if k not in ("model", "out", "force", "progress")}
     say = _sayer(progress)
     try:
         import optuna  # noqa: F401  (the search's sampler)
     except ImportError:
         raise RecommendError("pupper recommend needs Optuna: install the extra with `make setup PUPPER_EXTRAS=tune` "
                              "(or pip install 'pupper_core[tune]')") from None
-    p = make_plan(model, robots=robots, trials=trials, batch=batch, seed=seed, seconds=seconds,
-                  push_force=push_force, motor=motor, sensing_delay=sensing_delay, command_delay=command_delay,
-                  spread=spread, from_fit=from_fit, min_phase_margin=min_phase_margin,
-                  min_gain_margin=min_gain_margin, max_saturation=max_saturation, max_sag=max_sag, kp_max=kp_max, kd_max=kd_max,
-                  joint_order=joint_order, controller=controller, polish=polish)
+    p = make_plan(model, **options)
     out_dir = None if out is None else Path(out)
     if out_dir is None:
         with tempfile.TemporaryDirectory(prefix="pupper-recommend-") as tmp, _stop_on_signals("recommend"):
