@@ -160,7 +160,11 @@ def test_no_ranked_candidate_sags_and_the_tradeoff_set_is_undominated(default_ru
     for r, k in zip(ok, every):
         if r["trial"] not in in_front:
             assert any(all(a <= b for a, b in zip(keys(f), k)) for f in front), r["trial"]
-    assert "Trade-off set" in (d / "report.html").read_text() or len(front) == 1
+    page = (d / "report.html").read_text()
+    assert "Trade-off set" in page or len(front) == 1
+    # the figure: a dot per ranked candidate (the pick a star, drawn once)
+    figure = page.split('aria-label="candidates that held every constraint', 1)[1].split("</svg>", 1)[0]
+    assert figure.count("data-id=") == len(ok) and figure.count("<circle") == len(ok) - 1
 
 
 def test_a_crouch_that_barely_dips_is_refused():

@@ -269,6 +269,11 @@ def search(plan: Plan, robot_models: Sequence[str], say: Callable[[str], None],
         lo, hi = span if span[1] > span[0] else (span[0] / 1.1, span[0] * 1.1)
         dists[f"kp.{g.name}"] = optuna.distributions.FloatDistribution(lo, hi, log=True)
         dists[f"u.{g.name}"] = optuna.distributions.FloatDistribution(0.0, 1.0)
+    # the first candidate: each group as stiff as its margins allow (the top
+    # of its kp span, kd mid-window); in simulation stiffer stands firmer and
+    # dips less up to the margins, so the search starts where a pick is likely
+    study.enqueue_trial({**{f"kp.{g.name}": dists[f"kp.{g.name}"].high for g in plan.groups},
+                         **{f"u.{g.name}": 0.5 for g in plan.groups}})
     every: list[Candidate] = []
     ran, generation = 0, 0
     while ran < plan.trials:

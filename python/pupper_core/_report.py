@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Callable, NamedTuple
 
-from pupper_core._report_svg import bars, fmt, heatmap, lines, num, rounded
+from pupper_core._report_svg import bars, fmt, heatmap, lines, num, rounded, scatter
 from pupper_core._spec import DEFAULT_METRIC, ROBUST_METRIC
 
 __all__ = ["report"]
@@ -501,6 +501,8 @@ def _recommend_sections(page: Page) -> list[str]:
     else:
         page.answer.append(f"<p class='pick'>No gains held every constraint.</p><p>Rule: {html.escape(rule)}.</p>")
     fh, front = _read(d / "tradeoffs.csv")
+    th, trials = _read(d / "trials.csv")
+    parts.append(_tradeoff_figure(inp, trials, front, manifest.get("pick") or {}))
     if len(front) > 1:
         parts.append("<h2>Trade-off set (tradeoffs.csv)</h2><p>The candidates that held every constraint and "
                      "that no other beats at once on push dip (lower), the slowest group's natural frequency "
@@ -512,10 +514,29 @@ def _recommend_sections(page: Page) -> list[str]:
     if manifest.get("reproduce"):
         parts.append("<h2>Reproduce the push dip</h2><pre>" + html.escape(manifest["reproduce"]) + "</pre>")
     page.warnings.extend(manifest.get("warnings", []))
-    th, trials = _read(d / "trials.csv")
     if trials:
         parts.append("<h2>Candidates (trials.csv)</h2>" + _table(th, trials, None, key="trial"))
     return parts
+
+
+def _tradeoff_figure(inputs: dict[str, Any], trials: list[dict[str, str]], front: list[dict[str, str]],
+                     picked: dict[str, dict[str, float]]) -> str:
+    """Every candidate that held, by its slowest group's natural frequency
+    and its p95 push dip: the trade-off set filled, the pick starred."""
+    inertia = {g: float(v[1]) for g, v in inputs.get("inertia", {}).items()}
+    if not inertia:
+        return ""
+
+    def hz(r: dict[str, str]) -> float:
+        return min(math.sqrt(num(r[f"kp.{g}"]) / J) for g, J in inertia.items()) / (2 * math.pi)
+
+    pts = {f"trial {r['trial']}": (hz(r), num(r["p95_push_dip_mm"])) for r in trials if r.get("status") == "ok"}
+    # the pick: the first candidate with its gains (the polish may ask one twice)
+    pick = next((f"trial {r['trial']}" for r in trials if r.get("status") == "ok" and picked
+                 and all(num(r[f"{k}.{g}"]) == v[k] for g, v in picked.items() for k in ("kp", "kd"))), None)
+    return scatter(pts, "candidates that held every constraint: the trade-off set filled, the pick ★",
+                   "slowest group's natural frequency sqrt(kp/J) (Hz): faster tracking →",
+                   "p95 push dip (mm)", [f"trial {r['trial']}" for r in front], pick)
 
 
 def _validation_sections(d: Path) -> list[str]:

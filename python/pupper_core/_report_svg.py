@@ -208,3 +208,43 @@ def lines(series: dict[str, tuple[list[float], list[float]]], title: str, xlabel
                f'<text x="14" y="{T + H / 2}" font-size="11" transform="rotate(-90 14 {T + H / 2})" '
                f'text-anchor="middle">{html.escape(ylabel)}</text></svg>')
     return "".join(out)
+
+
+def scatter(points: Mapping[str, tuple[float, float]], title: str, xlabel: str, ylabel: str,
+            marked: Sequence[str] = (), pick: str | None = None) -> str:
+    """A dot per point, by id: the ``marked`` ones filled (a trade-off
+    set), ``pick`` a black star drawn last; each dot's id and values in
+    its tooltip."""
+    pts = {k: v for k, v in points.items() if math.isfinite(v[0]) and math.isfinite(v[1])}
+    if not pts:
+        return ""
+    x0, x1 = min(v[0] for v in pts.values()), max(v[0] for v in pts.values())
+    y0, y1 = min(v[1] for v in pts.values()), max(v[1] for v in pts.values())
+    x1, y1 = (x1 if x1 > x0 else x0 + 1), (y1 if y1 > y0 else y0 + 1e-9)
+    W, H, L, T, pad = 520, 260, 70, 24, 8
+
+    def at(x: float, y: float) -> tuple[float, float]:
+        return L + pad + (W - 2 * pad) * (x - x0) / (x1 - x0), T + H - pad - (H - 2 * pad) * (y - y0) / (y1 - y0)
+
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W + L + 20}" height="{H + T + 44}" role="img" '
+           f'aria-label="{html.escape(title)}"><text x="{L}" y="16" font-size="12">{html.escape(title)}</text>',
+           f'<rect x="{L}" y="{T}" width="{W}" height="{H}" fill="none" stroke="#999"/>']
+    order = [k for k in pts if k != pick and k not in marked] + [k for k in marked if k in pts and k != pick]
+    for k in order + ([pick] if pick in pts else []):
+        x, y = at(*pts[k])
+        tip = f"<title>{html.escape(k)}: {pts[k][0]:.6g}, {pts[k][1]:.6g}</title>"
+        if k == pick:
+            out.append(f'<text x="{x:.1f}" y="{y + 5:.1f}" text-anchor="middle" font-size="16" data-id="{html.escape(k)}"'
+                       f'>★{tip}</text>')
+        else:
+            fill = PALETTE[0] if k in marked else "none"
+            out.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4" fill="{fill}" stroke="{PALETTE[0]}" '
+                       f'data-id="{html.escape(k)}">{tip}</circle>')
+    for f in (0.0, 0.5, 1.0):
+        out.append(f'<text x="{L - 4}" y="{T + H - pad - (H - 2 * pad) * f + 4:.1f}" text-anchor="end" '
+                   f'font-size="10">{y0 + f * (y1 - y0):.4g}</text><text x="{L + pad + (W - 2 * pad) * f:.1f}" '
+                   f'y="{T + H + 14}" text-anchor="middle" font-size="10">{x0 + f * (x1 - x0):.4g}</text>')
+    out.append(f'<text x="{L + W / 2}" y="{T + H + 32}" text-anchor="middle" font-size="11">{html.escape(xlabel)}</text>'
+               f'<text x="14" y="{T + H / 2}" font-size="11" transform="rotate(-90 14 {T + H / 2})" '
+               f'text-anchor="middle">{html.escape(ylabel)}</text></svg>')
+    return "".join(out)
