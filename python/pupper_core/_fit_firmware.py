@@ -23,6 +23,10 @@ from pupper_core._fit_terms import FitError
 
 #: --motor's keys fit replays (the delay is fit's own parameter).
 KEYS = ("rate", "filter", "counts", "noload", "noise")
+#: The other draws of the noise the intervals replay the fit's end through
+#: (``pupper_core._fit._intervals``): the fit follows its one draw, and where
+#: it ends moves with it by as much as the hardware's own noise moves it.
+DRAWS = 12
 #: Where a firmware motor keeps the PD's kp, kd and command delay.
 KP_SLOT, KD_SLOT, DELAY_SLOT = 1, 2, 3
 
@@ -35,6 +39,8 @@ class Firmware:
     noload: float | None = None
     #: the encoder's noise (rad, 1 sigma) the PD reads: one seeded draw, the same in every rollout
     noise: float | None = None
+    #: the seed of that draw (0; the intervals replay a few others, ``DRAWS``)
+    seed: int = 0
 
     def spec(self) -> str:
         return ",".join(f"{k}={getattr(self, k):g}" for k in KEYS if getattr(self, k) is not None)
@@ -86,7 +92,7 @@ class _State:
         self.last = np.full(shape, math.nan)
         self.filtered = np.full(shape, math.nan)
         self.updates = 0
-        self.draws = np.random.default_rng(0)
+        self.draws = np.random.default_rng(fw.seed)
 
     def due(self, t: float) -> bool:
         due = self.fw.rate is None or t * self.fw.rate + 1e-6 >= self.updates
