@@ -588,3 +588,25 @@ def test_an_overshoot_below_the_simulations_resolution_is_drawn_as_none() -> Non
     assert fig.axes[0].images[0].norm.vmin == 0
     # the star still goes by summary.csv's digits
     assert fig.pupper_best[0]["overshoot_pct.kfe"] == 9.91e-10
+
+
+def test_the_heatmap_key_names_the_metric_it_plots_and_its_tie_break() -> None:
+    """The key line says which metric the star ranks and what breaks its
+    ties: the smaller push dip where the table has one, else grid order
+    (it said 'the smaller dip' on a response's overshoot)."""
+    response = {"kp": [5.0, 20.0, 5.0, 20.0], "kd": [0.1, 0.1, 0.5, 0.5], "status": ["ok"] * 4,
+                "overshoot_pct.kfe": [8.97, 36.6, 0.0132, 9.91e-10]}
+    key = " ".join(plots.heatmap(response, "overshoot_pct.kfe")._suptitle.get_text().split())
+    assert "★ = lowest overshoot_pct.kfe among" in key, key
+    assert "equal values: the first in grid order" in key and "dip" not in key, key
+    sweep = {"kp": [5.0, 20.0], "kd": [0.1, 0.1], "status": ["ok"] * 2,
+             "last_1s_std_mm": [0.01, 0.02], "push_dip_mm": [1.5, 1.2]}
+    key = " ".join(plots.heatmap(sweep, "last_1s_std_mm")._suptitle.get_text().split())
+    assert "★ = lowest base-height std, last 1 s among" in key, key
+    assert "ties within 0.001 mm: the smaller push dip" in key, key
+    key = " ".join(plots.heatmap(sweep, "push_dip_mm")._suptitle.get_text().split())
+    assert "lowest push dip of base height among" in key and "the first in grid order" in key, key
+    # a run without a push: its empty dip column breaks no tie
+    quiet = dict(sweep, push_dip_mm=[math.nan, math.nan])
+    key = " ".join(plots.heatmap(quiet, "last_1s_std_mm")._suptitle.get_text().split())
+    assert "the first in grid order" in key and "dip" not in key.split("(")[1], key
