@@ -588,3 +588,62 @@ def test_an_overshoot_below_the_simulations_resolution_is_drawn_as_none() -> Non
     assert fig.axes[0].images[0].norm.vmin == 0
     # the star still goes by summary.csv's digits
     assert fig.pupper_best[0]["overshoot_pct.kfe"] == 9.91e-10
+
+
+def test_the_heatmap_key_names_the_metric_it_plots_and_its_tie_break() -> None:
+    """The key line says which metric the star ranks and what breaks its
+    ties: the smaller push dip where the table has one, else grid order
+    (it said 'the smaller dip' on a response's overshoot)."""
+    response = {"kp": [5.0, 20.0, 5.0, 20.0], "kd": [0.1, 0.1, 0.5, 0.5], "status": ["ok"] * 4,
+                "overshoot_pct.kfe": [8.97, 36.6, 0.0132, 9.91e-10]}
+    key = " ".join(plots.heatmap(response, "overshoot_pct.kfe")._suptitle.get_text().split())
+    assert "★ = lowest overshoot_pct.kfe among" in key, key
+    assert "equal values: the first in grid order" in key and "dip" not in key, key
+    sweep = {"kp": [5.0, 20.0], "kd": [0.1, 0.1], "status": ["ok"] * 2,
+             "last_1s_std_mm": [0.01, 0.02], "push_dip_mm": [1.5, 1.2]}
+    key = " ".join(plots.heatmap(sweep, "last_1s_std_mm")._suptitle.get_text().split())
+    assert "★ = lowest base-height std, last 1 s among" in key, key
+    assert "ties within 0.001 mm: the smaller push dip" in key, key
+    key = " ".join(plots.heatmap(sweep, "push_dip_mm")._suptitle.get_text().split())
+    assert "lowest push dip of base height among" in key and "the first in grid order" in key, key
+    # a run without a push: its empty dip column breaks no tie
+    quiet = dict(sweep, push_dip_mm=[math.nan, math.nan])
+    key = " ".join(plots.heatmap(quiet, "last_1s_std_mm")._suptitle.get_text().split())
+    assert "the first in grid order" in key and "dip" not in key.split("(")[1], key
+
+
+def test_step_curves_are_at_the_physics_rate_and_the_run_s_own(run, tmp_path: Path) -> None:
+    """The step figure and report.html's step curve draw every physics step
+    of the cells they show (the cells run again: response_traces.csv keeps
+    every --trace-every-th step, 20 ms against rise times of 10 ms); the
+    samples the run wrote are among them, digit for digit."""
+    from pupper_core._plots_response import step_curves
+    from pupper_core._report import _read
+
+    d = tmp_path / "r"
+    run("response", "--grid", "kp=5,20", "--grid", "kd=0.1,0.5", "--seconds", "1", "--trace",
+        "--trace-every", "10", "-q", "-o", d, check=0)
+    before = (d / "response_traces.csv").read_bytes()
+    fig = plots.response_steps(d)
+    assert fig.pupper_sample_dt == pytest.approx(0.002, rel=1e-9)
+    for ax in (a for a in fig.axes if a.get_title()):
+        for ln in ax.get_lines():
+            if ln.get_label() in fig.pupper_cells:
+                t = ln.get_xdata()
+                assert np.diff(t).max() == pytest.approx(0.002, rel=1e-6), ln.get_label()
+    # every 10th physics-rate sample is the row the run wrote
+    _, traces = _read(d / "response_traces.csv")
+    _, joints = _read(d / "response.csv")
+    kfe = [r["joint"] for r in joints if r["group"] == "kfe"]
+    written = [(float(r["t"]), float(r["angle"])) for r in traces if r["id"] == "kp20_kd0.1" and r["joint"] == kfe[0]]
+    from pupper_core import _native
+
+    index = next(int(r["index"]) for r in _read(d / "summary.csv")[1] if r["id"] == "kp20_kd0.1")
+    full = next(tr for tr in _native.step_traces(str(d), [index]) if tr["joint"] == kfe[0])
+    assert list(zip(full["t"][::10], full["angle"][::10])) == written
+    curves = step_curves(d, ["kp20_kd0.1"])
+    assert len(curves[("kp20_kd0.1", "kfe")][0]) == len(full["t"]) > 10 * (len(written) - 1)
+    # nothing written by drawing
+    assert (d / "response_traces.csv").read_bytes() == before
+    page = (d / "report.html").read_text()
+    assert "every physics step (2 ms)" in page

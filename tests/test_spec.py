@@ -23,7 +23,8 @@ NO_CLI_DEFAULT = {"out", "force", "resume", "trace", "stop_fallen", "common_draw
                   "kp", "kd",  # none: each actuator's own (help says so)
                   "depth",  # none: scaled to the model's legs (help says so)
                   "motor",  # none: the ideal motor (help says so)
-                  "integrator"}  # none: the model's own (help says so)
+                  "integrator",  # none: the model's own (help says so)
+                  "push_force"}  # none: -25 N scaled to the model's mass (help says so)
 #: Spec fields whose flag has another name on the command line.
 CLI_FLAG = {"push": "--no-push"}
 

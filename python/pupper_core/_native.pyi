@@ -292,3 +292,8 @@ def record(
 
 def record_run(run_dir: str, cells: Sequence[int], fps: float = ...) -> list[Recording]:
     """`record` for cells of a run directory, by their `index` column."""
+
+def step_traces(run_dir: str | PathLike[str], cells: Sequence[int]) -> list[dict[str, Any]]:
+    """A response run's excited joints at every physics step, its cells run
+    again as the manifest says: a dict per (cell, joint) of replicate 0 with
+    `index`, `id`, `joint`, `t` and `angle` (arrays)."""

@@ -17,6 +17,7 @@ from pupper_core._plots_style import (
     SHORT,
     _cell_text,
     _fmt,
+    _has_dip,
     _ink,
     _key_line,
     _new_figure,
@@ -276,7 +277,7 @@ def heatmap(
             cb = fig.colorbar(im, ax=axs, shrink=0.9 if len(yv) > 3 else 1.0)
             cb.set_label(label_of(metric))
         best_word = "lowest" if minimize else "highest"
-        sub = _key_line(best_word, status, metric)
+        sub = _key_line(best_word, status, metric, _has_dip(table, metric))
         head = title if title is not None else label_of(metric)
         if ax is None:
             fig.suptitle(f"{head}\n{_wrap_parts(sub, fig.get_figwidth(), 12)}", fontsize=12)

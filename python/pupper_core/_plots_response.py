@@ -60,6 +60,32 @@ def _settling(d: Path, cell: str, group: str) -> float:
         return math.nan
 
 
+def step_curves(d: Path, cells: Sequence[str]) -> dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]:
+    """Each (cell, joint group)'s angle change over the step, averaged over
+    the group's joints and divided by the step, at the physics rate: the
+    cells (by id) run again as the manifest says, their every step kept
+    (response_traces.csv keeps every ``--trace-every``-th: 20 ms against
+    rise times of 10 ms). Time is from the step."""
+    from pupper_core import _native
+
+    index = {r["id"]: int(r["index"]) for r in _read_csv(d / "summary.csv")}
+    group_of = {r["joint"]: r["group"] for r in _read_csv(d / "response.csv")}
+    manifest = json.loads((d / "manifest.json").read_text())
+    amp = float(manifest["config"]["response"]["signal"]["amplitude"])
+    wanted = [index[c] for c in cells if c in index]
+    per: dict[tuple[str, str], list[tuple[np.ndarray, np.ndarray]]] = {}
+    for tr in _native.step_traces(str(d), wanted) if wanted else []:
+        g = group_of.get(tr["joint"])
+        if g is not None:
+            per.setdefault((tr["id"], g), []).append((np.asarray(tr["t"]), np.asarray(tr["angle"])))
+    out = {}
+    for key, joints in per.items():
+        n = min(len(t) for t, _ in joints)
+        t = joints[0][0][:n]
+        out[key] = (t, np.mean([(a[:n] - a[0]) / amp for _, a in joints], axis=0))
+    return out
+
+
 @exported_from("pupper_core.plots")
 def response_steps(run: RunLike, cells: Sequence[str] | None = None) -> "Figure | None":
     """Step responses of a response run (its directory, or its result), a
@@ -68,7 +94,9 @@ def response_steps(run: RunLike, cells: Sequence[str] | None = None) -> "Figure 
     after the step; the group's pick (the cell that settles soonest) bold,
     always drawn; the target (1) dashed and the 2 % settling
     band shaded; the time axis zoomed to three settling times of the pick.
-    Needs response_traces.csv (`--trace` or `--plot`). ``cells``: cell ids
+    The curves are at the physics rate: the drawn cells run again (a few
+    cells, quick), every step kept. Needs response_traces.csv (`--trace`
+    or `--plot`: the run was asked for traces). ``cells``: cell ids
     (default: the picks, then others spread over the grid, 6 in all)."""
     d = run_dir_of(run)
     if not (d / "response_traces.csv").exists():
@@ -83,16 +111,11 @@ def response_steps(run: RunLike, cells: Sequence[str] | None = None) -> "Figure 
         rest = [i for i in ids if i not in chosen]
         step = max(1, math.ceil(len(rest) / max(1, 6 - len(chosen))))
         cells = chosen + rest[::step][: max(0, 6 - len(chosen))]
-    manifest = json.loads((d / "manifest.json").read_text())
-    amp = float(manifest["config"]["response"]["signal"]["amplitude"])
     groups = [g for g in ("haa", "hfe", "kfe") if g in group_of.values()] + sorted(
         {g for g in group_of.values() if g not in ("haa", "hfe", "kfe")})
-    # (cell, group) -> joint -> (t, angle)
-    curves: dict[tuple[str, str], dict[str, list[tuple[float, float]]]] = {}
-    for r in traces:
-        if r["id"] in cells:
-            curves.setdefault((r["id"], group_of[r["joint"]]), {}).setdefault(r["joint"], []).append(
-                (float(r["t"]), float(r["angle"])))
+    # (cell, group) -> (t, angle change / step), every physics step
+    curves = step_curves(d, list(cells))
+    sample = math.nan
     with _style():
         fig = _new_figure((4.2 * len(groups) + 1.5, 4.2))
         axes = np.atleast_1d(fig.subplots(1, len(groups), sharey=True))
@@ -100,12 +123,11 @@ def response_steps(run: RunLike, cells: Sequence[str] | None = None) -> "Figure 
         for ax, g in zip(axes, groups):
             tmax = 0.0
             for c, colour in zip(cells, colours):
-                per_joint = curves.get((c, g), {})
-                if not per_joint:
+                if (c, g) not in curves:
                     continue
-                n = min(len(v) for v in per_joint.values())
-                t = np.array([p[0] for p in next(iter(per_joint.values()))[:n]])
-                rel = np.mean([[(p[1] - v[0][1]) / amp for p in v[:n]] for v in per_joint.values()], axis=0)
+                t, rel = curves[(c, g)]
+                if len(t) > 1:
+                    sample = float(t[1] - t[0])
                 picked = picks.get(g) == c
                 # the pick in its own colour (the legend's), bold
                 ax.plot(t, rel, color=colour, lw=3.2 if picked else 1.1, label=c, zorder=3 if picked else 2)
@@ -124,6 +146,8 @@ def response_steps(run: RunLike, cells: Sequence[str] | None = None) -> "Figure 
         axes[0].set_ylabel("angle change / step size")
         axes[-1].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False, fontsize=9)
         fig.pupper_cells = list(cells)
+        # the traces' sample spacing (s): the physics step
+        fig.pupper_sample_dt = sample
         fig.pupper_picks = dict(picks)
         return fig
 

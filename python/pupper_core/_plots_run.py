@@ -11,7 +11,7 @@ import numpy as np
 
 from pupper_core._plots_grid import bars, base_z, heatmap, metric_vs_axis
 from pupper_core._plots_replicates import replicate_spread
-from pupper_core._plots_style import SHORT, _fmt, _key_line, _save, _say_setting, _wrap_parts, label_of
+from pupper_core._plots_style import SHORT, _fmt, _has_dip, _key_line, _save, _say_setting, _wrap_parts, label_of
 from pupper_core._plots_tables import (
     RunLike,
     Traces,
@@ -143,7 +143,7 @@ def _run_heatmap(table: Mapping[str, Any], metric: str, varying: list[str], repl
         t2[metric] = table[metric]
         t2["status"] = ["ok"] * n
     fig = heatmap(t2, metric, "kp", "kd", by=by, mark_best=metric != "failure_fraction")
-    key = _key_line("lowest", _status(t2), metric)
+    key = _key_line("lowest", _status(t2), metric, _has_dip(table, metric))
     if replicated:
         key = key.replace("pink = fell", "pink = some replicates fell or diverged")
     if metric == "failure_fraction":

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -189,18 +190,39 @@ def _ink(rgba: Sequence[float]) -> str:
     return "black" if lum > 0.55 else "white"
 
 
-def _key_line(best_word: str, status: np.ndarray, metric: str = "last_1s_std_mm") -> str:
-    """'★ = lowest …' plus the colours used for fallen / diverged cells; the
-    tie rule as the Rust core applies it to ``metric`` (0.001 mm on a
-    millimetre column, exact equality on others)."""
-    tie = "ties within 0.001 mm" if metric.split(":")[-1].endswith("_mm") else "equal values"
-    parts = [f"★ = {best_word} among cells that stood below 5 % saturation ({tie}: the smaller dip)"
-             if best_word == "lowest" else f"★ = {best_word} among cells that stood"]
+def _key_line(best_word: str, status: np.ndarray, metric: str = "last_1s_std_mm", dip: bool = True) -> str:
+    """'★ = lowest <the metric plotted> …' plus the colours used for fallen /
+    diverged cells; the tie rule as the Rust core applies it to ``metric``
+    (0.001 mm on a millimetre column, exact equality on others), broken by
+    the smaller push dip when ``dip`` (the table has one and the metric is
+    not the dip itself), else by grid order."""
+    name = metric.split(":")[-1]
+    tie = "ties within 0.001 mm" if name.endswith("_mm") else "equal values"
+    breaker = "the smaller push dip" if dip and name != "push_dip_mm" else "the first in grid order"
+    what = re.sub(r" \([^)]*\)", "", label_of(metric))
+    parts = [f"★ = {best_word} {what} among cells that stood below 5 % saturation ({tie}: {breaker})"
+             if best_word == "lowest" else f"★ = {best_word} {what} among cells that stood"]
     if (status == "fell").any():
         parts.append("pink = fell")
     if (status == "diverged").any():
         parts.append("grey = diverged")
     return " · ".join(parts)
+
+
+def _has_dip(table: Any, metric: str) -> bool:
+    """Whether the table's push dip (the same statistic as ``metric``) can
+    break a tie: a column with a number in it (a run with a push)."""
+    import numpy as np
+
+    stat = metric.split(":")[0] + ":" if ":" in metric else ""
+    col = f"{stat}push_dip_mm"
+    if col not in table:
+        return False
+    try:
+        v = np.asarray(table[col], dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return bool(np.isfinite(v).any())
 
 
 def _wrap_parts(text: str, width_in: float, fontsize: float = 11.0) -> str:

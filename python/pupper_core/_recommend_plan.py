@@ -188,18 +188,31 @@ def _groups(model: str, inf: Mapping[str, Any], kp_max: float | None, kd_max: fl
         light = (inertia - armature_low.get(names[a], 0.0)) * (1 - leg)
         lo_i[g] = min(lo_i.get(g, math.inf), max(light, 1e-9))
         hi_i[g] = max(hi_i.get(g, 0.0), inertia * (1 + leg))
+    # a position servo's own gains (kp, and kv as -biasprm[2]); a <motor>
+    # has none (gain 1, no bias): its range comes from the caps alone
+    servo = [float(a["gainprm"][0]) > 0 and float(a["biasprm"][1]) == -float(a["gainprm"][0])
+             for a in inf["actuators"]]
     groups = []
     for name, acts in members.items():
-        kp0 = max(own_kp[a] for a in acts)
-        kd0 = max(own_kd[a] for a in acts)
-        if not (kp0 > 0 and kd0 > 0):
-            raise RecommendError(f"the model's {name} actuators have no PD gains of their own (kp {kp0:g}, "
-                                 f"kd {kd0:g}): give --kp-max and --kd-max, the motors' limits")
         caps_p = [numerics[f"pupper:kp_max:{names[a]}"] for a in acts if f"pupper:kp_max:{names[a]}" in numerics]
         caps_d = [numerics[f"pupper:kd_max:{names[a]}"] for a in acts if f"pupper:kd_max:{names[a]}" in numerics]
-        hi_p = min([kp0 * 20, *caps_p, *([kp_max] if kp_max else [])])
-        hi_d = min([kd0 * 50, *caps_d, *([kd_max] if kd_max else [])])
-        lo_p, lo_d = min(kp0 / 10, hi_p / 2), min(kd0 / 10, hi_d / 2)
+        caps_p += [kp_max] if kp_max else []
+        caps_d += [kd_max] if kd_max else []
+        if all(servo[a] for a in acts) and max(own_kd[a] for a in acts) > 0:
+            kp0 = max(own_kp[a] for a in acts)
+            kd0 = max(own_kd[a] for a in acts)
+            hi_p, hi_d = min([kp0 * 20, *caps_p]), min([kd0 * 50, *caps_d])
+            lo_p, lo_d = min(kp0 / 10, hi_p / 2), min(kd0 / 10, hi_d / 2)
+        elif caps_p and caps_d:
+            # the same spans as a servo's own gains give: 200x in kp, 500x in kd
+            hi_p, hi_d = min(caps_p), min(caps_d)
+            lo_p, lo_d = hi_p / 200, hi_d / 500
+        else:
+            kind = "motors" if not any(servo[a] for a in acts) else "servos without damping"
+            raise RecommendError(f"the model's {name} actuators are {kind}, with no PD gains of their own to "
+                                 "search around: give --kp-max and --kd-max, the largest gains the motors take "
+                                 "(kp_max= and kd_max= in Python), or pupper:kp_max:ACT and pupper:kd_max:ACT "
+                                 "numerics in the model")
         groups.append(Group(name, tuple(acts), (lo_p, hi_p), (lo_d, hi_d), (lo_i[name], hi_i[name]),
                             min(_limit(inf["actuators"][a]) for a in acts)))
     return names, groups, float(rep["timestep"])

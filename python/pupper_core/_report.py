@@ -281,6 +281,8 @@ def _status_warnings(page: Page) -> None:
             said = "lie past" if s == "past_bound" else s
             page.warnings.append(f"{counts[s]} of {len(page.rows)} cells {said}" + why.get(s, ""))
     m = page.manifest
+    # a model without a home keyframe: where its cells started
+    page.warnings.extend(m.get("start_notes", []))
     if not m.get("complete", True):
         page.warnings.append(f"the run is incomplete ({m.get('cells_done')} of {m.get('cells_total')} "
                              "cells): finish it with --resume")

@@ -28,39 +28,35 @@ def _steps(page: Page, picks: dict[str, str]) -> list[str]:
     amp = num(resp.get("signal", {}).get("amplitude"))
     if resp.get("signal", {}).get("kind") != "step" or not amp:
         return []
-    _, joints = _read(page.dir / "response.csv")
-    group_of = {r["joint"]: r["group"] for r in joints}
-    # (cell, group) -> joint -> (t, angle)
-    curves: dict[tuple[str, str], dict[str, list[tuple[float, float]]]] = {}
-    for r in traces:
-        g = group_of.get(r["joint"])
-        if g:
-            curves.setdefault((r["id"], g), {}).setdefault(r["joint"], []).append((num(r["t"]), num(r["angle"])))
+    from pupper_core._plots_response import step_curves
+
     ids = list(dict.fromkeys(r["id"] for r in traces))
+    # the cells drawn, each group's pick and up to 5 others, run again at
+    # the physics rate (response_traces.csv keeps every --trace-every-th step)
+    drawn: dict[str, list[str]] = {}
+    for g, pick in picks.items():
+        others = [i for i in ids if i != pick]
+        step = max(1, math.ceil(len(others) / 5))
+        drawn[g] = [pick, *others[::step][:5]]
+    curves = step_curves(page.dir, list(dict.fromkeys(c for cells in drawn.values() for c in cells)))
     out = []
     for g, pick in picks.items():
         row = next(r for r in page.rows if r["id"] == pick)
         settle = num(row.get(f"settling_time_s.{g}"))
-        others = [i for i in ids if i != pick]
-        step = max(1, math.ceil(len(others) / 5))
+        t_end = SETTLING_TIMES_SHOWN * settle if settle > 0 else math.inf
         series: dict[str, tuple[list[float], list[float]]] = {}
-        for cell in [pick, *others[::step][:5]]:
-            per_joint = curves.get((cell, g), {})
-            if not per_joint:
+        for cell in drawn[g]:
+            if (cell, g) not in curves:
                 continue
-            n = min(len(v) for v in per_joint.values())
-            first = next(iter(per_joint.values()))
-            t_end = SETTLING_TIMES_SHOWN * settle if settle > 0 else math.inf
-            keep = [k for k in range(n) if first[k][0] <= t_end] or list(range(n))
-            ts = [first[k][0] for k in keep]
-            ys = [sum((v[k][1] - v[0][1]) / amp for v in per_joint.values()) / len(per_joint) for k in keep]
-            series[cell] = (ts, ys)
+            t, rel = curves[(cell, g)]
+            keep = t <= t_end if (t <= t_end).any() else t == t
+            series[cell] = (t[keep].tolist(), rel[keep].tolist())
         if pick in series:
             ts = series[pick][0]
             dt = ts[1] - ts[0] if len(ts) > 1 else math.nan
             zoom = f"{SETTLING_TIMES_SHOWN:g} settling times of the pick" if settle > 0 else "the run"
             out.append(lines(series, f"{g}: angle change / step (dashed: the target) over {zoom}, "
-                             f"sampled every {dt * 1e3:.3g} ms (--trace-every)", "time after the step (s)",
+                             f"every physics step ({dt * 1e3:.3g} ms)", "time after the step (s)",
                              "angle change / step", pick=pick, guide=1.0, height=180))
     return out
 

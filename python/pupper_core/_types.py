@@ -171,7 +171,10 @@ class SweepOptions(SimOptions, total=False):
     """The other keywords of `sweep`."""
 
     push: bool
-    push_force: float
+    push_force: float | None
+    """The push along world z (N); None or absent: the chapter's −25 N
+    scaled to the model's mass (−25 N × mass / 3.17 kg, to 0.1 N: −25 N on
+    Pupper); the manifest records the force used."""
     push_at: float
     push_duration: float
     sine: Sequence[float] | None

@@ -129,6 +129,9 @@ pub(crate) fn to_py(e: Error) -> PyErr {
         };
         // an exception without the attribute is still raised, only plainer
         let _ = err.value(py).setattr("kind", e.code());
+        // the command line's words, for a command whose work is in Python
+        // (tune, fit, recommend) to say its error as the CLI does
+        let _ = err.value(py).setattr("cli_message", e.to_string());
         err
     })
 }

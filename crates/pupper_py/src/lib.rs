@@ -67,6 +67,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<result::SweepResult>()?;
     m.add_function(wrap_pyfunction!(record::record, m)?)?;
     m.add_function(wrap_pyfunction!(record::record_run, m)?)?;
+    m.add_function(wrap_pyfunction!(record::step_traces, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::sweep_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(model::builtin_model, m)?)?;
     m.add_function(wrap_pyfunction!(cli::cli_main, m)?)?;

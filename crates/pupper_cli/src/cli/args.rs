@@ -147,9 +147,11 @@ impl SimArgs {
 /// The push and the sine force, as sweep and tune take them.
 #[derive(Args, Debug)]
 pub(super) struct ScheduleArgs {
-    /// Push force along world z (N; negative pushes down).
-    #[arg(long, default_value_t = SweepSpec::default().push_force, value_name = "N", allow_hyphen_values = true)]
-    pub(super) push_force: f64,
+    /// Push force along world z (N; negative pushes down) [default: the chapter's -25 N on
+    /// Pupper v3 (3.17 kg), scaled to the model's mass and rounded to 0.1 N: -25 N x mass / 3.17 kg,
+    /// e.g. -118.3 N on 15 kg; the manifest records the force used].
+    #[arg(long, value_name = "N", allow_hyphen_values = true)]
+    pub(super) push_force: Option<f64>,
     /// Push start time (s).
     #[arg(long, default_value_t = SweepSpec::default().push_at, value_name = "S", allow_negative_numbers = true)]
     pub(super) push_at: f64,

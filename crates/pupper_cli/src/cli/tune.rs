@@ -134,6 +134,21 @@ impl TuneArgs {
                 .apply(sine, self.backend.apply(self.population.apply(sim))),
         );
         let d = SweepSpec::default();
+        // JSON has no NaN: a non-finite number would reach Python as null,
+        // which is the flag left out (the model's gains, the default push)
+        for (flag, v) in [
+            ("--kp", spec.kp),
+            ("--kd", spec.kd),
+            ("--max-torque", spec.max_torque),
+            ("--depth", spec.depth),
+            ("--push-force", spec.push_force),
+        ] {
+            if let Some(v) = v.filter(|v| !v.is_finite()) {
+                return Err(Error::Config(format!(
+                    "{flag} {v} is not a finite number: give a number"
+                )));
+            }
+        }
         let keep = [
             ("model", true),
             ("variant", true),
@@ -149,7 +164,7 @@ impl TuneArgs {
             ("max_torque", spec.max_torque.is_some()),
             ("depth", spec.depth.is_some()),
             ("motor", spec.motor.is_some()),
-            ("push_force", spec.push_force != d.push_force),
+            ("push_force", spec.push_force.is_some()),
             ("push_at", spec.push_at != d.push_at),
             ("push_duration", spec.push_duration != d.push_duration),
             ("sine", spec.sine.is_some()),

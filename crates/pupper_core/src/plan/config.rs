@@ -209,11 +209,25 @@ impl SweepConfig {
     /// Checks that every gain a cell may need has a value: the model's own
     /// gains stand in for a gain neither the grid nor the defaults give.
     pub fn check_gains(&self, info: &ModelInfo) -> Result<()> {
-        let given = |axis: Axis, d: Option<f64>| d.is_some() || self.grid.has_axis(axis);
-        if given(Axis::Kp, self.defaults.kp) && given(Axis::Kd, self.defaults.kd) {
-            return Ok(());
-        }
-        match info.actuators.iter().find(|a| a.own_gains().is_none()) {
+        // a gain of actuator `a`: a default, the common axis, or its group's
+        let given = |a: usize, kd: bool| {
+            let (axis, d) = match kd {
+                false => (Axis::Kp, self.defaults.kp),
+                true => (Axis::Kd, self.defaults.kd),
+            };
+            d.is_some()
+                || self.grid.has_axis(axis)
+                || info
+                    .actuator_group(a)
+                    .and_then(|g| Axis::group_gain(kd, g))
+                    .is_some_and(|x| self.grid.has_axis(x))
+        };
+        let open = info
+            .actuators
+            .iter()
+            .enumerate()
+            .find(|(i, a)| a.own_gains().is_none() && !(given(*i, false) && given(*i, true)));
+        match open.map(|(_, a)| a) {
             Some(a) => Err(Error::Config(format!(
                 "actuator '{}' of model '{}' has no PD gains of its own (it is not a position servo), so there is no default to run it at: give --kp and --kd",
                 a.name, info.name

@@ -77,12 +77,17 @@ impl Experiment {
     }
 
     /// What a kind takes from the compiled model before it runs (a hold's
-    /// weight, groups and windings). A response's joints need the model's
+    /// weight, groups and windings; the default push's force, scaled to the
+    /// model's mass). A response's joints need the model's
     /// data too and are resolved beside it, in the adapter.
     pub fn resolve(&mut self, info: &ModelInfo, schedule: &mut Schedule) -> Result<()> {
         match self {
             Experiment::Hold(l) => l.resolve(info, schedule),
-            Experiment::Stand | Experiment::Response(_) => Ok(()),
+            // the default push, scaled to the robot's mass
+            Experiment::Stand | Experiment::Response(_) => match schedule.push.as_mut() {
+                Some(p) => p.resolve(info.total_mass),
+                None => Ok(()),
+            },
         }
     }
 

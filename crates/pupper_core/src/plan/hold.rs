@@ -124,6 +124,7 @@ impl Load {
         self.winding = info.actuators.iter().map(|a| a.winding).collect();
         if let Some(p) = schedule.push.as_mut() {
             p.force = [0.0, -self.shove * self.weight, 0.0];
+            p.by_weight = false;
         }
         Ok(())
     }

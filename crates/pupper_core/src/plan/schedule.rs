@@ -54,6 +54,43 @@ pub struct Push {
     /// Body name; empty means the floating base body.
     #[serde(default)]
     pub body: String,
+    /// The default push, not yet scaled to the robot: resolving the run on
+    /// its model sets `force` to [`default_push_n`] of the model's mass and
+    /// clears this (a manifest never holds it set).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub by_weight: bool,
+}
+
+/// The chapter's push on Pupper v3 (N, world z): the default push of a
+/// sweep and a lab on Pupper.
+pub const PUPPER_PUSH_N: f64 = -25.0;
+/// Pupper v3's mass (kg), the weight the chapter's push was chosen for.
+pub const PUPPER_MASS_KG: f64 = 3.17;
+
+/// The default push on a robot of `mass` kg: the chapter's −25 N scaled by
+/// its mass over Pupper v3's 3.17 kg, rounded to 0.1 N, so that Pupper's
+/// own (3.17 kg as MuJoCo sums it, 3.1699999999999995) is exactly −25 N and
+/// a 15 kg robot gets −118.3 N (the same push per kilogram).
+pub fn default_push_n(mass: f64) -> f64 {
+    (PUPPER_PUSH_N * mass / PUPPER_MASS_KG * 10.0).round() / 10.0
+}
+
+impl Push {
+    /// The push on a model of `mass` kg: the default one scaled to it
+    /// (a given force stays as given).
+    pub fn resolve(&mut self, mass: f64) -> Result<()> {
+        if !self.by_weight {
+            return Ok(());
+        }
+        if !(mass.is_finite() && mass > 0.0) {
+            return Err(Error::Config(format!(
+                "the model's mass is {mass} kg: the default push scales with the robot's mass, so give the model mass or a --push-force"
+            )));
+        }
+        self.force = [0.0, 0.0, default_push_n(mass)];
+        self.by_weight = false;
+        Ok(())
+    }
 }
 
 impl Default for Push {
@@ -61,8 +98,9 @@ impl Default for Push {
         Push {
             start: 2.0,
             duration: 0.25,
-            force: [0.0, 0.0, -25.0],
+            force: [0.0, 0.0, PUPPER_PUSH_N],
             body: String::new(),
+            by_weight: false,
         }
     }
 }
@@ -363,6 +401,39 @@ mod tests {
         assert_eq!(plan.steps, 5000);
         assert_eq!(plan.push, 1000..1126);
         assert_eq!(s.window_samples(0.002), 500);
+    }
+
+    #[test]
+    fn the_default_push_scales_with_mass_and_is_the_chapters_on_pupper() {
+        // Pupper v3 as MuJoCo sums its bodies, and as written: exactly -25 N
+        assert_eq!(default_push_n(3.1699999999999995), -25.0);
+        assert_eq!(default_push_n(PUPPER_MASS_KG), PUPPER_PUSH_N);
+        // the same newtons per kilogram, to 0.1 N
+        assert_eq!(default_push_n(15.2), -119.9);
+        assert_eq!(default_push_n(7.999999999999999), -63.1);
+        assert_eq!(default_push_n(2.0 * PUPPER_MASS_KG), -50.0);
+        let mut p = Push {
+            by_weight: true,
+            ..Push::default()
+        };
+        p.resolve(15.2).unwrap();
+        assert_eq!((p.force, p.by_weight), ([0.0, 0.0, -119.9], false));
+        // resolved once: a second model does not scale it again
+        p.resolve(3.17).unwrap();
+        assert_eq!(p.force[2], -119.9);
+        // a given force is the user's
+        let mut given = Push {
+            force: [0.0, 0.0, -40.0],
+            ..Push::default()
+        };
+        given.resolve(15.2).unwrap();
+        assert_eq!(given.force[2], -40.0);
+        let mut massless = Push {
+            by_weight: true,
+            ..Push::default()
+        };
+        let e = massless.resolve(0.0).unwrap_err().to_string();
+        assert!(e.contains("--push-force"), "{e}");
     }
 
     #[test]

@@ -83,7 +83,10 @@ pub struct SweepSpec {
     pub max_torque: Option<f64>,
     /// The timed push on the base.
     pub push: bool,
-    pub push_force: f64,
+    /// Its force along world z (N); None: the chapter's −25 N scaled to the
+    /// model's mass (−25 N on Pupper v3; see
+    /// [`crate::plan::schedule::default_push_n`]).
+    pub push_force: Option<f64>,
     pub push_at: f64,
     pub push_duration: f64,
     /// A continuous vertical force (amplitude N, frequency Hz).
@@ -157,7 +160,7 @@ impl Default for SweepSpec {
             kd: None,
             max_torque: None,
             push: true,
-            push_force: -25.0,
+            push_force: None,
             push_at: 2.0,
             push_duration: 0.25,
             sine: None,
@@ -274,8 +277,15 @@ impl SweepSpec {
             push: (self.push && experiment.plan().pushes()).then(|| Push {
                 start: self.push_at,
                 duration: self.push_duration,
-                force: [0.0, 0.0, self.push_force],
+                force: [
+                    0.0,
+                    0.0,
+                    self.push_force
+                        .unwrap_or(crate::plan::schedule::PUPPER_PUSH_N),
+                ],
                 body: String::new(),
+                // a hold's shove is its own, in multiples of the weight
+                by_weight: self.push_force.is_none() && matches!(experiment, Experiment::Stand),
             }),
             sine: self.sine.map(|[amplitude, frequency]| SineForce {
                 amplitude,
@@ -461,7 +471,11 @@ mod tests {
 
     #[test]
     fn defaults_build_the_chapter_schedule() {
-        let s = SweepSpec::default().build().unwrap();
+        let mut s = SweepSpec::default().build().unwrap();
+        // the default push waits for the model's mass; on Pupper's it is the chapter's
+        let push = s.config.schedule.push.as_mut().unwrap();
+        assert!(push.by_weight);
+        push.resolve(3.1699999999999995).unwrap();
         assert_eq!(s.config, SweepConfig::default());
         assert_eq!(s.options, RunOptions::default());
         assert_eq!(s.existing, Existing::Refuse);

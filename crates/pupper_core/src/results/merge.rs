@@ -95,6 +95,17 @@ fn check_shards(parts: &[(&PathBuf, Manifest)]) -> Result<u32> {
                 d.display()
             )));
         };
+        // first: another model explains a config resolved on it (the push
+        // scaled to its mass)
+        if m.model.sha256 != first.model.sha256 {
+            return Err(bad(format!(
+                "'{}' and '{}' ran different models (SHA-256 {} vs {}): rerun one shard on the same model",
+                first_dir.display(),
+                d.display(),
+                short(&first.model.sha256),
+                short(&m.model.sha256)
+            )));
+        }
         let diff = config_diff(&first.config, &m.config);
         if !diff.is_empty() || s.shard.count != count {
             let what = match diff.is_empty() {
@@ -105,15 +116,6 @@ fn check_shards(parts: &[(&PathBuf, Manifest)]) -> Result<u32> {
                 "'{}' and '{}' are shards of different sweeps (they differ in {what}): merge the shards of one sweep",
                 first_dir.display(),
                 d.display()
-            )));
-        }
-        if m.model.sha256 != first.model.sha256 {
-            return Err(bad(format!(
-                "'{}' and '{}' ran different models (SHA-256 {} vs {}): rerun one shard on the same model",
-                first_dir.display(),
-                d.display(),
-                short(&first.model.sha256),
-                short(&m.model.sha256)
             )));
         }
         let slot = &mut seen[(s.shard.index - 1) as usize];

@@ -194,6 +194,12 @@ pub struct Manifest {
     /// value: --max-torque, else the model's own limits.
     #[serde(default)]
     pub torque_limits: Vec<f64>,
+    /// Where the cells start when that is not the model's `home` keyframe
+    /// (a model without one starts from its first keyframe, else its
+    /// default pose, legs often straight): the notes the run printed, kept
+    /// for report.html's warnings. Absent when the start is `home`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub start_notes: Vec<String>,
     pub cells_total: usize,
     pub cells_done: usize,
     /// Batches (one MuJoCo batch run each) whose cells are in this directory.

@@ -662,6 +662,7 @@ mod tests {
                 timestep: None,
             },
             torque_limits: vec![],
+            start_notes: vec![],
             cells_done: 0,
             batches: 0,
             complete: false,

@@ -572,7 +572,7 @@ impl ModelInfo {
             Err(_) if name == "home" => Ok((
                 None,
                 Some(format!(
-                    "model '{}' has no keyframe: starting from its default pose (qpos0), which is also the joint target",
+                    "model '{}' has no keyframe: starting from its default pose (qpos0), which is also the joint target: the pose the model is written in (often straight legs), not a stand pose; add a keyframe, or give --pose (auto searches a stand pose)",
                     self.name
                 )),
             )),

@@ -19,7 +19,7 @@ use pupper_core::sim::runner::{self, CellResult, Hooks, RunOptions};
 
 use super::SweepUi;
 use super::bound::Bound;
-use super::start::{check_start, resolved};
+use super::start::{check_start, resolved, start_targets};
 use pupper_core::results::tables::NamedTable;
 
 /// A validated sweep and the command line that asked for it (for the manifest).
@@ -121,7 +121,9 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
     bridge::with_config_model(cfg, |model| {
         let info = model.info();
         // a response run's joints, named on this compiled model
+        let given = cfg;
         let cfg = &resolved(cfg, model)?;
+        let push = scaled_push(given, cfg, info);
         let bound = Bound::new(cfg, model);
         let unstable = bound.as_ref().and_then(Bound::note);
         let mark = bound.as_ref().map(|b| move |r: &mut CellResult| b.mark(r));
@@ -188,6 +190,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
         ui.finish();
         let notes = note
             .into_iter()
+            .chain(push)
             .chain(unclipped(cfg, info))
             .chain(unstable)
             .chain(advice(cfg))
@@ -220,6 +223,7 @@ fn manifest_of(
             Some(t) => vec![t; info.nu],
             None => info.torque_limits()?,
         },
+        start_notes: start_targets(info, &cfg.schedule.initial)?.1,
         cells_total: cells,
         cells_done: 0,
         batches: 0,
@@ -315,6 +319,20 @@ fn finish(writer: &mut RunWriter, log: MujocoLog, result: Result<()>) -> Result<
         }
     };
     writer.finish(complete)
+}
+
+/// The default push as the run applies it, when the robot's mass made it
+/// other than the chapter's −25 N (on Pupper v3 it is −25 N, unsaid).
+fn scaled_push(given: &SweepConfig, run: &SweepConfig, info: &ModelInfo) -> Option<String> {
+    use pupper_core::plan::schedule::{PUPPER_MASS_KG, PUPPER_PUSH_N};
+    let by_weight = given.schedule.push.as_ref()?.by_weight;
+    let force = run.schedule.push.as_ref()?.force[2];
+    (by_weight && force != PUPPER_PUSH_N).then(|| {
+        format!(
+            "the push is {force} N: the chapter's {PUPPER_PUSH_N} N on Pupper v3 ({PUPPER_MASS_KG} kg) scaled to this model's {:.2} kg (give --push-force to set it)",
+            info.total_mass
+        )
+    })
 }
 
 /// Actuators without a torque limit, when no --max-torque gives one.

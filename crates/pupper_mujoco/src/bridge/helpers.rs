@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use super::model::LoadedModel;
-use super::python::{Mujoco, PyResultExt, exception_name, python_message};
+use super::python::{Mujoco, PyResultExt, cli_message, exception_name, python_message};
 use super::warp::WarpPhysics;
 use pupper_core::error::{Error, Result};
 use pupper_core::plan::backend::Backend;
@@ -108,7 +108,8 @@ pub fn call_helper(
             .and_then(|f| f.call(pyo3::types::PyTuple::new(py, args)?, Some(&kw)))
             .map_err(|e| {
                 let kind = exception_name(py, &e);
-                let msg = python_message(py, &e);
+                // the CLI's words where the core said it (`--kp`, not `kp=`)
+                let msg = cli_message(py, &e);
                 // Ctrl-C or SIGTERM inside the helper: what the CLI's own
                 // stop gives, exit 130 and one line
                 if e.is_instance_of::<pyo3::exceptions::PyKeyboardInterrupt>(py) {

@@ -35,6 +35,35 @@ pub(crate) fn python_message(py: Python<'_>, e: &PyErr) -> String {
     out
 }
 
+/// [`python_message`] in the command line's words: where the error, or one
+/// it was raised from (its `__cause__` or `__context__`), came from the
+/// Rust core, the module said it in Python's words (`give kp= and kd=`)
+/// and kept the command line's as `cli_message`; the command-line words
+/// replace them wherever the message quotes them.
+pub(crate) fn cli_message(py: Python<'_>, e: &PyErr) -> String {
+    let mut msg = python_message(py, e);
+    let mut exc = Some(e.value(py).clone().into_any());
+    // a chain is short; the bound guards against a cycle
+    for _ in 0..8 {
+        let Some(x) = exc.take() else { break };
+        let cli = x
+            .getattr("cli_message")
+            .ok()
+            .and_then(|c| c.extract::<String>().ok());
+        if let (Some(cli), Ok(said)) = (cli, x.str().map(|s| s.to_string()))
+            && !said.is_empty()
+            && msg.contains(&said)
+        {
+            msg = msg.replace(&said, &cli);
+        }
+        exc = ["__cause__", "__context__"]
+            .iter()
+            .filter_map(|a| x.getattr(*a).ok())
+            .find(|c| !c.is_none());
+    }
+    msg
+}
+
 /// The class name of a Python exception (`WarpUnavailable`, ...), for the
 /// helpers that turn some of their own exceptions into user errors.
 pub(crate) fn exception_name(py: Python<'_>, e: &PyErr) -> String {

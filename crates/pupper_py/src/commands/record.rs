@@ -98,3 +98,29 @@ pub(crate) fn record_run(
         .map(|r| recording_dict(py, r, fps))
         .collect()
 }
+
+/// A response run's excited joints at every physics step for cells of its
+/// directory, by their `index` column: a dict per (cell, joint) of replicate
+/// 0 with `index`, `id`, `joint`, `t` (s after the excitation starts) and
+/// `angle` (rad) as arrays.
+#[pyfunction]
+#[pyo3(signature = (run_dir, cells))]
+pub(crate) fn step_traces(
+    py: Python<'_>,
+    run_dir: PathBuf,
+    cells: Vec<usize>,
+) -> PyResult<Vec<Bound<'_, PyDict>>> {
+    api::step_traces(&run_dir, &cells)
+        .map_err(to_py)?
+        .into_iter()
+        .map(|s| {
+            let d = PyDict::new(py);
+            d.set_item("index", s.index)?;
+            d.set_item("id", s.id)?;
+            d.set_item("joint", s.joint)?;
+            d.set_item("t", PyArray1::from_vec(py, s.t))?;
+            d.set_item("angle", PyArray1::from_vec(py, s.angle))?;
+            Ok(d)
+        })
+        .collect()
+}
