@@ -277,10 +277,10 @@ def test_without_optuna_it_says_the_extra(run, tmp_path):
     assert not (tmp_path / "r").exists()
 
 
-@pytest.mark.parametrize("latency", [("--sensing-delay", "0.006"), ("--motor", "rate=250,counts=16384")],
+@pytest.mark.parametrize("latency", [("--sensing-delay", "0.004"), ("--motor", "rate=250,counts=16384")],
                          ids=["sensing-delay", "slower-firmware"])
 def test_more_latency_in_the_loop_lowers_kd(run, tmp_path, default_run, latency):
-    # 6 ms old measurements, or half the update rate (a period more in the loop):
+    # 4 ms old measurements, or half the update rate (a period more in the loop):
     # less derivative gain in every group, the margins still held
     base = cards(default_run[0])
     run("recommend", *QUICK, *latency, "-q", "-o", tmp_path / "r", check=0)

@@ -25,6 +25,10 @@ TRACED = ["sweep", "--grid", "kp=10:120:16", "--grid", "kd=0.5,1,2,5", "--second
           "--trace", "--chunk-cells", "4", "--threads", "1", "-q"]
 
 
+GLFW_PROBE_ORPHAN = ('Traceback (most recent call last):\n  File "<string>", line 36, in <module>\n'
+                     "BrokenPipeError: [Errno 32] Broken pipe\n")
+
+
 def start(pupper_bin: Path, args: list, cwd: Path) -> subprocess.Popen:
     return subprocess.Popen([str(pupper_bin), *map(str, args)], cwd=cwd, env=clean_env(),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -78,6 +82,12 @@ def test_twenty_random_kills_then_resume_equal_one_run(pupper_bin, tmp_path, tra
         proc.send_signal(sig)
         so, se = proc.communicate(timeout=30)
         kills += 1
+        if sig == signal.SIGKILL:
+            # nothing of pupper's prints after a SIGKILL, but one that lands
+            # while mujoco imports pyGLFW orphans the child python it asks
+            # for the GLFW version over a pipe (glfw/library.py), and that
+            # child reports the broken pipe on the stderr it inherited
+            se = se.replace(GLFW_PROBE_ORPHAN, "")
         assert "panicked" not in se and "Traceback" not in se, se
         if (out / "manifest.json").exists():
             m = json.loads((out / "manifest.json").read_text())

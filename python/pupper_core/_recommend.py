@@ -23,7 +23,7 @@ from typing import Any
 
 from pupper_core._recommend_card import Card, card_of, print_card, write_outputs, write_trials
 from pupper_core._recommend_plan import Plan, RecommendError, plan as make_plan
-from pupper_core._recommend_search import Candidate, best_of, robot_model_files, search
+from pupper_core._recommend_search import Candidate, best_of, robot_model_files, search, windows
 from pupper_core._recommend_search import polish as polish_pick
 from pupper_core._signals import _stop_on_signals
 from pupper_core._tune import _sayer
@@ -107,8 +107,9 @@ def recommend(
     `pupper fit` run directory whose calibrated model is the robot and whose
     intervals are the spread (8 joint models drawn inside them, the gain
     scales and the fitted delay drawn per robot). The search's best then
-    moves to a better neighbour (a group's kp or kd ×/÷ 1.25) up to
-    ``polish`` times. The search spans each
+    moves to a better neighbour (a group's kp or kd ×/÷ 1.25, or its kp
+    with kd along its margin window) up to ``polish`` times. The search
+    starts from each group as stiff as its margins allow. It spans each
     group's own gains /10 to x20 (x50 for kd), capped by the model's
     ``pupper:kp_max:ACT``/``pupper:kd_max:ACT`` numerics or ``kp_max``/``kd_max``.
 
@@ -164,11 +165,12 @@ def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommenda
     """The search, the polish, the card and the files."""
     started = time.time()
     models = robot_model_files(p, d / "robots")
-    every = search(p, models, say, lambda cands: write_trials(d, p, cands) if keep else None)
+    wins = windows(p)
+    every = search(p, models, say, lambda cands: write_trials(d, p, cands) if keep else None, wins)
     best = best_of(p, every)
     rec = Recommendation(None, [], every, p, d if keep else None)
     if best is not None:
-        pick, near = polish_pick(p, best, models, say, every)
+        pick, near = polish_pick(p, best, models, say, every, wins)
         rec.searched = pick
         rec.cards, rec.neighbours, rec.warnings, rec.pick = card_of(p, pick, near, d, say)
     if keep:

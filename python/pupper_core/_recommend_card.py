@@ -246,7 +246,7 @@ def write_outputs(rec: Recommendation, d: Path, keep: bool, wall: float) -> tupl
 def _manifest(rec: Recommendation, wall: float) -> dict[str, Any]:
     import mujoco
 
-    from pupper_core import __version__
+    from pupper_core._native import __version__
 
     pick = rec.pick
     return {
@@ -282,7 +282,7 @@ def print_card(rec: Recommendation) -> None:
         print(f"no gains held every constraint on all {plan.robots} robots ({constraints_line(plan)}): "
               f"{len(rec.candidates)} candidates asked, {len(ran)} ran on the robots; most common reason: "
               f"{_commonest(rec.candidates)}. Try a faster firmware (--motor rate=), less sensing delay, "
-              "or lower --min-phase-margin")
+              "a lower --min-phase-margin, or (for a robot that sags) a larger --max-sag")
         return
     print(f"recommended gains, holding on each of {plan.robots} drawn robots: {constraints_line(plan)}")
     head = ("group", "kp", "kd", "phase °", "gain dB", "rise s", "overshoot %", "settle s")

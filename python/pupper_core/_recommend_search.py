@@ -135,23 +135,84 @@ def _slack(plan: Plan, g: Group, kp: float, kd: float) -> float:
     return min(pm - plan.min_phase_deg, 5 * (gm - plan.min_gain_db))
 
 
-def window(plan: Plan, g: Group) -> Window:
-    """The group's margin map on a MAP_POINTS² log grid, and each row's
-    kd interval, its edges where the slack crosses zero."""
-    kps = np.geomspace(*g.kp_range, MAP_POINTS)
-    kds = np.geomspace(*g.kd_range, MAP_POINTS)
+#: Golden-section and bisection steps that refine a row's best kd and its
+#: interval's edges between the map's grid points.
+REFINE_STEPS = 16
+
+
+def _row(plan: Plan, g: Group, kp: float, kds: np.ndarray) -> tuple[float, float] | None:
+    """The kd interval at kp whose margins hold, or None: the slack on the
+    kd grid, its peak refined between grid points (golden section in log
+    kd: near the stiffest kp the interval is narrower than the grid's
+    step), and each edge bisected where the slack crosses zero."""
     lx = np.log(kds)
-    lo, hi = np.full(MAP_POINTS, np.nan), np.full(MAP_POINTS, np.nan)
-    for i, kp in enumerate(kps):
-        s = np.array([_slack(plan, g, float(kp), float(kd)) for kd in kds])
-        ok = np.flatnonzero(s > 0)
-        if ok.size == 0:
-            continue
-        a, b = ok[0], ok[-1]
-        # the crossing between a grid point that fails and one that holds
-        lo[i] = kds[a] if a == 0 else math.exp(np.interp(0.0, [s[a - 1], s[a]], [lx[a - 1], lx[a]]))
-        hi[i] = kds[b] if b == MAP_POINTS - 1 else math.exp(np.interp(0.0, [s[b + 1], s[b]], [lx[b + 1], lx[b]]))
-    return Window(kps, lo, hi)
+    slack = lambda x: _slack(plan, g, kp, math.exp(x))  # noqa: E731
+    s = np.array([slack(x) for x in lx])
+    i = int(np.argmax(s))
+    a, b = lx[max(i - 1, 0)], lx[min(i + 1, len(lx) - 1)]
+    peak, top = lx[i], s[i]
+    r = (math.sqrt(5) - 1) / 2
+    for _ in range(REFINE_STEPS):
+        c, d = b - r * (b - a), a + r * (b - a)
+        sc, sd = slack(c), slack(d)
+        if sc > sd:
+            b = d
+            if sc > top:
+                peak, top = c, sc
+        else:
+            a = c
+            if sd > top:
+                peak, top = d, sd
+    if not top > 0:
+        return None
+
+    def edge(outside: float) -> float:
+        good, bad = peak, outside
+        for _ in range(REFINE_STEPS):
+            mid = 0.5 * (good + bad)
+            good, bad = (mid, bad) if slack(mid) > 0 else (good, mid)
+        return good
+
+    # the first grid point each side where the margins fail, else the range's end
+    below = [x for x, v in zip(lx, s) if x < peak and not v > 0]
+    above = [x for x, v in zip(lx, s) if x > peak and not v > 0]
+    lo = edge(below[-1]) if below else lx[0]
+    hi = edge(above[0]) if above else lx[-1]
+    return math.exp(lo), math.exp(hi)
+
+
+#: Halvings of the log-kp step that find where a window's span ends
+#: between two grid rows (the stiffest gains whose margins hold).
+EDGE_STEPS = 8
+
+
+def window(plan: Plan, g: Group) -> Window:
+    """The group's margin map on a MAP_POINTS² log grid, each row's kd
+    interval, and the span's ends found between grid rows by bisection: a
+    pick on its margin limit is often its stiffest kp, which the grid's
+    step (a factor of about 1.26) would otherwise cut short."""
+    kps = list(np.geomspace(*g.kp_range, MAP_POINTS))
+    kds = np.geomspace(*g.kd_range, MAP_POINTS)
+    rows = [_row(plan, g, float(kp), kds) for kp in kps]
+    ok = [i for i, r in enumerate(rows) if r is not None]
+    if ok:
+        for inside, outside in ((ok[-1], ok[-1] + 1), (ok[0], ok[0] - 1)):
+            if not 0 <= outside < MAP_POINTS:
+                continue
+            good, bad, found = math.log(kps[inside]), math.log(kps[outside]), rows[inside]
+            for _ in range(EDGE_STEPS):
+                mid = 0.5 * (good + bad)
+                r = _row(plan, g, math.exp(mid), kds)
+                if r is None:
+                    bad = mid
+                else:
+                    good, found = mid, r
+            kps.append(math.exp(good))
+            rows.append(found)
+    order = np.argsort(kps)
+    nan = (math.nan, math.nan)
+    return Window(np.array(kps)[order], np.array([(rows[i] or nan)[0] for i in order]),
+                  np.array([(rows[i] or nan)[1] for i in order]))
 
 
 def _cell(plan: Plan, gains: Gains, name: str) -> dict[str, float | str]:
@@ -247,8 +308,14 @@ def _told(c: Candidate, plan: Plan, dists: Mapping[str, Any]) -> float:
     return c.p95_dip_mm * (1 + TIE * (1 - min(max(share, 0.0), 1.0)))
 
 
+def windows(plan: Plan) -> dict[str, Window]:
+    """Each group's margin window."""
+    return {g.name: window(plan, g) for g in plan.groups}
+
+
 def search(plan: Plan, robot_models: Sequence[str], say: Callable[[str], None],
-           after_generation: Callable[[list[Candidate]], None]) -> list[Candidate]:
+           after_generation: Callable[[list[Candidate]], None],
+           wins: Mapping[str, Window] | None = None) -> list[Candidate]:
     """Generations of `batch` candidates whose margins hold (those that do
     not are told so at once, costing no simulation) until `trials` have
     run on the robots. Every candidate asked, in order."""
@@ -257,7 +324,7 @@ def search(plan: Plan, robot_models: Sequence[str], say: Callable[[str], None],
     optuna = _optuna()
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = optuna.create_study(direction="minimize")
-    wins = {g.name: window(plan, g) for g in plan.groups}
+    wins = windows(plan) if wins is None else wins
     dists = {}
     for g in plan.groups:
         span = wins[g.name].kp_span()
@@ -353,16 +420,39 @@ def tradeoffs(plan: Plan, cands: Sequence[Candidate]) -> list[Candidate]:
     return sorted(front.values(), key=lambda c: (c.p95_dip_mm, c.number))
 
 
-def neighbours(plan: Plan, pick: Candidate) -> list[tuple[str, Candidate]]:
+def _along(w: Window, kp: float, kd: float, to: float) -> tuple[float, float] | None:
+    """The gains at kp `to` with kd where it sits at kp in the margin window
+    (the same share of it, in log): a move along the window, where a pick
+    on its margin limit has its better neighbours. None outside the span."""
+    span = w.kp_span()
+    if span is None or not span[0] <= to <= span[1]:
+        return None
+    lo, hi = w.kd_span(kp)
+    u = min(max(math.log(kd / lo) / math.log(hi / lo), 0.0), 1.0) if hi > lo else 0.5
+    return _at(w, to, u)
+
+
+def neighbours(plan: Plan, pick: Candidate, wins: Mapping[str, Window] | None = None) -> list[tuple[str, Candidate]]:
     """The pick with one group's kp or kd NEIGHBOUR times higher or lower,
-    inside the searched ranges: what the card says lost, and why."""
+    and (given the margin windows) its kp so moved with kd along the
+    window, inside the searched ranges: what the card says lost, and why."""
     out = []
     for g in plan.groups:
         kp, kd = pick.gains[g.name]
-        for label, gk in ((f"kp.{g.name} ×{NEIGHBOUR:g}", rounded(kp * NEIGHBOUR, kd)),
-                          (f"kp.{g.name} ÷{NEIGHBOUR:g}", rounded(kp / NEIGHBOUR, kd)),
-                          (f"kd.{g.name} ×{NEIGHBOUR:g}", rounded(kp, kd * NEIGHBOUR)),
-                          (f"kd.{g.name} ÷{NEIGHBOUR:g}", rounded(kp, kd / NEIGHBOUR))):
+        moves: list[tuple[str, tuple[float, float] | None]] = [
+            (f"kp.{g.name} ×{NEIGHBOUR:g}", rounded(kp * NEIGHBOUR, kd)),
+            (f"kp.{g.name} ÷{NEIGHBOUR:g}", rounded(kp / NEIGHBOUR, kd)),
+            (f"kd.{g.name} ×{NEIGHBOUR:g}", rounded(kp, kd * NEIGHBOUR)),
+            (f"kd.{g.name} ÷{NEIGHBOUR:g}", rounded(kp, kd / NEIGHBOUR))]
+        if wins is not None:
+            for sign, f in (("×", NEIGHBOUR), ("÷", 1 / NEIGHBOUR)):
+                moves.append((f"kp.{g.name} {sign}{NEIGHBOUR:g} along its margin window",
+                               _along(wins[g.name], kp, kd, kp * f)))
+        seen = {pick.gains[g.name]}
+        for label, gk in moves:
+            if gk is None or gk in seen:
+                continue
+            seen.add(gk)
             if not (g.kp_range[0] <= gk[0] <= g.kp_range[1] and g.kd_range[0] <= gk[1] <= g.kd_range[1]):
                 continue
             out.append((label, Candidate({**pick.gains, g.name: gk})))
@@ -370,18 +460,26 @@ def neighbours(plan: Plan, pick: Candidate) -> list[tuple[str, Candidate]]:
 
 
 def polish(plan: Plan, pick: Candidate, robot_models: Sequence[str], say: Callable[[str], None],
-           every: list[Candidate]) -> tuple[Candidate, list[tuple[str, Candidate]]]:
+           every: list[Candidate], wins: Mapping[str, Window] | None = None
+           ) -> tuple[Candidate, list[tuple[str, Candidate]]]:
     """Moves the pick to a better feasible neighbour while there is one (at
     most `plan.polish` times); the final pick and its neighbours, each
     scored (and appended to `every`)."""
     near: list[tuple[str, Candidate]] = []
     for r in range(plan.polish + 1):
-        near = neighbours(plan, pick)
+        near = neighbours(plan, pick, wins)
+        # gains already run on these robots (the pick a move ago) are not run again
+        known = {tuple(sorted(c.gains.items())): c for c in every if c.robots}
         for _, c in near:
             c.number, c.stage = len(every), "polish"
             every.append(c)
             check_margins(plan, c)
-        simulate(plan, [c for _, c in near if not c.failed], robot_models, say)
+            old = known.get(tuple(sorted(c.gains.items())))
+            if old is not None and not c.failed:
+                c.p95_dip_mm, c.fell, c.robots, c.failed = old.p95_dip_mm, old.fell, old.robots, old.failed
+                c.max_saturation, c.p95_peak_torque, c.min_height_m = (old.max_saturation, old.p95_peak_torque,
+                                                                       old.min_height_m)
+        simulate(plan, [c for _, c in near if not c.failed and not c.robots], robot_models, say)
         won = best_of(plan, [pick] + [c for _, c in near])
         if won is None or won is pick or r == plan.polish:
             return pick, near

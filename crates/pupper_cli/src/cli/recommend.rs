@@ -59,8 +59,9 @@ pub(super) struct RecommendArgs {
     /// Candidates per generation, run as one batch.
     #[arg(long, default_value_t = 16, value_name = "B")]
     batch: u32,
-    /// Times the search's best may move to a better neighbour (a group's kp or kd x/÷ 1.25);
-    /// the last neighbours are scored either way, and the card says why each lost.
+    /// Times the search's best may move to a better neighbour (a group's kp or kd x/÷ 1.25, or
+    /// its kp with kd along its margin window); the last neighbours are scored either way, and
+    /// the card says why each lost.
     #[arg(long, default_value_t = 4, value_name = "N")]
     polish: u32,
     /// Seed of the robots' draws and of the search.
