@@ -359,3 +359,27 @@ def test_sigterm_stops_it_in_one_line_keeping_what_ran(pupper_bin, tmp_path):
     assert len(err.strip().splitlines()) == 1 and "recommend stopped" in err and "trials.csv" in err, err
     with open(tmp_path / "r" / "trials.csv", newline="") as f:
         assert len(list(csv.DictReader(f))) >= 4
+
+
+def test_the_report_opens_with_the_card_in_chromium(default_run, tmp_path):
+    from test_report import CHROMIUM, answer_of, browse, check_page, embedded, few_digits
+
+    if CHROMIUM is None:
+        pytest.skip("needs Debian's chromium (make test installs it)")
+    d, _ = default_run
+    empty = tmp_path / "empty.html"
+    empty.write_text("<!DOCTYPE html><html><body></body></html>")
+    dom = check_page(d, tmp_path, browse(empty, tmp_path)["urls"])
+    answer = answer_of(dom)
+    # every group's gains in the opening, every digit in the tooltip
+    for g, c in cards(d).items():
+        assert f'<td title="{g}">{g}</td><td title="{c["kp"]}">' in answer and f'<td title="{c["kd"]}">' in answer
+    m = json.loads((d / "manifest.json").read_text())
+    import html
+
+    for w in m["warnings"]:
+        assert html.escape(w)[:60] in answer, w
+    few_digits(dom)
+    embedded(dom)
+    # the trade-off figure stars the pick
+    assert dom.count(">★<title>") == 1

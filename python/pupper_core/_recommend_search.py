@@ -313,6 +313,20 @@ def windows(plan: Plan) -> dict[str, Window]:
     return {g.name: window(plan, g) for g in plan.groups}
 
 
+def _stiffest(plan: Plan, g: Group, w: Window, lo: float, hi: float) -> float:
+    """The stiffest kp of the group's window (its kp span lo to hi) whose
+    gains, kd mid-window and rounded as every candidate is, keep the
+    margins: the window's top, or a hair below it where the rounding would
+    step outside."""
+    for f in (1.0, 1.002, 1.005, 1.01, 1.02, 1.05):
+        kp = max(hi / f, lo)
+        c = Candidate({g.name: _at(w, kp, 0.5)})
+        pm, gm = margins(plan, g, *c.gains[g.name])
+        if pm >= plan.min_phase_deg and gm >= plan.min_gain_db:
+            return kp
+    return max(hi / 1.05, lo)
+
+
 def search(plan: Plan, robot_models: Sequence[str], say: Callable[[str], None],
            after_generation: Callable[[list[Candidate]], None],
            wins: Mapping[str, Window] | None = None) -> list[Candidate]:
@@ -339,7 +353,9 @@ def search(plan: Plan, robot_models: Sequence[str], say: Callable[[str], None],
     # the first candidate: each group as stiff as its margins allow (the top
     # of its kp span, kd mid-window); in simulation stiffer stands firmer and
     # dips less up to the margins, so the search starts where a pick is likely
-    study.enqueue_trial({**{f"kp.{g.name}": dists[f"kp.{g.name}"].high for g in plan.groups},
+    study.enqueue_trial({**{f"kp.{g.name}": _stiffest(plan, g, wins[g.name], dists[f"kp.{g.name}"].low,
+                                                     dists[f"kp.{g.name}"].high)
+                            for g in plan.groups},
                          **{f"u.{g.name}": 0.5 for g in plan.groups}})
     every: list[Candidate] = []
     ran, generation = 0, 0
