@@ -383,3 +383,49 @@ def test_the_report_opens_with_the_card_in_chromium(default_run, tmp_path):
     embedded(dom)
     # the trade-off figure stars the pick
     assert dom.count(">★<title>") == 1
+
+
+def test_the_margin_window_ends_where_the_margins_do():
+    # the knee's stiffest kp that holds, found between the map's grid rows:
+    # margins held there (kd mid-window), not 1 % stiffer at any kd of the range
+    from pupper_core._recommend_plan import plan as make_plan
+    from pupper_core._recommend_search import margins, window
+
+    plan = make_plan(robots=8)
+    g = next(g for g in plan.groups if g.name == "kfe")
+    w = window(plan, g)
+    top = w.kp_span()[1]
+    lo, hi = w.kd_span(top)
+    pm, gm = margins(plan, g, top, (lo * hi) ** 0.5)
+    assert pm >= plan.min_phase_deg and gm >= plan.min_gain_db
+    for kd in np.geomspace(*g.kd_range, 200):
+        pm, gm = margins(plan, g, top * 1.01, float(kd))
+        assert pm < plan.min_phase_deg or gm < plan.min_gain_db, kd
+
+
+def test_no_gains_run_twice_and_none_twice_in_the_tradeoff_set(default_run):
+    d, _ = default_run
+    with open(d / "trials.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    gains = lambda r: tuple(r[k] for k in r if k.startswith(("kp.", "kd.")))  # noqa: E731
+    ran = [gains(r) for r in rows if int(r["cell_steps"]) > 0]
+    assert len(ran) == len(set(ran))
+    with open(d / "tradeoffs.csv", newline="") as f:
+        front = [gains(r) for r in csv.DictReader(f)]
+    assert len(front) == len(set(front))
+
+
+def test_a_run_over_an_older_one_leaves_none_of_its_answer(run, tmp_path, default_run):
+    # --force over a run that found gains, with a sensing delay no gains survive:
+    # no card, exports or trade-off set of the old run stay beside the new one
+    import shutil
+
+    d = tmp_path / "rec"
+    shutil.copytree(default_run[0], d)
+    p = run("recommend", "--robots", "8", "--trials", "2", "--batch", "2", "--polish", "0", "--sensing-delay", "0.006",
+            "--force", "-q", "-o", d, check=0)
+    assert "no gains held every constraint" in p.stdout
+    for gone in ("recommend.csv", "tradeoffs.csv", "recommended.yaml", "recommended.xml"):
+        assert not (d / gone).exists(), gone
+    assert json.loads((d / "manifest.json").read_text())["pick"] is None
+    assert "No gains held every constraint" in (d / "report.html").read_text()

@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING, Any
 
 from pupper_core._files import atomic_write, atomic_write_text
 from pupper_core._recommend_plan import Plan
-from pupper_core._recommend_search import (OBJECTIVE, Candidate, better, gains_per_actuator, simulate, slowest_hz,
-                                           tradeoffs, why_lost)
+from pupper_core._recommend_search import (OBJECTIVE, Candidate, better, gains_key, gains_per_actuator, simulate,
+                                           slowest_hz, tradeoffs, why_lost)
 
 if TYPE_CHECKING:
     from pupper_core._recommend import Recommendation
@@ -211,7 +211,7 @@ def tradeoff_rows(plan: Plan, cands: Sequence[Candidate], pick: Candidate | None
         rows.append({"trial": r["trial"], **{k: v for k, v in r.items() if k.startswith(("kp.", "kd."))},
                      OBJECTIVE: c.p95_dip_mm, "slowest_hz": slowest_hz(plan, c), "min_height_m": c.min_height_m,
                      "p95_peak_torque": c.p95_peak_torque,
-                     "pick": pick is not None and c.number == pick.number})
+                     "pick": pick is not None and gains_key(c.gains) == gains_key(pick.gains)})
     return rows
 
 
@@ -226,6 +226,11 @@ def write_outputs(rec: Recommendation, d: Path, keep: bool, wall: float) -> tupl
     front = tradeoff_rows(plan, rec.candidates, rec.searched)
     if front:
         _write_rows(d / "tradeoffs.csv", front)
+    # a run over an older one (--force) leaves none of its answer behind
+    stale = (["tradeoffs.csv"] if not front else []) + ([] if pick else ["recommend.csv", "recommended.yaml",
+                                                                         "recommended.xml"])
+    for name in stale:
+        (d / name).unlink(missing_ok=True)
     if pick:
         atomic_write_text(d / "recommended.yaml", yaml_text)
 
@@ -276,7 +281,8 @@ def constraints_line(plan: Plan) -> str:
 
 def print_card(rec: Recommendation) -> None:
     plan, pick = rec.plan, rec.pick
-    ran = [c for c in rec.candidates if c.robots]
+    # gains asked again in the polish reuse their robots' results: not run twice
+    ran = [c for c in rec.candidates if c.cell_steps]
     steps = sum(c.cell_steps for c in rec.candidates)
     if pick is None:
         print(f"no gains held every constraint on all {plan.robots} robots ({constraints_line(plan)}): "

@@ -421,12 +421,22 @@ def best_of(plan: Plan, cands: Sequence[Candidate]) -> Candidate | None:
     return max(near, key=lambda c: (slowest_hz(plan, c), -c.p95_dip_mm, -c.number))
 
 
+def gains_key(gains: Mapping[str, tuple[float, float]]) -> tuple[Any, ...]:
+    """Gains as a key: equal for the same gains, whatever the group order."""
+    return tuple(sorted(gains.items()))
+
+
 def tradeoffs(plan: Plan, cands: Sequence[Candidate]) -> list[Candidate]:
     """The trade-off set: feasible candidates no other beats at once on the
     push dip (lower), the slowest group's tracking (faster) and the stand
     height (higher), ordered by push dip. The pick is one of them whenever
     it stands no lower than its ties."""
-    ok = [c for c in cands if c.feasible]
+    # the same gains asked twice (the polish's way back) count once, the first
+    firsts: dict[tuple[Any, ...], Candidate] = {}
+    for c in cands:
+        if c.feasible:
+            firsts.setdefault(gains_key(c.gains), c)
+    ok = list(firsts.values())
     keys = [(c.p95_dip_mm, -slowest_hz(plan, c), -c.min_height_m) for c in ok]
 
     def beaten(k: tuple[float, ...]) -> bool:
@@ -482,23 +492,26 @@ def polish(plan: Plan, pick: Candidate, robot_models: Sequence[str], say: Callab
     most `plan.polish` times); the final pick and its neighbours, each
     scored (and appended to `every`)."""
     near: list[tuple[str, Candidate]] = []
+    held = {gains_key(pick.gains)}
     for r in range(plan.polish + 1):
         near = neighbours(plan, pick, wins)
         # gains already run on these robots (the pick a move ago) are not run again
-        known = {tuple(sorted(c.gains.items())): c for c in every if c.robots}
+        known = {gains_key(c.gains): c for c in every if c.robots}
         for _, c in near:
             c.number, c.stage = len(every), "polish"
             every.append(c)
             check_margins(plan, c)
-            old = known.get(tuple(sorted(c.gains.items())))
+            old = known.get(gains_key(c.gains))
             if old is not None and not c.failed:
                 c.p95_dip_mm, c.fell, c.robots, c.failed = old.p95_dip_mm, old.fell, old.robots, old.failed
                 c.max_saturation, c.p95_peak_torque, c.min_height_m = (old.max_saturation, old.p95_peak_torque,
                                                                        old.min_height_m)
         simulate(plan, [c for _, c in near if not c.failed and not c.robots], robot_models, say)
-        won = best_of(plan, [pick] + [c for _, c in near])
+        # a move back to a pick already held would go round in circles
+        won = best_of(plan, [pick] + [c for _, c in near if gains_key(c.gains) not in held])
         if won is None or won is pick or r == plan.polish:
             return pick, near
+        held.add(gains_key(won.gains))
         say(f"polish: a neighbour holds every constraint at a p95 push dip of {won.p95_dip_mm:.4g} mm "
             f"(the pick's {pick.p95_dip_mm:.4g} mm), its slowest group at {slowest_hz(plan, won):.3g} Hz: moved there")
         pick = won

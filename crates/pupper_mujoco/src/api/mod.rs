@@ -217,9 +217,9 @@ fn one_cell(spec: &SweepSpec) -> Result<Sweep> {
     .build()
 }
 
-/// The stance height (m) of the first cell of `spec` (its grid's first
-/// cell, or the model's own gains): the base height at which its lowest foot
-/// touches the floor in its start pose. Falls are judged against it, and
+/// The stance height (m) a run of `spec` starts from (its model, body and
+/// start; the grid is not read, as gains do not move it): the base height at
+/// which its lowest foot touches the floor in its start pose. Falls are judged against it, and
 /// `recommend` its robots' sag. NaN for a fixed base.
 pub fn stance(spec: &SweepSpec) -> Result<f64> {
     let sweep = one_cell(spec)?;
