@@ -275,12 +275,19 @@ def heatmap(
                 a.set_title(f"{by} = {_fmt(pv)}" if by in SHORT or by in LABELS else str(pv))
         if im is not None:
             cb = fig.colorbar(im, ax=axs, shrink=0.9 if len(yv) > 3 else 1.0)
-            cb.set_label(label_of(metric))
+            # a long label (a statistic over replicates) wrapped to the bar's
+            # height (about half the figure's; 10 pt glyphs about 6 pt wide)
+            import textwrap
+
+            cb.set_label(textwrap.fill(label_of(metric), max(14, int(fig.get_figheight() * 0.45 * 72 / 6)),
+                                       break_long_words=False))
         best_word = "lowest" if minimize else "highest"
         sub = _key_line(best_word, status, metric, _has_dip(table, metric))
         head = title if title is not None else label_of(metric)
         if ax is None:
-            fig.suptitle(f"{head}\n{_wrap_parts(sub, fig.get_figwidth(), 12)}", fontsize=12)
+            # both wrapped to the figure, a little inside it (wide glyphs)
+            width = 0.9 * fig.get_figwidth()
+            fig.suptitle(f"{_wrap_parts(head, width, 12)}\n{_wrap_parts(sub, width, 12)}", fontsize=12)
         else:
             ax.set_title(f"{head}\n{sub}", fontsize=11)
         fig.pupper_best = best_marks  # type: ignore[attr-defined]
