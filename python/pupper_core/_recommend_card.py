@@ -82,6 +82,24 @@ def _edges(plan: Plan, pick: Candidate) -> list[str]:
     return out
 
 
+#: A group whose worst-corner phase margin lies within this many degrees
+#: of the limit (or gain margin within a fifth of a dB) is said to sit on it.
+ON_MARGIN_DEG = 1.0
+
+
+def _on_margin(plan: Plan, pick: Candidate) -> list[str]:
+    """Groups as stiff as their loop margins allow, said: the margins hold
+    for the latency assumed, and no more."""
+    on = [g.name for g in plan.groups if pick.phase_deg[g.name] < plan.min_phase_deg + ON_MARGIN_DEG
+          or pick.gain_db[g.name] < plan.min_gain_db + ON_MARGIN_DEG / 5]
+    if not on:
+        return []
+    return [f"{', '.join(on)} sit(s) on the margin limit (phase >= {plan.min_phase_deg:g}°, gain >= "
+            f"{plan.min_gain_db:g} dB at the spread's worst corner): they hold for the firmware and the "
+            f"{plan.sensing_delay:g} s of sensing delay assumed, no more; measure the robot's latency, or raise "
+            "--min-phase-margin for room"]
+
+
 def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], d: Path,
             say: Callable[[str], None]) -> tuple[list[Card], list[str], list[str], Candidate]:
     """The cards, why each neighbour lost, the warnings that qualify the
@@ -89,7 +107,7 @@ def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], 
     d.mkdir(parents=True, exist_ok=True)
     xml = d / "recommended.xml"
     atomic_write_text(xml, mjcf(plan, pick))
-    warnings = _edges(plan, pick)
+    warnings = _edges(plan, pick) + _on_margin(plan, pick)
     reasons = [why_lost(plan, label, c, pick) for label, c in near]
     winners = [label for label, c in near if c.feasible and better(plan, c, pick)]
     if winners:
