@@ -71,8 +71,8 @@ def _phase_said(rows: list[dict[str, str]]) -> str:
             short = "" if f == max(PHASE_AT) else f" (the logs' sines do not reach {max(PHASE_AT):g} Hz)"
             return (f"phase at {f:g} Hz within {_deg(max(c for c, _ in gaps))}° of the log's (the nominal "
                     f"model's: within {_deg(max(n for _, n in gaps))}°){short}")
-    return ("no phase compared: the logs hold no sine cycles (a multisine); validate on stepped sines or "
-            "chirps for the frequency response")
+    return (f"no phase compared at {', '.join(f'{f:g}' for f in PHASE_AT)} Hz: the logs' sines do not reach "
+            "them (a multisine has none); validate on stepped sines or chirps for the frequency response")
 
 
 def verdict(rows: list[dict[str, str]], page: Page) -> str:
