@@ -163,3 +163,24 @@ def test_a_recommendations_figures_and_table(run, tmp_path):
         "-o", d, check=0)
     assert (d / "recommend.csv").is_file()
     assert_whole(d, tmp_path, [], set())
+
+
+def test_a_line_or_scatter_figure_makes_room_for_long_numbers(tmp_path):
+    """Before: a tune's best objective, 4.5e-05 to 0.0016 mm, numbered its
+    y axis 0.0008447 across the axis's name (the plot's left edge was
+    fixed at 70 px); a scatter alike."""
+    from pupper_core._report_svg import lines, scatter
+
+    ys = [0.001644, 0.0011, 0.0001349, 4.502e-05]
+    svg = lines({"best so far": ([4002.0, 8004.0, 40000.0, 64030.0], ys)}, "best objective against cell-steps spent",
+                "cell-steps", "last_1s_std_mm", pick="best so far")
+    svg += scatter({f"trial {k}": (float(k), y) for k, y in enumerate(ys)}, "candidates", "x", "p95 push dip (mm)")
+    d = tmp_path / "page"
+    d.mkdir()
+    from pupper_core._report import STYLE
+
+    # in report.html's own style (its font)
+    (d / "report.html").write_text(f"<!DOCTYPE html><html><head><style>{STYLE}</style></head><body>{svg}</body></html>")
+    layout = page_layout(d / "report.html", tmp_path)
+    assert len(layout["svgs"]) == 2 and any(len(t) == 9 and t.startswith("0.000") for s in layout["svgs"] for t, _ in s["texts"])
+    assert page_problems(layout) == []

@@ -66,7 +66,7 @@ svg, img { max-width: 100%; height: auto; }
 .note { color: #555; font-size: 0.9em; }
 dl { display: grid; grid-template-columns: max-content auto; gap: 2px 12px; font-size: 0.9em; }
 dt { font-weight: bold; } dd { margin: 0; overflow-wrap: anywhere; }
-pre { white-space: pre-wrap; overflow-wrap: anywhere; }
+pre { overflow-x: auto; }
 svg text { font-family: system-ui, sans-serif; }
 """
 
@@ -441,7 +441,8 @@ def _tune_sections(page: Page) -> list[str]:
         for r in trials:
             acc += num(r["cell_steps"])
             v = num(r[objs[0]])
-            if not math.isnan(v) and r.get("status", "ok") not in ("fell", "diverged", "pruned"):
+            # a trial that fell, diverged, saturated or lay past the bound was told a penalty: never a best
+            if not math.isnan(v) and r.get("status", "ok") == "ok":
                 cur = min(cur, v)
             spent.append(acc)
             best_so_far.append(cur if math.isfinite(cur) else math.nan)

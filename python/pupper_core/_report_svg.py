@@ -246,7 +246,8 @@ def lines(series: dict[str, tuple[list[float], list[float]]], title: str, xlabel
         y0, y1 = min(y0, guide), max(y1, guide)
     x1 = x1 if x1 > x0 else x0 + 1
     y1 = y1 if y1 > y0 else y0 + 1e-9
-    W, H, L, R = 640, height, 70, 200
+    W, H, R = 640, height, 200
+    L = _left(y0, y1)
     head = wrap(title, 12, W + R - 4)
     xl = wrap(xlabel, 11, W)
     T = 9 + 15 * len(head)
@@ -282,6 +283,12 @@ def lines(series: dict[str, tuple[list[float], list[float]]], title: str, xlabel
     return "".join(out)
 
 
+def _left(y0: float, y1: float) -> int:
+    """The plot box's left edge: room for the y axis's name (rotated, about
+    x = 6 to 18) and its widest number (0.0008447 is nine characters)."""
+    return max(70, math.ceil(26 + max(text_width(f"{y0 + f * (y1 - y0):.4g}", 10) for f in (0.0, 0.5, 1.0))))
+
+
 def _axes_text(L: float, T: float, W: float, H: float, xr: tuple[float, float], yr: tuple[float, float],
                xlabel: Sequence[str], ylabel: str, pad: float = 0.0) -> str:
     """The ticks' numbers (both ends and the middle) and the axes' names of
@@ -311,7 +318,8 @@ def scatter(points: Mapping[str, tuple[float, float]], title: str, xlabel: str, 
     x0, x1 = min(v[0] for v in pts.values()), max(v[0] for v in pts.values())
     y0, y1 = min(v[1] for v in pts.values()), max(v[1] for v in pts.values())
     x1, y1 = (x1 if x1 > x0 else x0 + 1), (y1 if y1 > y0 else y0 + 1e-9)
-    W, H, L, R, pad = 520, 260, 70, 20, 8
+    W, H, R, pad = 520, 260, 20, 8
+    L = _left(y0, y1)
     head = wrap(title, 12, W + R - 4)
     xl = wrap(xlabel, 11, W)
     T = 9 + 15 * len(head)
