@@ -172,3 +172,49 @@ def test_recommend_from_a_fit_checks_its_margins_on_the_delivered_gains(scaled_f
         assert own == pytest.approx(worst_pm[0], abs=0.3) and own >= 30 - 0.3
         # the commanded gains alone would have claimed far more: the test can fail
         assert loop_phase_margin(inertia, kp, kd, 0.003, 0.001) > float(card["phase_margin_deg"]) + 5
+
+
+#: a robot's controller configuration as Pupper v3's ROS 2 launch files hold
+#: it: the node's joint names and the gains it commands
+ROBOT_CONFIG = """\
+controller_manager:
+  ros__parameters:
+    update_rate: 500
+neural_controller:
+  ros__parameters:
+    joint_names: [leg_front_r_1, leg_front_r_2, leg_front_r_3, leg_front_l_1, leg_front_l_2, leg_front_l_3,
+                  leg_back_r_1, leg_back_r_2, leg_back_r_3, leg_back_l_1, leg_back_l_2, leg_back_l_3]
+    init_kps: [7.5, 7.5, 7.5, 7.5, 7.5, 7.5, 7.5, 7.5, 7.5, 7.5, 7.5, 7.5]
+    init_kds: [0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25]
+"""
+
+
+def test_the_card_sets_the_gains_in_use_beside_the_pick(run, tmp_path):
+    pytest.importorskip("optuna")
+    cfg = tmp_path / "config.yaml"
+    # the robot's own joint order: the left legs first
+    cfg.write_text(ROBOT_CONFIG.replace("leg_front_r_1, leg_front_r_2, leg_front_r_3, leg_front_l_1, leg_front_l_2, "
+                                        "leg_front_l_3", "leg_front_l_1, leg_front_l_2, leg_front_l_3, leg_front_r_1, "
+                                        "leg_front_r_2, leg_front_r_3"))
+    p = run("recommend", "--robot-config", cfg, "--robots", "8", "--trials", "4", "--batch", "4", "--polish", "0",
+            "--kp-max", "40", "--kd-max", "1", "-o", tmp_path / "rec", check=0)
+    line = next(x for x in p.stdout.splitlines() if x.startswith("in use"))
+    assert "config.yaml's kps and kds: kp 7.5 kd 0.25 on every group" in line
+    m = json.loads((tmp_path / "rec" / "manifest.json").read_text())
+    now = m["current"]
+    assert now["gains"] == {g: {"kp": 7.5, "kd": 0.25} for g in ("hfe", "haa", "kfe")}
+    # the gains in use were checked as every candidate is: the same loop model
+    knee = json.loads(run("gains", "--kp", "7.5", "--kd", "0.25", "--motor", MOTOR, "--sensing-delay", "0",
+                          "--json", check=0).stdout)
+    assert now["phase_margin_deg"]["kfe"] <= min(j["phase_margin_deg"] for j in knee["joints"]
+                                                  if j["group"] == "kfe")
+    assert np.isfinite(now["p95_push_dip_mm"]) and now["fell"] == 0
+    # the YAML follows the robot's joint order; caps were given: no caps warning
+    yml = (tmp_path / "rec" / "recommended.yaml").read_text()
+    assert "joint_names: [leg_front_l_1, leg_front_l_2, leg_front_l_3, leg_front_r_1" in yml
+    assert "no motor caps given" not in p.stdout
+    # a config that is not one is refused in one line, nothing written
+    cfg.write_text("neural_controller: [1, 2]\n")
+    bad = run("recommend", "--robot-config", cfg, "-o", tmp_path / "bad", check=2)
+    assert "no 'neural_controller: ros__parameters:' section" in bad.stderr and len(bad.stderr.splitlines()) == 1
+    assert not (tmp_path / "bad").exists()

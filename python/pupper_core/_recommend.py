@@ -82,6 +82,7 @@ def recommend(
     # the constraints and the motors' limits
     min_phase_margin: float = 30.0, min_gain_margin: float = 6.0, max_saturation: float = 0.05, max_sag: float = 0.1,
     kp_max: float | None = None, kd_max: float | None = None, current: Sequence[float] | str | None = None,
+    robot_config: str | os.PathLike[str] | None = None,
     # the exports and the run directory
     joint_order: Sequence[str] | str | None = None, controller: str = "neural_controller",
     out: str | os.PathLike[str] | None = None, force: bool = False, progress: bool | Callable[[str], None] = True,
@@ -120,6 +121,10 @@ def recommend(
     every margin is of those. ``current``: the gains the robot runs today
     (``(kp, kd)`` for every group; default the model's own servo gains),
     run on the same robots and set beside the pick on the card.
+    ``robot_config``: the robot's controller configuration (a ROS 2
+    parameter file): the ``controller`` node's ``joint_names`` are the
+    default ``joint_order`` and its ``kps``/``kds`` (or ``init_kps``/
+    ``init_kds``) the default ``current``.
 
     ``out``: the run directory (recommend.csv: a card per group;
     trials.csv; tradeoffs.csv: the candidates no other beats at once on push

@@ -357,7 +357,7 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
          min_gain_margin: float = 6.0, max_saturation: float = 0.05, kp_max: float | None = None,
          kd_max: float | None = None, joint_order: Sequence[str] | str | None = None,
          controller: str = "neural_controller", polish: int = 4, max_sag: float = 0.1,
-         current: Sequence[float] | str | None = None) -> Plan:
+         current: Sequence[float] | str | None = None, robot_config: str | os.PathLike[str] | None = None) -> Plan:
     """Every input checked, the model read; one line per mistake."""
     if robots < 1 or trials < 1 or batch < 1:
         raise RecommendError(f"robots {robots}, trials {trials}, batch {batch}: each must be a whole number >= 1")
@@ -414,10 +414,16 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
     if robots % max(1, FIT_MODELS if rows else 1):
         raise RecommendError(f"--robots {robots}: with --from-fit the robots are {FIT_MODELS} drawn joint models "
                              f"with an equal share each: give a multiple of {FIT_MODELS}")
+    config = None if robot_config is None else _robot_config(Path(robot_config), controller, names)
+    if config is not None and joint_order is None:
+        joint_order = config[0]
     order = _joint_order(joint_order, names)
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_/]*", controller):
         raise RecommendError(f"--controller '{controller}' is not a ROS 2 node name: letters, digits, _ and /")
-    now, now_from = _current(current, inf, groups)
+    if config is not None and current is None:
+        now, now_from = _config_gains(config, names, groups, Path(robot_config or ""))
+    else:
+        now, now_from = _current(current, inf, groups)
     return Plan(model, names, groups, dt, motor_spec, sensing_delay, command_delay, drawn, kp_factors,
                 kd_factors, robots, trials, batch, seed, seconds, push_force, min_phase_margin, min_gain_margin,
                 max_saturation, order, controller, polish, max_sag, stance(model=model), fit_dir, rows,
@@ -448,6 +454,71 @@ def _current(current: Sequence[float] | str | None, inf: Mapping[str, Any],
     if not (math.isfinite(kp) and kp > 0 and math.isfinite(kd) and kd >= 0):
         raise RecommendError(f"--current {kp:g},{kd:g}: give kp > 0 and kd >= 0, the gains the robot runs today")
     return {g.name: (kp, kd) for g in groups}, "--current"
+
+
+def _robot_config(path: Path, controller: str, names: Sequence[str]) -> tuple[list[str], list[float], list[float]]:
+    """A robot's controller configuration (a ROS 2 parameter file, as the
+    robot runs it): the `controller` node's joint_names and the gains it
+    commands (kps/kds, else init_kps/init_kds)."""
+    import yaml  # type: ignore[import-untyped]  # (PyYAML, with Optuna)
+
+    where = f"--robot-config {path}"
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except OSError as e:
+        raise RecommendError(f"{where}: cannot read it ({e.strerror}): give the robot's controller "
+                             "configuration, a ROS 2 parameter YAML") from None
+    except (yaml.YAMLError, UnicodeDecodeError) as e:
+        first = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise RecommendError(f"{where} is not YAML ({first}): give the robot's controller configuration, a ROS 2 "
+                             "parameter file") from None
+    node = doc.get(controller) if isinstance(doc, dict) else None
+    params = node.get("ros__parameters") if isinstance(node, dict) else None
+    if not isinstance(params, dict):
+        nodes = ", ".join(k for k, v in doc.items() if isinstance(v, dict) and "ros__parameters" in v) \
+            if isinstance(doc, dict) else ""
+        raise RecommendError(f"{where} has no '{controller}: ros__parameters:' section: name the controller node "
+                             f"with --controller{f' (its nodes: {nodes})' if nodes else ''}")
+    joints = params.get("joint_names")
+    kps = params.get("kps", params.get("init_kps"))
+    kds = params.get("kds", params.get("init_kds"))
+    for key, v in (("joint_names", joints), ("kps (or init_kps)", kps), ("kds (or init_kds)", kds)):
+        if not isinstance(v, list) or not v:
+            raise RecommendError(f"{where}: {controller}'s {key} is missing or not a list: give the controller's "
+                                 "configuration as the robot runs it")
+    assert isinstance(joints, list) and isinstance(kps, list) and isinstance(kds, list)
+    if not len(joints) == len(kps) == len(kds):
+        raise RecommendError(f"{where}: {controller} has {len(joints)} joint_names, {len(kps)} kps and {len(kds)} "
+                             "kds: give one gain per joint")
+    unknown = [str(j) for j in joints if j not in names]
+    if unknown:
+        raise RecommendError(f"{where} names joint '{unknown[0]}', which is not an actuator of the model: its "
+                             f"actuators are {', '.join(names)}")
+    try:
+        return [str(j) for j in joints], [float(v) for v in kps], [float(v) for v in kds]
+    except (TypeError, ValueError):
+        raise RecommendError(f"{where}: {controller}'s kps and kds must be numbers") from None
+
+
+def _config_gains(config: tuple[list[str], list[float], list[float]], names: Sequence[str], groups: Sequence[Group],
+                  path: Path) -> tuple[dict[str, tuple[float, float]], str]:
+    """The gains a robot's configuration commands, per group (one kp and kd
+    per group, as recommend answers)."""
+    joints, kps, kds = config
+    given = {n: (kp, kd) for n, kp, kd in zip(joints, kps, kds)}
+    out = {}
+    for g in groups:
+        pairs = {given[names[a]] for a in g.actuators if names[a] in given}
+        if len(pairs) > 1:
+            raise RecommendError(f"--robot-config {path}: the {g.name} joints run different gains ({sorted(pairs)}): "
+                                 "recommend compares one kp and kd per group; give --current KP,KD")
+        if not pairs:
+            return {}, ""
+        kp, kd = pairs.pop()
+        if not (math.isfinite(kp) and kp > 0 and math.isfinite(kd) and kd >= 0):
+            raise RecommendError(f"--robot-config {path}: {g.name} runs kp {kp:g}, kd {kd:g}: give kp > 0 and kd >= 0")
+        out[g.name] = (kp, kd)
+    return out, f"{path.name}'s kps and kds"
 
 
 def _joint_order(order: Sequence[str] | str | None, names: list[str]) -> list[str]:

@@ -116,6 +116,11 @@ pub(super) struct RecommendArgs {
     /// the pick on the card [default: the model's own servo gains].
     #[arg(long, value_name = "KP,KD", allow_hyphen_values = true)]
     current: Option<String>,
+    /// The robot's controller configuration, a ROS 2 parameter YAML: the --controller node's
+    /// joint_names are the default --joint-order, its kps/kds (or init_kps/init_kds) the default
+    /// --current.
+    #[arg(long, value_name = "YAML")]
+    robot_config: Option<PathBuf>,
     /// The controller's joint order for the YAML's kps/kds, comma-separated actuator names
     /// [default: the model's actuators].
     #[arg(long, value_name = "A,B,...")]
@@ -178,6 +183,7 @@ impl RecommendArgs {
             "kp_max": self.kp_max,
             "kd_max": self.kd_max,
             "current": self.current,
+            "robot_config": self.robot_config.as_ref().map(|p| py.path(p)),
             "joint_order": self.joint_order,
             "controller": self.controller,
             "out": py.path(&out),
