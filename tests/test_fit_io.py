@@ -16,6 +16,7 @@ import gzip
 import json
 import lzma
 import math
+import os
 import subprocess
 import sys
 import warnings
@@ -25,7 +26,7 @@ import numpy as np
 import pupper_core as pc
 import pytest
 
-from conftest import REPO, read_csv
+from conftest import REPO, clean_env, read_csv
 
 sys.path.insert(0, str(REPO / "examples"))
 from stand_log import MOTOR, stand_log  # noqa: E402
@@ -286,7 +287,7 @@ def test_item_12_held_past_the_joints_range_is_one_line(short, tmp_path, run):
     p = run("fit", short, "--held", "100", *QUICK, "-o", tmp_path / "out", check=2)
     one_line(p, "--held 100", "outside leg_front_r_1's range", "inside its range")
     assert not (tmp_path / "out").exists()
-    with pytest.raises(pc.ConfigError, match=r"held 100 rad is outside leg_front_r_1's range"):
+    with pytest.raises(pc.ConfigError, match=r"the held angle 100 rad is outside leg_front_r_1's range"):
         pc.fit(short, held=100, params="delay", max_iters=1, progress=False)
     # inside the range it runs
     pc.fit(short, held=0, params="delay", max_iters=1, progress=False)
@@ -384,3 +385,52 @@ def test_item_24_python_takes_numpy_numbers_one_path_and_gains_per_joint(short, 
     with pytest.raises(pc.ConfigError, match=r"kp=\[5, 'x'\] is not a number or one per logged joint"):
         pc.fit(bare, kp=[5, "x"], kd=0.1, progress=False)
     assert math.isfinite(res.value("delay"))
+
+
+def test_the_troubleshooting_rows_for_logs_are_what_fit_says(tmp_path, run, pupper_bin):
+    """docs/troubleshooting.md's fit rows that need a file set up (said in
+    words): each set up here and run; the page shows exactly what fit says."""
+    from test_docs import ERROR_ROW
+
+    base = tmp_path / "base"
+    base.mkdir()
+    run("excite", "--joints", MOTOR, "--rate", "250", "--seconds", "1", "--hold", "0.2", "-o", base / "run.csv",
+        check=0)
+    run("excite", "--joints", MOTOR, "--rate", "250", "--seconds", "1", "--hold", "0.2", "--seed", "1", "-o",
+        base / "other.csv", check=0)
+    log = (base / "run.csv").read_bytes()
+
+    def huge() -> bytes:
+        lines = log.split(b"\n")
+        row = next(i for i, ln in enumerate(lines) if ln.startswith(b"time,")) + 5
+        cells = lines[row].split(b",")
+        cells[2] = b"1e300"
+        lines[row] = b",".join(cells)
+        return b"\n".join(lines)
+
+    setups = {
+        "its header says # kp: 5.0": {"run.csv": log},
+        "a log of one knee": {"run.csv": log},
+        "run.csv gzipped": {"run.csv": log, "run.csv.gz": gzip.compress(log)},
+        "b.csv says no gains": {"run.csv": log, "b.csv": b"".join(
+            ln for ln in (base / "other.csv").read_bytes().splitlines(keepends=True)
+            if not ln.startswith((b"# kp:", b"# kd:")))},
+        "an empty file": {"empty.csv": b""},
+        "zstd-compressed": {"run.csv.zst": b"\x28\xb5\x2f\xfd" + log[:100]},
+        "a gzip cut short": {"cut.csv.gz": gzip.compress(log)[:2000]},
+        "1e300 in an angle column": {"run.csv": huge()},
+    }
+    env = clean_env(PATH=f"{pupper_bin.parent}{os.pathsep}{os.environ['PATH']}")
+    text = (REPO / "docs" / "troubleshooting.md").read_text()
+    rows = [(m.group(1), m.group(2)) for line in text.splitlines() if (m := ERROR_ROW.match(line))
+            and m.group(1).startswith(("pupper fit", "pupper excite")) and "  (" in m.group(1)]
+    assert len(rows) == len(setups), rows
+    for i, (cell, message) in enumerate(rows):
+        cmd, _, note = cell.partition("  (")
+        where = tmp_path / f"row{i}"
+        where.mkdir()
+        for name, data in setups[note.rstrip(")")].items():
+            (where / name).write_bytes(data)
+        p = subprocess.run(cmd, shell=True, cwd=where, capture_output=True, text=True, timeout=240, env=env)
+        assert p.returncode == 2 and p.stderr.strip() == message, (cmd, p.stderr)
+        assert not (where / "runs").exists()

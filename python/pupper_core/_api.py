@@ -344,6 +344,10 @@ def fit(logs: Sequence[str | os.PathLike[str]] | str | os.PathLike[str] | Mappin
         logs = [logs]
     elif isinstance(logs, Mapping):
         # each log with its own options: {"run.csv.gz": {"kp": 5, "kd": 0.25}}
+        for log, own in logs.items():
+            if not isinstance(own, Mapping):
+                raise TypeError(f"logs as a dict maps each log to its options ({{'kp': 5, 'kd': 0.25}}): "
+                                f"{log!r}'s {own!r} is not a dict")
         return _fit.fit(list(logs.items()), **options)
     return _fit.fit(list(logs), **options)
 

@@ -411,7 +411,7 @@ def _held(text: str, ranges: Mapping[str, tuple[float, float] | None], logged: l
         for a in [act] if act else [a for a in ranges if a not in logged]:
             rng = ranges[a]
             if rng is not None and not rng[0] <= value <= rng[1]:
-                raise LogError(f"{where}: held {value:g} rad is outside {a}'s range [{rng[0]:.3g}, {rng[1]:.3g}] "
+                raise LogError(f"{where}: the held angle {value:g} rad is outside {a}'s range [{rng[0]:.3g}, {rng[1]:.3g}] "
                                "rad: give the angle the joint held, in rad, inside its range")
     return out
 
