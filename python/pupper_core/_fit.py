@@ -103,7 +103,8 @@ def _parse_params(params: str | Sequence[str]) -> list[str]:
     return names
 
 
-def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str] = "pupper_v3",
+def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Mapping[str, Any]]], *,
+        model: str | os.PathLike[str] = "pupper_v3",
         params: str | Sequence[str] = DEFAULT_PARAMS, per: str = "all", out: str | os.PathLike[str] | None = None,
         force: bool = False, max_iters: int = 50, plot: bool = False, progress: bool = True,
         columns: str | os.PathLike[str] | None = None, kp: float | str | Sequence[float] | None = None,

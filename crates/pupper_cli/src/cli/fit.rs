@@ -148,7 +148,7 @@ Examples:
   pupper fit robot1.csv robot2.csv -o runs/fit --plot
   pupper fit robot1.csv --params armature,frictionloss,kp_scale,delay --per group
   pupper fit stand_kd01.csv stand_kd03.csv --columns stand.map --validate stand_kp25.csv stand_kp75.csv
-  pupper fit sweep_kp_5_kd_0.25.csv.gz sweep_kp_5_kd_0.5.csv.gz --columns knee.map --gains-from-name 'kp_{kp}_kd_{kd}'
+  pupper fit a_kp_5_kd_0.25.csv.gz b_kp_5_kd_0.5.csv.gz --gains-from-name 'kp_{kp}_kd_{kd}'
   pupper fit 'knee.csv.gz::kp=5,kd=0.25' 'hip.csv.gz::kp=5,kd=0.25,columns=hip.map' --held 0
   pupper fit @bench.logs --validate @check.logs     lists: one LOG[::kp=K,kd=D,...] per line
   pupper response --model runs/fit/calibrated.xml --grid kp=5,20 --grid kd=0.1,0.5"
