@@ -169,7 +169,7 @@ def test_a_line_or_scatter_figure_makes_room_for_long_numbers(tmp_path):
     """Before: a tune's best objective, 4.5e-05 to 0.0016 mm, numbered its
     y axis 0.0008447 across the axis's name (the plot's left edge was
     fixed at 70 px); a scatter alike."""
-    from pupper_core._report_svg import lines, scatter
+    from pupper_core._report.svg import lines, scatter
 
     ys = [0.001644, 0.0011, 0.0001349, 4.502e-05]
     svg = lines({"best so far": ([4002.0, 8004.0, 40000.0, 64030.0], ys)}, "best objective against cell-steps spent",
@@ -177,7 +177,7 @@ def test_a_line_or_scatter_figure_makes_room_for_long_numbers(tmp_path):
     svg += scatter({f"trial {k}": (float(k), y) for k, y in enumerate(ys)}, "candidates", "x", "p95 push dip (mm)")
     d = tmp_path / "page"
     d.mkdir()
-    from pupper_core._report import STYLE
+    from pupper_core._report.page import STYLE
 
     # in report.html's own style (its font)
     (d / "report.html").write_text(f"<!DOCTYPE html><html><head><style>{STYLE}</style></head><body>{svg}</body></html>")

@@ -7,7 +7,7 @@ before (or without) the Rust extension being built. Run them with
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import json
 import math
 import sys
@@ -25,23 +25,8 @@ PKG = ROOT / "python" / "pupper_core"
 
 
 def _load(name: str) -> types.ModuleType:
-    """Imports pupper_core.<name> from the source tree without running __init__."""
-    full = f"pupper_core.{name}"
-    if full in sys.modules:
-        return sys.modules[full]
-    if "pupper_core" not in sys.modules:
-        try:
-            import pupper_core  # noqa: F401  (the real package, when it imports)
-        except Exception:  # noqa: BLE001 - the native part may be missing
-            stub = types.ModuleType("pupper_core")
-            stub.__path__ = [str(PKG)]  # type: ignore[attr-defined]
-            sys.modules["pupper_core"] = stub
-    spec = importlib.util.spec_from_file_location(full, PKG / f"{name}.py")
-    assert spec and spec.loader
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[full] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    """pupper_core.<name>, a module or a subpackage."""
+    return importlib.import_module(f"pupper_core.{name}")
 
 
 plots = _load("plots")
@@ -558,7 +543,7 @@ def test_every_plot_takes_a_result_or_its_run_directory_alike(chapter_grid: Path
 
 def test_step_plots_draw_each_groups_pick_zoomed_to_its_settling(run, tmp_path: Path) -> None:
     import pupper_core as pc
-    from pupper_core._report import _read, response_pick
+    from pupper_core.plots.tables import read_table as _read, response_pick
 
     d = tmp_path / "r"
     run("response", "--grid", "kp=5,10,20,30", "--grid", "kd=0.1,0.3,0.5", "--seconds", "2", "--trace", "-q",
@@ -617,8 +602,8 @@ def test_step_curves_are_at_the_physics_rate_and_the_run_s_own(run, tmp_path: Pa
     of the cells they show (the cells run again: response_traces.csv keeps
     every --trace-every-th step, 20 ms against rise times of 10 ms); the
     samples the run wrote are among them, digit for digit."""
-    from pupper_core._plots_response import step_curves
-    from pupper_core._report import _read
+    from pupper_core.plots.response import step_curves
+    from pupper_core.plots.tables import read_table as _read
 
     d = tmp_path / "r"
     run("response", "--grid", "kp=5,20", "--grid", "kd=0.1,0.5", "--seconds", "1", "--trace",

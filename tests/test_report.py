@@ -218,7 +218,7 @@ def test_a_responses_report(run, tmp_path, baseline):
 
 
 def test_overshoot_below_the_simulations_resolution_is_shown_as_none():
-    from pupper_core._report_svg import fmt
+    from pupper_core._report.svg import fmt
 
     assert fmt("9.91e-10", "overshoot_pct.kfe") == "0"
     assert fmt("0.0572", "overshoot_pct.kfe") == "0.0572"
@@ -228,7 +228,7 @@ def test_overshoot_below_the_simulations_resolution_is_shown_as_none():
 def test_a_heatmap_greys_what_no_rule_picks():
     """Saturated and past-bound cells grey with their word, fallen red, the
     ramp spanning the rest; the pick starred."""
-    from pupper_core._report_svg import heatmap
+    from pupper_core._report.svg import heatmap
 
     rows = [{"id": f"c{i}", "kp": str(kp), "kd": "1", "m": str(v), "status": s}
             for i, (kp, v, s) in enumerate([(1, 0.1, "ok"), (2, 0.01, "saturated"), (3, 0.001, "past_bound"),

@@ -203,7 +203,7 @@ def test_every_run_directory_names_its_kind(run, tmp_path: Path) -> None:
         assert manifest["kind"] == kind, (d, manifest.get("kind"))
         from pupper_core import _report
 
-        assert _report._kind(manifest) == kind
+        assert _report.kind_of(manifest) == kind
     # a run read back knows how long it took (the manifest says)
     assert pc.load_run(tmp_path / "s").wall_seconds == json.loads(
         (tmp_path / "s" / "manifest.json").read_text())["wall_seconds"]

@@ -383,7 +383,7 @@ def lab(
         options["sine"] = parse_sine(options["sine"])
     res = _native.lab(_names(variants), _grid_specs(grid), out=out, progress=callback, **options)
     if res.out is not None:
-        from pupper_core._plots_lab import write_lab_plots
+        from pupper_core.plots.lab import write_lab_plots
         from pupper_core.render import RenderUnavailable, write_lab_effects
 
         write_lab_plots(res.out)

@@ -21,12 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pupper_core._spec import PHASE_AT
+
 #: Cycles whose frequencies lie within this ratio are one step (and pooled).
 POOL = 0.05
 #: A half cycle must swing at least this fraction of the command's largest swing.
 SWING = 0.1
-#: The frequencies (Hz) at which a response's phase is reported.
-PHASE_AT = (2.0, 5.0, 10.0)
 
 
 @dataclass

@@ -179,8 +179,8 @@ def _version() -> str:
 def _plot(out: Path, pb: _Problem, sol: _Solution) -> list[Path]:
     """Per log, measured against simulated angle of each fitted joint, at
     the nominal and the fitted values, each with its residual beneath
-    (``pupper_core._plots_fit`` draws them)."""
-    from pupper_core._plots_fit import fit_figure, save
+    (``pupper_core.plots.fit`` draws them)."""
+    from pupper_core.plots.fit import fit_figure, save
 
     first = _predictions(sol.residual_fn, pb.pdict, pb.x_nominal)
     last = _predictions(sol.residual_fn, sol.params, sol.x)

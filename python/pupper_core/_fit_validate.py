@@ -165,7 +165,7 @@ def write(out: Path, v: Validation) -> None:
 def _plot(out: Path, v: Validation) -> None:
     """plots/validate_<log>.png: per joint, the gain and phase of log,
     nominal and calibrated against frequency, and both models' angle error
-    over time (``pupper_core._plots_fit`` draws them)."""
-    from pupper_core._plots_fit import write_validation
+    over time (``pupper_core.plots.fit`` draws them)."""
+    from pupper_core.plots.fit import write_validation
 
     write_validation(out, v)

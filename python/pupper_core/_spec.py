@@ -97,3 +97,6 @@ def parse_sine(text: str) -> list[float]:
     except ValueError:
         raise ConfigError(f"sine={text!r} is not 'AMPLITUDE,FREQUENCY': give two numbers, "
                           "e.g. sine='2,1.2' or sine=(2, 1.2)") from None
+
+#: The frequencies (Hz) at which a response's phase is reported.
+PHASE_AT = (2.0, 5.0, 10.0)

@@ -10,7 +10,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from pupper_core._plots_style import _new_figure, _save, _style, label_of, plain_log_axis
+from pupper_core.plots.style import _new_figure, _save, _style, label_of, plain_log_axis
 from pupper_core._tune_plan import PENALTY, TuneError, parse_space
 
 

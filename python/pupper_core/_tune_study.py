@@ -77,7 +77,7 @@ def _manifest(out_dir: Path) -> dict[str, Any]:
     if not isinstance(manifest, dict) or manifest.get("kind") != "tune":
         from pupper_core import _report
 
-        what = _report._kind(manifest) if isinstance(manifest, dict) else "damaged"
+        what = _report.kind_of(manifest) if isinstance(manifest, dict) else "damaged"
         raise TuneError(f"cannot resume {out_dir}: it is a {what}'s run directory, not a tune's: "
                         "give --resume a tune's directory, or start the tune with a new -o")
     inputs = manifest.get("inputs")

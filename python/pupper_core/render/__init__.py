@@ -17,8 +17,8 @@ the chosen backend's context class in MuJoCo's renderer. Setting
 
 from __future__ import annotations
 
-# The OpenGL probing is in _render_gl, the panels' layout and the GIF's
-# palette in _render_panels; this module records and draws.
+# The OpenGL probing is in gl, the panels' layout and the GIF's palette in
+# panels; this module records and draws.
 
 import copy
 import os
@@ -29,8 +29,8 @@ from typing import TYPE_CHECKING, Any, Sequence, Union
 import numpy as np
 
 from pupper_core._files import atomic_write
-from pupper_core._render_gl import FIX_HINT, RenderUnavailable, _one_line, _require_gl, gl_available
-from pupper_core._render_panels import _atomic_save, _compose, _font, _labels, _panel, _push_text, _shared_palette
+from pupper_core.render.gl import FIX_HINT, RenderUnavailable, _one_line, _require_gl, gl_available
+from pupper_core.render.panels import _atomic_save, _compose, _font, _labels, _panel, _push_text, _shared_palette
 from pupper_core._spec import DEFAULT_METRIC
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -66,7 +66,7 @@ def builtin_model_path(name: str) -> Path | None:
     """The MJCF file of a built-in model, shipped as package data (the scene
     for ``pupper_v3``), or None for names that are not files (``pupper_v3_fixed``
     is derived in memory; ``_native.builtin_model`` compiles any of them)."""
-    p = Path(__file__).parent / "models" / name / "scene.xml"
+    p = Path(__file__).parent.parent / "models" / name / "scene.xml"
     return p if p.is_file() else None
 
 

@@ -12,8 +12,8 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from pupper_core._plots_style import _new_figure, _style, label_of, plain_log_axis
-from pupper_core._plots_tables import FIRST_METRIC, RunLike, read_replicates, run_dir_of
+from pupper_core.plots.style import _new_figure, _style, label_of, plain_log_axis
+from pupper_core.plots.tables import FIRST_METRIC, RunLike, read_replicates, run_dir_of
 from pupper_core._public import exported_from
 from pupper_core._spec import DEFAULT_METRIC
 

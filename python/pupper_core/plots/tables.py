@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence, Union
 
 import numpy as np
 
-from pupper_core._plots_style import SHORT, _fmt
+from pupper_core.plots.style import SHORT, _fmt
 from pupper_core._public import exported_from
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -331,3 +331,25 @@ def read_replicates(run_dir: str | os.PathLike) -> dict[str, Any]:
         else:
             out[name] = np.array([float(v) if v.strip() else np.nan for v in col], dtype=float)
     return out
+
+
+def read_table(path: Path) -> tuple[list[str], list[dict[str, str]]]:
+    if not path.is_file():
+        return [], []
+    # a log's name that is not UTF-8 stands in a fit's tables as its bytes
+    with path.open(newline="", errors="surrogateescape") as f:
+        r = csv.DictReader(f)
+        return list(r.fieldnames or []), list(r)
+
+
+def response_pick(header: list[str], rows: list[dict[str, str]], group: str) -> dict[str, str] | None:
+    """The response cell that settles soonest on a joint group: pupper's
+    ranking rule (the Rust core's `best`) on settling_time_s.GROUP, judged
+    by that group's status; the first in grid order on a tie."""
+    from pupper_core import _native
+
+    col = f"settling_time_s.{group}"
+    if col not in header:
+        return None
+    (i,) = _native.best_rows(header, [[r.get(h, "") for h in header] for r in rows], col)
+    return None if i is None else rows[i]

@@ -12,34 +12,34 @@ draw into your own axes instead.
 
 from __future__ import annotations
 
-# The figures and readers are written by concern in private modules (a
-# grid's figures in _plots_grid, a run's in _plots_run, a response's in
-# _plots_response, replicates' in _plots_replicates, the lab's in _plots_lab;
-# their look in _plots_style, their reading in _plots_tables): this module
-# re-exports them and keeps the registry of each run kind's plot writer.
+# The figures and readers are written by concern in this package's modules
+# (a grid's figures in grid, a run's in run, a response's in response,
+# replicates' in replicates, the lab's in lab, a fit's in fit; their look in
+# style, their reading in tables): this module re-exports them and keeps the
+# registry of each run kind's plot writer.
 
 import json
 import os
 from pathlib import Path
 
-from pupper_core._plots_grid import bars, base_z, heatmap, metric_vs_axis
-from pupper_core._plots_lab import lab_heatmaps, write_lab_plots
-from pupper_core._plots_replicates import replicate_spread
-from pupper_core._plots_response import GROUP_TITLES as GROUP_TITLES
-from pupper_core._plots_response import response_bode, response_steps, write_response_plots
-from pupper_core._plots_run import write_hold_plots, write_run_plots
-from pupper_core._plots_style import DPI as DPI
-from pupper_core._plots_style import LABELS as LABELS
-from pupper_core._plots_style import MM_RESOLUTION as MM_RESOLUTION
-from pupper_core._plots_style import SHORT as SHORT
-from pupper_core._plots_style import label_of
-from pupper_core._plots_tables import FIRST_METRIC as FIRST_METRIC
-from pupper_core._plots_tables import NAMED_AXES as NAMED_AXES
-from pupper_core._plots_tables import TEXT_COLUMNS as TEXT_COLUMNS
-from pupper_core._plots_tables import Table as Table
-from pupper_core._plots_tables import TableLike as TableLike
-from pupper_core._plots_tables import Traces as Traces
-from pupper_core._plots_tables import describe, grid_axes, read_replicates, read_run
+from pupper_core.plots.grid import bars, base_z, heatmap, metric_vs_axis
+from pupper_core.plots.lab import lab_heatmaps, write_lab_plots
+from pupper_core.plots.replicates import replicate_spread
+from pupper_core.plots.response import GROUP_TITLES as GROUP_TITLES
+from pupper_core.plots.response import response_bode, response_steps, write_response_plots
+from pupper_core.plots.run import write_hold_plots, write_run_plots
+from pupper_core.plots.style import DPI as DPI
+from pupper_core.plots.style import LABELS as LABELS
+from pupper_core.plots.style import MM_RESOLUTION as MM_RESOLUTION
+from pupper_core.plots.style import SHORT as SHORT
+from pupper_core.plots.style import label_of
+from pupper_core.plots.tables import FIRST_METRIC as FIRST_METRIC
+from pupper_core.plots.tables import NAMED_AXES as NAMED_AXES
+from pupper_core.plots.tables import TEXT_COLUMNS as TEXT_COLUMNS
+from pupper_core.plots.tables import Table as Table
+from pupper_core.plots.tables import TableLike as TableLike
+from pupper_core.plots.tables import Traces as Traces
+from pupper_core.plots.tables import describe, grid_axes, read_replicates, read_run
 
 __all__ = ["base_z", "heatmap", "metric_vs_axis", "bars", "read_run", "write_run_plots",
            "grid_axes", "describe", "label_of", "read_replicates", "replicate_spread",

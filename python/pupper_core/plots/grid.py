@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence, cast
 
 import numpy as np
 
-from pupper_core._plots_style import (
+from pupper_core.plots.style import (
     _BAD_GREY,
     _FELL,
     LABELS,
@@ -27,7 +27,7 @@ from pupper_core._plots_style import (
     label_of,
     plain_log_axis,
 )
-from pupper_core._plots_tables import (
+from pupper_core.plots.tables import (
     RunLike,
     TableLike,
     Traces,

@@ -7,9 +7,10 @@ from __future__ import annotations
 import html
 import math
 
-from pupper_core._report import Page, _numbers, _read, _table, response_pick
-from pupper_core._report_svg import bars, lines, num
+from pupper_core._report.page import Page, numbers, read_table, status_warnings, table
+from pupper_core._report.svg import bars, lines, num
 from pupper_core._spec import OVERSHOOT_NOISE_PCT
+from pupper_core.plots.tables import response_pick
 
 GROUPS = ("haa", "hfe", "kfe")
 #: How many settling times of the slowest pick a step plot shows.
@@ -20,7 +21,7 @@ def _steps(page: Page, picks: dict[str, str]) -> list[str]:
     """Per joint group, each cell's angle change over the step, averaged over
     the group's joints and divided by the step: the group's pick bold, up to
     5 other cells thin; the x axis to a few settling times of the pick."""
-    _, traces = _read(page.dir / "response_traces.csv")
+    _, traces = read_table(page.dir / "response_traces.csv")
     if not traces:
         return ["<p class='note'>No step curves: response_traces.csv is written with --trace "
                 "(or --plot).</p>"]
@@ -28,7 +29,7 @@ def _steps(page: Page, picks: dict[str, str]) -> list[str]:
     amp = num(resp.get("signal", {}).get("amplitude"))
     if resp.get("signal", {}).get("kind") != "step" or not amp:
         return []
-    from pupper_core._plots_response import step_curves
+    from pupper_core.plots.response import step_curves
 
     ids = list(dict.fromkeys(r["id"] for r in traces))
     # the cells drawn, each group's pick and up to 5 others, run again at
@@ -61,9 +62,12 @@ def _steps(page: Page, picks: dict[str, str]) -> list[str]:
     return out
 
 
-def response_sections(page: Page) -> list[str]:
+def sections(page: Page) -> list[str]:
     """The picks per joint group, their step curves, the per-cell bars, the
     table."""
+    if not page.rows:
+        return []
+    status_warnings(page)
     header, rows = page.header, page.rows
     groups = [g for g in GROUPS if f"settling_time_s.{g}" in header]
     picks: dict[str, str] = {}
@@ -73,11 +77,11 @@ def response_sections(page: Page) -> list[str]:
             page.answer.append(f'<p class="pick" data-group="{g}">{g}: no cell settled (status ok)</p>')
             continue
         picks[g] = r["id"]
-        shown = _numbers(r, header, lambda h: h.endswith(f".{g}") or h in ("kp", "kd"))
+        shown = numbers(r, header, lambda h: h.endswith(f".{g}") or h in ("kp", "kd"))
         page.answer.append(f'<p class="pick" data-group="{g}">{g}: <b>{html.escape(r["id"])}</b>: {shown}</p>')
     page.answer.append("<p class='note'>Rule: per joint group, the lowest settling_time_s among cells whose status "
                        "on that group is ok; the first in grid order on a tie.</p>")
-    _, jrows = _read(page.dir / "response.csv")
+    _, jrows = read_table(page.dir / "response.csv")
     bad = [r for r in jrows if num(r.get("stability_margin")) >= 1]
     if bad:
         page.warnings.append(f"{len(bad)} (cell, joint) pairs lie past the explicit PD's stability bound "
@@ -92,6 +96,6 @@ def response_sections(page: Page) -> list[str]:
         values = {g: [0.0 if m == "overshoot_pct" and abs(num(r[c])) < OVERSHOOT_NOISE_PCT else num(r[c])
                       for r in rows] for g, c in cols.items()}
         parts.append(bars(ids, values, f"{m} per cell, a bar per joint group"))
-    parts.append("<h2>Table (summary.csv; click a column to sort)</h2>" + _table(header, rows, set(picks.values())))
+    parts.append("<h2>Table (summary.csv; click a column to sort)</h2>" + table(header, rows, set(picks.values())))
     return parts
 

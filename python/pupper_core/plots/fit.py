@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pupper_core._files import atomic_write
-from pupper_core._plots_style import plain_log_axis
+from pupper_core.plots.style import plain_log_axis
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure

@@ -236,7 +236,7 @@ class Worlds:
                  1 if bodies is None else len(bodies[0]), self.device)
 
     def _one_step(self) -> None:
-        from . import _warp_kernels as k
+        from pupper_core._warp import kernels as k
 
         wp, mjw = self._wp, self._mjw
         d = self.d

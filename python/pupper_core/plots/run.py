@@ -9,10 +9,10 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from pupper_core._plots_grid import _room_for_title, bars, base_z, heatmap, metric_vs_axis
-from pupper_core._plots_replicates import replicate_spread
-from pupper_core._plots_style import SHORT, _fmt, _has_dip, _key_line, _save, _say_setting, _wrap_parts, label_of
-from pupper_core._plots_tables import (
+from pupper_core.plots.grid import _room_for_title, bars, base_z, heatmap, metric_vs_axis
+from pupper_core.plots.replicates import replicate_spread
+from pupper_core.plots.style import SHORT, _fmt, _has_dip, _key_line, _save, _say_setting, _wrap_parts, label_of
+from pupper_core.plots.tables import (
     RunLike,
     Traces,
     _distinct,

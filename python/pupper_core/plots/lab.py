@@ -10,9 +10,9 @@ from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 
-from pupper_core._plots_grid import base_z, heatmap
-from pupper_core._plots_replicates import replicate_spread
-from pupper_core._plots_style import (
+from pupper_core.plots.grid import base_z, heatmap
+from pupper_core.plots.replicates import replicate_spread
+from pupper_core.plots.style import (
     _BAD_GREY,
     LABELS,
     _cell_text,
@@ -23,7 +23,7 @@ from pupper_core._plots_style import (
     _style,
     plain_log_axis,
 )
-from pupper_core._plots_tables import RunLike, describe, read_run, run_dir_of
+from pupper_core.plots.tables import RunLike, describe, read_run, run_dir_of
 from pupper_core._public import exported_from
 from pupper_core._spec import DEFAULT_METRIC, ROBUST_METRIC
 

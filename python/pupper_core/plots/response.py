@@ -12,9 +12,9 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
-from pupper_core._plots_grid import heatmap
-from pupper_core._plots_style import _new_figure, _save, _say_setting, _style, plain_log_axis
-from pupper_core._plots_tables import (
+from pupper_core.plots.grid import heatmap
+from pupper_core.plots.style import _new_figure, _save, _say_setting, _style, plain_log_axis
+from pupper_core.plots.tables import (
     _col,
     _distinct,
     _is_product,
@@ -41,9 +41,9 @@ SETTLING_TIMES_SHOWN = 3.0
 
 def _step_picks(d: Path) -> dict[str, str]:
     """Each joint group's pick: the cell that settles soonest (report.html's rule)."""
-    from pupper_core._report import _read, response_pick
+    from pupper_core.plots.tables import read_table, response_pick
 
-    header, rows = _read(d / "summary.csv")
+    header, rows = read_table(d / "summary.csv")
     picks = {}
     for g in ("haa", "hfe", "kfe"):
         r = response_pick(header, rows, g)

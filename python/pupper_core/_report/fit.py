@@ -14,9 +14,9 @@ import html
 import math
 from pathlib import Path
 
-from pupper_core._fit_freq import PHASE_AT
-from pupper_core._report import Page, _breakable, _read, _table
-from pupper_core._report_svg import bars, num, rounded
+from pupper_core._report.page import Page, breakable, read_table, table
+from pupper_core._report.svg import bars, num, rounded
+from pupper_core._spec import PHASE_AT
 
 #: How much further from the log the calibrated model's -3 dB bandwidth
 #: (Hz), phase (deg) or delay left unexplained (s) must lie than the
@@ -117,17 +117,17 @@ def verdict(rows: list[dict[str, str]], page: Page) -> str:
 
 def _logged(d: Path) -> list[str]:
     """The actuators the fit was fitted on (residuals.csv's), in order."""
-    _, rows = _read(d / "residuals.csv")
+    _, rows = read_table(d / "residuals.csv")
     return list(dict.fromkeys(r.get("actuator", "") for r in rows if r.get("actuator")))
 
 
-def fit_sections(page: Page) -> list[str]:
+def sections(page: Page) -> list[str]:
     """The verdict, the error before and after on the logs fitted (one
     scale), the fitted parameters, the validation, the warnings."""
     parts: list[str] = []
-    fh, frows = _read(page.dir / "fit.csv")
-    rh, rrows = _read(page.dir / "residuals.csv")
-    vh, vrows = _read(page.dir / "validation.csv")
+    fh, frows = read_table(page.dir / "fit.csv")
+    rh, rrows = read_table(page.dir / "residuals.csv")
+    vh, vrows = read_table(page.dir / "validation.csv")
     page.answer.append(verdict(vrows, page))
     if rrows:
         before = [num(r["rms_before_rad"]) * 1e3 for r in rrows]
@@ -156,7 +156,7 @@ def fit_sections(page: Page) -> list[str]:
     note = ("<p class='note'>actuators: those the logs cover; a parameter fitted once for several joints "
             "(--per all, or group) is written to the others of calibrated.xml as well (their motors are taken "
             "to be alike).</p>") if any(len(r.get("actuators", "").split()) > len(logged) for r in frows) else ""
-    page.answer.append("<h3>Fitted parameters (fit.csv)</h3>" + _table(fh, frows, set(), key="parameter",
+    page.answer.append("<h3>Fitted parameters (fit.csv)</h3>" + table(fh, frows, set(), key="parameter",
                                                                          shown=actuators) + note)
     parts += _validation_sections(page.dir, vh, vrows)
     page.warnings.extend(page.manifest.get("warnings", []))
@@ -205,13 +205,13 @@ def validation_table(header: list[str], rows: list[dict[str, str]]) -> str:
     top = ("<tr><th class='text' rowspan='2'>log</th><th class='text' rowspan='2'>joint</th>"
            + "".join(f"<th class='group' colspan='{len(models)}'>{html.escape(what)}</th>"
                      for what, _, models, _ in groups)
-           + "".join(f"<th rowspan='2'>{_breakable(h)}</th>" for h in rest) + "</tr>")
+           + "".join(f"<th rowspan='2'>{breakable(h)}</th>" for h in rest) + "</tr>")
     sub = "<tr>" + "".join(f"<th>{SHORT[m]}</th>" for _, _, models, _ in groups for m in models) + "</tr>"
     body = []
     for r in rows:
         worse = _further(r)
-        cells = [f"<td class='text'>{_breakable(r.get('log', ''))}</td>",
-                 f"<td class='text'>{_breakable(r.get('actuator', ''))}</td>"]
+        cells = [f"<td class='text'>{breakable(r.get('log', ''))}</td>",
+                 f"<td class='text'>{breakable(r.get('actuator', ''))}</td>"]
         for _, col, models, scale in groups:
             for m in models:
                 v = r.get(col.format(m), "")
