@@ -13,29 +13,14 @@ same inputs give the same summary.csv.
 from __future__ import annotations
 
 # The facade: what a user imports, re-exported from where it is written (the
-# functions in _api, the spec's keywords in _spec, the native module's types
-# and errors in _native, the typed dicts in _types).
-from typing import Any
+# Rust core's runs in _run, the spec's keywords in _spec, the native module's
+# types and errors in _native, the typed dicts in _types); the kinds driven
+# in Python (tune, recommend, excite, fit), their errors, plots and render
+# are imported when first used (they import numpy, Optuna, matplotlib).
+from typing import TYPE_CHECKING, Any
 
 from pupper_core import _native
-from pupper_core._api import (
-    excite,
-    fit,
-    gains,
-    hold,
-    info,
-    lab,
-    load_run,
-    merge,
-    pose,
-    recommend,
-    report,
-    response,
-    stand,
-    sweep,
-    tune,
-)
-from pupper_core._api import lazy_attribute as _lazy_attribute
+from pupper_core._run import gains, hold, info, lab, load_run, merge, pose, report, response, stand, sweep
 from pupper_core._native import (
     ClusterError,
     ConfigError,
@@ -107,6 +92,36 @@ def __dir__() -> list[str]:
     return sorted([*__all__, "plots", "render", "__version__"])
 
 
+#: What the package imports when first used: name -> (module, attribute).
+_LAZY = {
+    "tune": ("pupper_core._tune", "tune"),
+    "TuneError": ("pupper_core._tune", "TuneError"),
+    "recommend": ("pupper_core._recommend", "recommend"),
+    "RecommendError": ("pupper_core._recommend", "RecommendError"),
+    "excite": ("pupper_core._fit", "excite"),
+    "fit": ("pupper_core._fit", "fit"),
+    "FitError": ("pupper_core._fit", "FitError"),
+    # plots and render import matplotlib / a GL context
+    "plots": ("pupper_core.plots", ""),
+    "render": ("pupper_core.render", ""),
+}
+
+if TYPE_CHECKING:
+    from pupper_core import plots, render
+    from pupper_core._fit import FitError, excite, fit
+    from pupper_core._recommend import RecommendError, recommend
+    from pupper_core._tune import TuneError, tune
+
+
 def __getattr__(name: str) -> Any:
-    # the search's and the fit's errors, plots and render: imported when used
-    return _lazy_attribute(name)
+    """The kinds driven in Python, their errors, plots and render: imported
+    when first used, bound on the package so this runs once per name."""
+    import importlib
+
+    if name not in _LAZY:
+        raise AttributeError(f"module 'pupper_core' has no attribute {name!r}")
+    module, attribute = _LAZY[name]
+    value = importlib.import_module(module)
+    value = getattr(value, attribute) if attribute else value
+    globals()[name] = value
+    return value

@@ -85,6 +85,7 @@ from pupper_core._fit_terms import (
 )
 from pupper_core._joint_log import JointLog, LogError
 from pupper_core._log_columns import ColumnMap, read_map
+from pupper_core._public import exported_from
 from pupper_core._log_specs import option_text, path_list
 from pupper_core._signals import _stop_on_signals
 
@@ -103,6 +104,7 @@ def _parse_params(params: str | Sequence[str]) -> list[str]:
     return names
 
 
+@exported_from("pupper_core")
 def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Mapping[str, Any]]], *,
         model: str | os.PathLike[str] = "pupper_v3",
         params: str | Sequence[str] = DEFAULT_PARAMS, per: str = "all", out: str | os.PathLike[str] | None = None,

@@ -39,7 +39,7 @@ def _chirp(t: np.ndarray, band: tuple[float, float]) -> np.ndarray:
     return np.asarray(np.sin(2 * np.pi * f0 * (r ** t - 1) / math.log(r)))
 
 
-@exported_from("pupper_core._fit")
+@exported_from("pupper_core")
 def excite(model: str | os.PathLike[str] = "pupper_v3", *, out: str | os.PathLike[str] | None = "excite.csv",
            kp: float | None = None, kd: float | None = None, seconds: float = 8.0, hold: float = 1.0,
            amplitude: float = 0.3, signal: str = "multisine", band: Sequence[float] | str = (0.3, 6.0),

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from pupper_core._api import info as model_info
+from pupper_core._run import info as model_info
 from pupper_core._fit_terms import GROUPS, PARAMS, FitError
 
 #: The built-in models: their file, and whether the base is welded.

@@ -100,6 +100,11 @@ def path_list(value: Any, flag: str) -> list[Any]:
     if isinstance(value, (str, bytes, os.PathLike)):
         return [value]
     if isinstance(value, Mapping):
+        # each log with its own options: {"run.csv.gz": {"kp": 5, "kd": 0.25}}
+        for log, own in value.items():
+            if not isinstance(own, Mapping):
+                raise TypeError(f"logs as a dict maps each log to its options ({{'kp': 5, 'kd': 0.25}}): "
+                                f"{log!r}'s {own!r} is not a dict")
         return list(value.items())
     if isinstance(value, Sequence) or hasattr(value, "__iter__"):
         return list(value)

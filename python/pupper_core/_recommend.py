@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from pupper_core._recommend_card import Card, card_of, in_use, print_card, write_outputs, write_trials
+from pupper_core._public import exported_from
 from pupper_core._recommend_plan import Plan, RecommendError, plan as make_plan
 from pupper_core._recommend_search import Candidate, best_of, robot_model_files, search, windows
 from pupper_core._recommend_search import polish as polish_pick
@@ -71,6 +72,7 @@ class Recommendation:
         return f"Recommendation({g}; p95 push dip {self.pick.p95_dip_mm:.4g} mm on {self.plan.robots} robots)"
 
 
+@exported_from("pupper_core")
 def recommend(
     model: str | os.PathLike[str] = "pupper_v3",
     *,

@@ -58,7 +58,7 @@ def _step_response(plan: Plan, xml: Path) -> dict[str, dict[str, float]]:
     robot hung in the air, through the firmware (its command delay too)."""
     import warnings
 
-    from pupper_core._api import response
+    from pupper_core._run import response
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

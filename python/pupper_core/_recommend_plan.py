@@ -216,7 +216,7 @@ def _groups(model: str, inf: Mapping[str, Any], kp_max: float | None, kd_max: fl
     """The model's actuators (from its `info`), its joint groups with their
     searched ranges, its timestep, and whether motor caps bound every
     group's kp and kd."""
-    from pupper_core._api import gains
+    from pupper_core._run import gains
 
     names = [str(a["name"]) for a in inf["actuators"]]
     own_kp = [float(a["gainprm"][0]) for a in inf["actuators"]]
@@ -395,7 +395,7 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
         # a delay interval of round-off around 0 (a noise-free fit) is no delay
         if delays and max(b for _, b in delays) > 1e-9:
             base.append(f"motor_delay={min(a for a, _ in delays):.6g}:{max(b for _, b in delays):.6g}")
-    from pupper_core._api import info
+    from pupper_core._run import info
 
     inf = info(model)
     low = _armature_low(rows, [str(a["name"]) for a in inf["actuators"]])

@@ -232,7 +232,7 @@ def simulate(plan: Plan, cands: Sequence[Candidate], robot_models: Sequence[str]
     Fills each one's p95 dip, falls, saturation and peak torque."""
     import warnings
 
-    from pupper_core._api import sweep
+    from pupper_core._run import sweep
 
     if not cands:
         return

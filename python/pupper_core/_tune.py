@@ -38,6 +38,7 @@ from typing import Any
 
 from pupper_core._files import atomic_write_text
 from pupper_core._native import PupperError
+from pupper_core._public import exported_from
 from pupper_core._tune_figures import progress_figure as progress_figure
 from pupper_core._tune_figures import trials_figure as trials_figure
 from pupper_core._tune_figures import write_plots
@@ -88,6 +89,7 @@ class TuneResult:
                 f"best {b.get('params')} -> {b.get('values')})")
 
 
+@exported_from("pupper_core")
 def tune(
     space: Sequence[str] | Mapping[str, Any],
     *,

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from pupper_core import _native
-from pupper_core._api import info
+from pupper_core._run import info
 from pupper_core._native import ConfigError, GridError, PupperError
 from pupper_core._public import exported_from
 

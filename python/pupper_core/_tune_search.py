@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pupper_core._api import sweep
+from pupper_core._run import sweep
 from pupper_core._tune_plan import PENALTY, VARIANTS, _Plan, _sampler, _steps_per_cell
 from pupper_core._tune_study import _append_journal, _test_signal
 from pupper_core._tune_tables import _best, _finished, _write

@@ -1,7 +1,7 @@
-"""The package's functions, behind its facade (``pupper_core/__init__.py``
-re-exports them): the model's facts, the runs of the Rust core (stand,
-sweep, response, hold, lab, merge, load_run) with the report each run
-directory gets, and the entries to the optional search and fit."""
+"""The runs of the Rust core, below the package's facade
+(``pupper_core/__init__.py`` re-exports them): the model's facts (info,
+gains, pose), stand, sweep, response, hold, lab, merge and load_run, with
+the report each run directory gets."""
 
 from __future__ import annotations
 
@@ -250,109 +250,6 @@ def pose(model: str | os.PathLike[str] = "pupper_v3", variant: Variant = "origin
 
 
 @exported_from("pupper_core")
-def tune(space: Sequence[str] | Mapping[str, Any], **options: Any) -> Any:
-    """Search gains (or any grid axis) with Optuna's ask/tell, a generation
-    of ``batch`` trials per batch of cells, as `pupper tune` does.
-
-    ``space``: ``["kp=5:200:log", "kd=0.05:10:log"]`` (``:int`` for
-    integers, ``A|B`` for choices). Keywords: ``objective`` (a summary.csv
-    column, or several for a Pareto front; default last_1s_std_mm),
-    ``maximize``, ``trials`` or ``budget`` (cell-steps), ``batch`` (8),
-    ``sampler`` (tpe, cmaes, gp, random), ``seed``, ``aggregate`` over
-    replicates (mean, p95, worst, fail-rate), ``halving`` (successive
-    halving over replicates), ``out``, ``resume``, ``force``,
-    ``progress``; any other keyword is the sweep's (model, mode, kp, kd,
-    seconds, replicates, randomize, motor, ...). A trial that fell,
-    diverged, saturated or lies past the stability bound is told a
-    penalty and is never a best. Needs the tune extra (Optuna); returns a
-    TuneResult (the study, its trials as trials.csv has them, the best
-    trial or Pareto front, ``to_pandas()``)."""
-    from pupper_core import _tune
-
-    return _tune.tune(space, **options)
-
-
-@exported_from("pupper_core")
-def recommend(model: str | os.PathLike[str] = "pupper_v3", **options: Any) -> Any:
-    """Gains per joint group to put on the robot, as `pupper recommend`
-    finds them: the lowest worst-side (95th percentile) push dip among
-    candidates that hold on every one of ``robots`` (32) robots drawn from
-    what the model does not know — none falls or saturates past
-    ``max_saturation`` (0.05), and each group's loop, as the firmware
-    ``motor`` ("rate=500,counts=16384") closes it on measurements
-    ``sensing_delay`` (0.002 s) old, keeps ``min_phase_margin`` (30°) and
-    ``min_gain_margin`` (6 dB) at the spread's worst corner.
-
-    Keywords: ``robots``, ``trials`` (48 candidates run on the robots),
-    ``batch`` (16), ``seed``, ``seconds`` (4), ``push_force``, ``motor``,
-    ``sensing_delay``, ``command_delay`` (s; shifts the step response,
-    leaves the margins alone), ``spread`` (``--randomize`` specs; default
-    torso ±15 %, legs ±10 %, motor gains ±10 %, friction 0.6-1.2, 1 mrad
-    encoder noise), ``from_fit`` (a `pupper fit` run directory: its
-    calibrated model and intervals), ``min_phase_margin``,
-    ``min_gain_margin``, ``max_saturation``, ``kp_max``, ``kd_max``,
-    ``joint_order`` (the YAML's actuator order), ``controller`` (its ROS 2
-    node, "neural_controller"), ``out`` (a run directory), ``force``,
-    ``progress``. Needs the tune extra (Optuna). Returns a Recommendation:
-    ``pick``, ``gains`` (group -> (kp, kd)), ``cards`` (a card per group:
-    margins, predicted step response, p95 push dip, torque headroom),
-    ``neighbours`` (why each lost), ``warnings``, ``yaml`` and ``mjcf``
-    (the exports' texts), ``candidates`` and ``to_pandas()``."""
-    from pupper_core import _recommend
-
-    return _recommend.recommend(model, **options)
-
-
-@exported_from("pupper_core")
-def excite(model: str | os.PathLike[str] = "pupper_v3", **options: Any) -> Any:
-    """Write an excitation to play on the robot hung in the air (per joint
-    group a multisine or chirp inside the ranges, with holds) and the nominal
-    model's response, in the joint-log format, as `pupper excite` does;
-    returns the file's path. Keywords: ``out`` (excite.csv), ``kp``,
-    ``kd`` (the gains the log is recorded at), ``signal`` (multisine or
-    chirp), ``band`` (Hz, default 0.3–6), ``seconds`` (8),
-    ``hold`` (s between groups), ``amplitude`` (rad), ``max_velocity``
-    (rad/s), ``seed``, ``force`` (overwrite), ``joints`` (the actuators or
-    joint groups excited and logged, the others held: a test stand),
-    ``rate`` (the log's sample rate, Hz)."""
-    from pupper_core import _fit
-
-    return _fit.excite(model, **options)
-
-
-@exported_from("pupper_core")
-def fit(logs: Sequence[str | os.PathLike[str]] | str | os.PathLike[str] | Mapping[str, Mapping[str, Any]],
-        **options: Any) -> Any:
-    """Calibrate the model to joint logs with mujoco.sysid, as `pupper fit`
-    does. ``logs``: a path (plain, gzip, bzip2 or xz), a list of them, or
-    a dict LOG -> its own options ({"kp": 5, "kd": 0.25, "held": 0,
-    "columns": MAP}); a string may say them too ("LOG::kp=5,kd=0.25"), and
-    "@LIST" names a file listing such logs. Keywords model, params
-    (armature, damping, frictionloss, kp_scale, kd_scale, delay), per
-    ("all", "group", "joint"), out, force, max_iters, plot, columns (the
-    logs' own column names and units: KEY=COLUMN[:UNIT],... or a map file),
-    kp, kd (one value, or one per logged joint), held (for fitted logs that
-    do not say them), gains_from_name (a pattern such as "kp_{kp}_kd_{kd}"
-    that reads each log's gains from its file name), validate (one log or
-    a list, replayed, not fitted; each states its own gains), motor (the
-    servo firmware to replay through).
-    Needs the fit extra; returns a FitResult (``table`` as fit.csv,
-    ``value(name)``, ``interval(name)``, RMS angle error before and after)."""
-    from pupper_core import _fit
-
-    if isinstance(logs, (str, os.PathLike)):
-        logs = [logs]
-    elif isinstance(logs, Mapping):
-        # each log with its own options: {"run.csv.gz": {"kp": 5, "kd": 0.25}}
-        for log, own in logs.items():
-            if not isinstance(own, Mapping):
-                raise TypeError(f"logs as a dict maps each log to its options ({{'kp': 5, 'kd': 0.25}}): "
-                                f"{log!r}'s {own!r} is not a dict")
-        return _fit.fit(list(logs.items()), **options)
-    return _fit.fit(list(logs), **options)
-
-
-@exported_from("pupper_core")
 def lab(
     variants: Variant | Sequence[Variant] | None = None,
     grid: Mapping[str, Any] | Sequence[str] | str | None = None,
@@ -441,27 +338,3 @@ def load_run(run_dir: str | os.PathLike[str]) -> SweepResult:
     """A SweepResult from a run directory written by `pupper sweep` or
     sweep(out=...); its rows are checked against its manifest's grid."""
     return _native.load_run(os.fspath(run_dir))
-
-
-def lazy_attribute(name: str) -> Any:
-    """What ``pupper_core.<name>`` is when the package does not import it up front."""
-    # the search's and the fit's errors live beside their (optional) code
-    if name == "TuneError":
-        from pupper_core._tune import TuneError
-
-        return TuneError
-    if name == "FitError":
-        from pupper_core._fit import FitError
-
-        return FitError
-    if name == "RecommendError":
-        from pupper_core._recommend_plan import RecommendError
-
-        return RecommendError
-    # plots and render import matplotlib / a GL context: only when used
-    if name in ("plots", "render"):
-        import importlib
-
-        # importing a submodule binds it on the package: __getattr__ runs once
-        return importlib.import_module(f"pupper_core.{name}")
-    raise AttributeError(f"module 'pupper_core' has no attribute {name!r}")
