@@ -7,8 +7,78 @@
 //! XX (the `surrogateescape` rule Python uses for every path it is given),
 //! so such a path goes in as a placeholder and leaves as that escape.
 
+use std::cell::RefCell;
 use std::ffi::OsStr;
 use std::os::unix::ffi::OsStrExt;
+
+use serde::{Serialize, Serializer};
+
+thread_local! {
+    /// The literals of the paths [`to_text`] is serializing that are not
+    /// UTF-8, by placeholder index.
+    static LITERALS: RefCell<Vec<String>> = const { RefCell::new(Vec::new()) };
+}
+
+/// A command's flags as the JSON text its `_cli` function reads: `args`
+/// serialize themselves (their fields named as Python's keywords), their
+/// paths through [`path`], [`opt_path`] or [`paths`].
+pub fn to_text<T: Serialize>(args: &T) -> serde_json::Result<String> {
+    LITERALS.with(|l| l.borrow_mut().clear());
+    let value = serde_json::to_value(args);
+    let literals = LITERALS.with(|l| std::mem::take(&mut *l.borrow_mut()));
+    Ok(PyArgs { literals }.text(&value?))
+}
+
+/// Serializes a path as [`PyArgs::path`] does (for `serialize_with`).
+pub fn path<P: AsRef<OsStr>, S: Serializer>(p: &P, s: S) -> Result<S::Ok, S::Error> {
+    let bytes = p.as_ref().as_bytes();
+    if let Ok(text) = std::str::from_utf8(bytes) {
+        return s.serialize_str(text);
+    }
+    let i = LITERALS.with(|l| {
+        let mut l = l.borrow_mut();
+        l.push(escaped(bytes));
+        l.len() - 1
+    });
+    s.serialize_str(&format!("\0{i}\0"))
+}
+
+/// An optional path: null when absent.
+pub fn opt_path<P: AsRef<OsStr>, S: Serializer>(p: &Option<P>, s: S) -> Result<S::Ok, S::Error> {
+    match p {
+        Some(p) => path(p, s),
+        None => s.serialize_none(),
+    }
+}
+
+/// Paths as a list.
+#[allow(dead_code)] // fit and excite take lists of logs
+pub fn paths<P: AsRef<OsStr>, S: Serializer>(ps: &[P], s: S) -> Result<S::Ok, S::Error> {
+    use serde::ser::SerializeSeq;
+    let mut seq = s.serialize_seq(Some(ps.len()))?;
+    for p in ps {
+        seq.serialize_element(&PathOf(p.as_ref()))?;
+    }
+    seq.end()
+}
+
+#[allow(dead_code)]
+struct PathOf<'a>(&'a OsStr);
+
+impl Serialize for PathOf<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        path(&self.0, s)
+    }
+}
+
+/// A repeatable flag given no times is the keyword left out: null.
+pub fn none_if_empty<T: Serialize, S: Serializer>(v: &[T], s: S) -> Result<S::Ok, S::Error> {
+    if v.is_empty() {
+        s.serialize_none()
+    } else {
+        v.serialize(s)
+    }
+}
 
 /// Builds the JSON text of a command's flags, paths included.
 #[derive(Debug, Default)]
@@ -87,6 +157,34 @@ mod tests {
         assert_eq!(
             a.text(&v),
             r#"{"logs":["r\udcffun/\udce9\"x","b"],"out":"r\udcffun/\udce9\"x"}"#
+        );
+    }
+
+    #[test]
+    fn serialized_args_carry_their_paths_as_the_builder_does() {
+        #[derive(Serialize)]
+        struct Args {
+            #[serde(serialize_with = "paths")]
+            logs: Vec<OsString>,
+            #[serde(serialize_with = "opt_path")]
+            out: Option<OsString>,
+            #[serde(serialize_with = "opt_path")]
+            none: Option<OsString>,
+            #[serde(serialize_with = "none_if_empty")]
+            spread: Vec<String>,
+            seed: u64,
+        }
+        let odd = OsString::from_vec(b"r\xffun/\xe9\"x".to_vec());
+        let args = Args {
+            logs: vec![odd.clone(), "b".into()],
+            out: Some(odd),
+            none: None,
+            spread: vec![],
+            seed: 3,
+        };
+        assert_eq!(
+            to_text(&args).unwrap(),
+            r#"{"logs":["r\udcffun/\udce9\"x","b"],"out":"r\udcffun/\udce9\"x","none":null,"spread":null,"seed":3}"#
         );
     }
 

@@ -24,7 +24,7 @@ impl GridArg {
     }
 }
 
-#[derive(Args, Debug)]
+#[derive(Args, Debug, serde::Serialize)]
 pub(super) struct ModelArg {
     /// Built-in model name (pupper_v3, pupper_v3_fixed) or path to an MJCF file.
     #[arg(long, short = 'm', default_value_t = SweepSpec::default().model, value_name = "NAME|PATH")]
@@ -34,6 +34,21 @@ pub(super) struct ModelArg {
 impl ModelArg {
     pub(super) fn source(&self) -> Result<ModelSource> {
         ModelSource::parse(&self.model)
+    }
+}
+
+/// The one parser of a number flag of a command done in Python: JSON has
+/// no NaN or infinity (they would reach Python as null, the flag left out),
+/// so they are refused where the flag is read.
+pub(super) fn finite(text: &str) -> std::result::Result<f64, String> {
+    let v: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{text}' is not a number: give a number"))?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not a finite number: give a number"))
     }
 }
 

@@ -6,14 +6,17 @@ use std::path::PathBuf;
 
 use clap::Args;
 use pupper_core::{Error, Result};
+use serde::Serialize;
 
-use super::args::ModelArg;
+use super::args::{ModelArg, finite};
 use super::python::python_command;
 use super::rundir_name;
-use crate::pyargs::PyArgs;
+use crate::pyargs;
 use pupper_mujoco::bridge::calls;
 
-#[derive(Args, Debug)]
+/// The flags serialize themselves as `pupper_core.recommend`'s keywords,
+/// each under its own name (the manifest keeps the same names).
+#[derive(Args, Debug, Serialize)]
 #[command(
     after_help = "What it answers: the kp and kd per joint group with the lowest worst-side \
 (95th percentile) push dip among gains that hold on EVERY drawn robot:
@@ -54,6 +57,7 @@ Examples:
 )]
 pub(super) struct RecommendArgs {
     #[command(flatten)]
+    #[serde(flatten)]
     model: ModelArg,
     /// Robots drawn per candidate (every constraint must hold on each).
     #[arg(long, default_value_t = 32, value_name = "N")]
@@ -73,44 +77,46 @@ pub(super) struct RecommendArgs {
     #[arg(long, default_value_t = 0, value_name = "S")]
     seed: u64,
     /// Simulated seconds per robot (the push comes at 2 s).
-    #[arg(long, default_value_t = 4.0, value_name = "S", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 4.0, value_name = "S", allow_negative_numbers = true, value_parser = finite)]
     seconds: f64,
     /// The push's vertical force (N) [default: sweep's].
-    #[arg(long, value_name = "N", allow_negative_numbers = true)]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = finite)]
     push_force: Option<f64>,
     /// The servo firmware, as --motor takes it (rate=HZ,filter=HZ,counts=N,noload=RAD_S).
     #[arg(long, default_value = "rate=500,counts=16384", value_name = "SPEC")]
     motor: String,
     /// Age of the measurements the firmware's PD reads (s): in the loop margins, and drawn 0 to it
     /// (whole physics steps) on the robots.
-    #[arg(long, default_value_t = 0.002, value_name = "S", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.002, value_name = "S", allow_negative_numbers = true, value_parser = finite)]
     sensing_delay: f64,
     /// Delay of the commanded target (s): the firmware's command delay; shifts the step response.
-    #[arg(long, default_value_t = 0.0, value_name = "S", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, value_name = "S", allow_negative_numbers = true, value_parser = finite)]
     command_delay: f64,
     /// What differs between robots, as --randomize specs; repeat. Replaces the default spread.
     #[arg(long, value_name = "QUANTITY=DIST", allow_hyphen_values = true)]
+    #[serde(serialize_with = "pyargs::none_if_empty")]
     spread: Vec<String>,
     /// A `pupper fit` run directory: its calibrated model is the robot, its intervals the spread.
     #[arg(long, value_name = "DIR")]
+    #[serde(serialize_with = "pyargs::opt_path")]
     from_fit: Option<PathBuf>,
     /// Least phase margin of every group's loop on every robot (degrees).
-    #[arg(long, default_value_t = 30.0, value_name = "DEG", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 30.0, value_name = "DEG", allow_negative_numbers = true, value_parser = finite)]
     min_phase_margin: f64,
     /// Least gain margin of every group's loop on every robot (dB).
-    #[arg(long, default_value_t = 6.0, value_name = "DB", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 6.0, value_name = "DB", allow_negative_numbers = true, value_parser = finite)]
     min_gain_margin: f64,
     /// Largest share of steps a robot may spend at its torque limit.
-    #[arg(long, default_value_t = 0.05, value_name = "F", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.05, value_name = "F", allow_negative_numbers = true, value_parser = finite)]
     max_saturation: f64,
     /// Most a robot's final base height may lie below its stance height, as a share of it.
-    #[arg(long, default_value_t = 0.1, value_name = "F", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.1, value_name = "F", allow_negative_numbers = true, value_parser = finite)]
     max_sag: f64,
     /// The motors' largest kp [default: the model's pupper:kp_max:ACT numerics, else 20x its own].
-    #[arg(long, value_name = "KP", allow_negative_numbers = true)]
+    #[arg(long, value_name = "KP", allow_negative_numbers = true, value_parser = finite)]
     kp_max: Option<f64>,
     /// The motors' largest kd [default: the model's pupper:kd_max:ACT numerics, else 50x its own].
-    #[arg(long, value_name = "KD", allow_negative_numbers = true)]
+    #[arg(long, value_name = "KD", allow_negative_numbers = true, value_parser = finite)]
     kd_max: Option<f64>,
     /// The gains the robot runs today, KP,KD for every group, run on the same robots and set beside
     /// the pick on the card [default: the model's own servo gains].
@@ -120,6 +126,7 @@ pub(super) struct RecommendArgs {
     /// joint_names are the default --joint-order, its kps/kds (or init_kps/init_kds) the default
     /// --current.
     #[arg(long, value_name = "YAML")]
+    #[serde(serialize_with = "pyargs::opt_path")]
     robot_config: Option<PathBuf>,
     /// The controller's joint order for the YAML's kps/kds, comma-separated actuator names
     /// [default: the model's actuators].
@@ -130,66 +137,37 @@ pub(super) struct RecommendArgs {
     controller: String,
     /// Run directory (default runs/<time>-recommend).
     #[arg(long, short = 'o', value_name = "DIR")]
+    #[serde(skip)]
     out: Option<PathBuf>,
     /// Overwrite --out.
     #[arg(long)]
     force: bool,
     /// No line per generation.
     #[arg(long, short = 'q')]
+    #[serde(skip)]
     quiet: bool,
+}
+
+/// What `pupper_core._recommend._cli` is given: the flags, the run
+/// directory, whether to print progress.
+#[derive(Serialize)]
+struct Call<'a> {
+    #[serde(flatten)]
+    args: &'a RecommendArgs,
+    #[serde(serialize_with = "pyargs::path")]
+    out: PathBuf,
+    progress: bool,
 }
 
 impl RecommendArgs {
     pub(super) fn run(&self) -> Result<u8> {
-        // JSON writes NaN as null, which Python would read as "not given"
-        for (flag, v) in [
-            ("seconds", Some(self.seconds)),
-            ("sensing-delay", Some(self.sensing_delay)),
-            ("command-delay", Some(self.command_delay)),
-            ("min-phase-margin", Some(self.min_phase_margin)),
-            ("min-gain-margin", Some(self.min_gain_margin)),
-            ("max-saturation", Some(self.max_saturation)),
-            ("max-sag", Some(self.max_sag)),
-            ("push-force", self.push_force),
-            ("kp-max", self.kp_max),
-            ("kd-max", self.kd_max),
-        ] {
-            if v.is_some_and(|v| !v.is_finite()) {
-                return Err(Error::Config(format!(
-                    "--{flag} is not a finite number: give a number"
-                )));
-            }
-        }
         let out = self.out.clone().unwrap_or_else(|| rundir_name("recommend"));
-        let mut py = PyArgs::new();
-        let args = serde_json::json!({
-            "model": self.model.model,
-            "robots": self.robots,
-            "trials": self.trials,
-            "batch": self.batch,
-            "polish": self.polish,
-            "seed": self.seed,
-            "seconds": self.seconds,
-            "push_force": self.push_force,
-            "motor": self.motor,
-            "sensing_delay": self.sensing_delay,
-            "command_delay": self.command_delay,
-            "spread": if self.spread.is_empty() { None } else { Some(&self.spread) },
-            "from_fit": self.from_fit.as_ref().map(|d| py.path(d)),
-            "min_phase_margin": self.min_phase_margin,
-            "min_gain_margin": self.min_gain_margin,
-            "max_saturation": self.max_saturation,
-            "max_sag": self.max_sag,
-            "kp_max": self.kp_max,
-            "kd_max": self.kd_max,
-            "current": self.current,
-            "robot_config": self.robot_config.as_ref().map(|p| py.path(p)),
-            "joint_order": self.joint_order,
-            "controller": self.controller,
-            "out": py.path(&out),
-            "force": self.force,
-            "progress": !self.quiet,
-        });
-        python_command(&calls::RECOMMEND, &py.text(&args))
+        let call = Call {
+            args: self,
+            out,
+            progress: !self.quiet,
+        };
+        let text = pyargs::to_text(&call).map_err(|e| Error::Internal(e.to_string()))?;
+        python_command(&calls::RECOMMEND, &text)
     }
 }

@@ -11,10 +11,12 @@ use serde_json::Value;
 use super::args::{BackendArgs, BatchArgs, PopulationArgs, SetupArgs};
 use super::python::python_command;
 use super::rundir_name;
-use crate::pyargs::PyArgs;
+use crate::pyargs;
 use pupper_mujoco::bridge::calls;
 
-#[derive(Args, Debug)]
+/// Tune's own flags serialize themselves as `pupper_core.tune`'s keywords;
+/// the sweep's flags it shares reach Python as the sweep's spec's options.
+#[derive(Args, Debug, serde::Serialize)]
 #[command(
     after_help = "A trial whose robot fell, diverged or saturated is told a penalty of 1e6 (the
 worst value), keeps its status in trials.csv and is never a best. The sampler of generation g is
@@ -63,9 +65,11 @@ pub(super) struct TuneArgs {
     #[arg(long, default_value_t = 0, value_name = "ETA")]
     halving: u64,
     #[command(flatten)]
+    #[serde(skip)]
     setup: SetupArgs,
     /// Continue an interrupted study in DIR (the same inputs, or --resume DIR alone).
     #[arg(long, value_name = "DIR")]
+    #[serde(skip)]
     resume: Option<PathBuf>,
     /// Write DIR/plots/tune_progress.png (best objective against cell-steps spent) and, for
     /// two searched axes, tune_trials.png (the trials over that plane).
@@ -74,16 +78,21 @@ pub(super) struct TuneArgs {
     /// With --plot: a sweep's run directory of the same question (e.g. a grid over the same
     /// axes), drawn behind the search: its best-so-far curve and its heatmap.
     #[arg(long, value_name = "DIR", requires = "plot")]
+    #[serde(serialize_with = "pyargs::opt_path")]
     compare: Option<PathBuf>,
     /// No line per generation.
     #[arg(long, short = 'q')]
+    #[serde(skip)]
     quiet: bool,
     #[command(flatten)]
+    #[serde(skip)]
     batching: BatchArgs,
     // last: their help headings would hold every option after them
     #[command(flatten)]
+    #[serde(skip)]
     backend: BackendArgs,
     #[command(flatten)]
+    #[serde(skip)]
     population: PopulationArgs,
 }
 
@@ -94,29 +103,17 @@ impl TuneArgs {
             (Some(d), _) | (None, Some(d)) => d.clone(),
             (None, None) => rundir_name("tune"),
         };
-        let mut py = PyArgs::new();
-        let mut args = serde_json::json!({
-            "space": self.space,
-            "objective": self.objective,
-            "maximize": self.maximize,
-            "trials": self.trials,
-            "budget": self.budget,
-            "batch": self.batch,
-            "sampler": self.sampler,
-            "seed": self.population.seed,
-            "aggregate": self.aggregate,
-            "halving": self.halving,
-            "out": py.path(&out),
-            "resume": self.resume.is_some(),
-            "force": self.setup.output.force,
-            "progress": !self.quiet,
-            "plot": self.plot,
-            "compare": self.compare.as_ref().map(|c| py.path(c)),
-        });
-        if let Some(a) = args.as_object_mut() {
-            a.extend(options);
-        }
-        python_command(&calls::TUNE, &py.text(&args))
+        let call = Call {
+            args: self,
+            seed: self.population.seed,
+            out,
+            resume: self.resume.is_some(),
+            force: self.setup.output.force,
+            progress: !self.quiet,
+            options,
+        };
+        let text = pyargs::to_text(&call).map_err(|e| Error::Internal(e.to_string()))?;
+        python_command(&calls::TUNE, &text)
     }
 
     /// The study's simulation inputs, each one's JSON as the spec serializes
@@ -192,4 +189,20 @@ impl TuneArgs {
         }
         Ok(o)
     }
+}
+
+/// What `pupper_core._tune._cli` is given: tune's flags, those of the
+/// shared groups it reads itself, and the sweep's options.
+#[derive(serde::Serialize)]
+struct Call<'a> {
+    #[serde(flatten)]
+    args: &'a TuneArgs,
+    seed: u64,
+    #[serde(serialize_with = "pyargs::path")]
+    out: PathBuf,
+    resume: bool,
+    force: bool,
+    progress: bool,
+    #[serde(flatten)]
+    options: serde_json::Map<String, Value>,
 }
