@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from pupper_core._files import flush_stdout, say
 from pupper_core._fit_excite import _excite, excite
 from pupper_core._fit_firmware import parse_motor
 from pupper_core._fit_jacobian import jacobian_fn, rollouts_per_jacobian
@@ -460,9 +461,9 @@ def _cli_fit(args_json: str) -> list[str]:
     if res.validation:
         print_table(res.validation)
     for w in res.warnings:
-        print(f"warning: {w}", file=sys.stderr)
+        say(f"warning: {w}")
     print(f"fitted in {res.seconds:.1f} s")
-    sys.stdout.flush()
+    flush_stdout()
     if res.out is None:
         return []
     wrote = [str(res.out / n) for n in ("fit.csv", "residuals.csv", "calibrated.xml")]
@@ -480,6 +481,6 @@ def _cli_excite(args_json: str) -> list[str]:
     a = json.loads(args_json)
     path, notes = _excite(a.pop("model", "pupper_v3"), **a)
     for note in notes:
-        print(f"note: {note}", file=sys.stderr)
-    sys.stdout.flush()
+        say(f"note: {note}")
+    flush_stdout()
     return [str(path)]
