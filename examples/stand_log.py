@@ -3,6 +3,7 @@ written as a plain MuJoCo loop (not pupper's code): a stand-in for a real
 bench log, for docs/fit.md and the tests.
 
     python examples/stand_log.py stand.csv --kp 5 --kd 0.1 --seed 0
+    python examples/stand_log.py stand.csv.gz --kp 5 --kd 0.1 --seed 0 --gzip
 
 The "hardware" is the built-in robot hung in the air with heavier rotors,
 more damping and friction than the nominal model, its gains a little off
@@ -14,11 +15,14 @@ jittered by up to 2 ms around 4 ms and starting at an arbitrary time, in
 its own column names: ``fr_knee_cmd,fr_knee_kp,fr_knee_kd,fr_knee_pos,
 fr_knee_vel,...,stamp`` (the command message's gains, and a column nobody
 maps), the angle with encoder noise and a 14-bit
-encoder's quantisation."""
+encoder's quantisation. With ``gzip`` (``--gzip``) the file is gzipped as
+the Pupper team's bench logs are (``gzip -n -9``: no name, no time stamp)."""
 
 from __future__ import annotations
 
 import csv
+import gzip as _gzip
+import io
 import math
 from pathlib import Path
 
@@ -81,9 +85,10 @@ def stamps(seconds: float, seed: int, start: float) -> np.ndarray:
 
 
 def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, float] = TRUTH, start: float = 1732600000.25,
-              noise: float = 1e-3, held_columns: bool = False) -> Path:
+              noise: float = 1e-3, held_columns: bool = False, gzip: bool = False) -> Path:
     """Plays the stepped sine on the stand and writes the loop's log (no
-    header lines: the gains are the command line's to give)."""
+    header lines: the gains are the command line's to give); ``gzip``:
+    compressed as the bench's tool does (``gzip -n -9``)."""
     m = hardware(kp, kd, truth)
     d = mujoco.MjData(m)
     motor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, MOTOR)
@@ -105,7 +110,7 @@ def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, f
     step = 2 * math.pi / 2**14
     q = np.round((q + noise * rng.standard_normal(len(q))) / step) * step
     qd = qd + 0.05 * rng.standard_normal(len(qd))
-    with path.open("w", newline="") as f:
+    with io.StringIO(newline="") as f:
         w = csv.writer(f, lineterminator="\n")
         extra = ["fr_hip_cmd", "fr_hip_pos", "fr_hip_vel"] if held_columns else []
         w.writerow(["fr_knee_cmd", "fr_knee_kp", "fr_knee_kd", "fr_knee_pos", "fr_knee_vel", "fr_knee_effort",
@@ -114,6 +119,13 @@ def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, f
             row = [repr(float(cmd[i])), repr(kp), repr(kd), repr(float(q[i])), repr(float(qd[i])), "nan"]
             row += ["0.0", "0.0", "0.0"] if held_columns else []
             w.writerow(row + [f"{ts[i]:.6f}"])
+        data = f.getvalue().encode()
+    if gzip:
+        packed = bytearray(_gzip.compress(data, compresslevel=9, mtime=0))
+        # the OS byte gzip writes on Linux (Python's module writes 255, "unknown")
+        packed[9] = 3
+        data = bytes(packed)
+    path.write_bytes(data)
     return path
 
 
@@ -125,8 +137,9 @@ def main() -> None:
     p.add_argument("--kp", type=float, default=5.0)
     p.add_argument("--kd", type=float, default=0.1)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--gzip", action="store_true", help="gzip the log, as the bench's tool does")
     a = p.parse_args()
-    print(f"wrote {stand_log(a.out, kp=a.kp, kd=a.kd, seed=a.seed)}")
+    print(f"wrote {stand_log(a.out, kp=a.kp, kd=a.kd, seed=a.seed, gzip=a.gzip)}")
 
 
 if __name__ == "__main__":

@@ -55,9 +55,9 @@ class Validation:
 
 
 def check_apart(fitted: list[JointLog], held_out: list[JointLog]) -> None:
-    """Refuses a validation log that is one of the fit's (by content)."""
+    """Refuses a validation log that is one of the fit's (by content: the samples read)."""
     for v in held_out:
-        twin = next((lg for lg in fitted if lg.sha256 == v.sha256), None)
+        twin = next((lg for lg in fitted if lg.digest == v.digest), None)
         if twin is not None:
             raise FitError(f"--validate {v.path} has the same content as the fitted log {twin.path}: validate on "
                            "logs the fit does not use")

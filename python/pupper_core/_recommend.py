@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from pupper_core._files import printing
-from pupper_core._recommend_card import Card, card_of, print_card, write_outputs, write_trials
+from pupper_core._recommend_card import Card, card_of, in_use, print_card, write_outputs, write_trials
 from pupper_core._recommend_plan import Plan, RecommendError, plan as make_plan
 from pupper_core._recommend_search import Candidate, best_of, robot_model_files, search, windows
 from pupper_core._recommend_search import polish as polish_pick
@@ -48,6 +48,8 @@ class Recommendation:
     #: the pick as the search measured it (on the model it read; the card's
     #: numbers are the exported MJCF's)
     searched: Candidate | None = None
+    #: the gains the robot runs today (`Plan.current`) on the same robots
+    current: Candidate | None = None
     #: the groups whose loop margins hold nowhere in their searched ranges
     #: (then no candidate is asked at all)
     no_window: list[str] = field(default_factory=list)
@@ -82,7 +84,8 @@ def recommend(
     command_delay: float = 0.0, spread: Sequence[str] | None = None, from_fit: str | os.PathLike[str] | None = None,
     # the constraints and the motors' limits
     min_phase_margin: float = 30.0, min_gain_margin: float = 6.0, max_saturation: float = 0.05, max_sag: float = 0.1,
-    kp_max: float | None = None, kd_max: float | None = None,
+    kp_max: float | None = None, kd_max: float | None = None, current: Sequence[float] | str | None = None,
+    robot_config: str | os.PathLike[str] | None = None,
     # the exports and the run directory
     joint_order: Sequence[str] | str | None = None, controller: str = "neural_controller",
     out: str | os.PathLike[str] | None = None, force: bool = False, progress: bool | Callable[[str], None] = True,
@@ -115,6 +118,16 @@ def recommend(
     starts from each group as stiff as its margins allow. It spans each
     group's own gains /10 to x20 (x50 for kd), capped by the model's
     ``pupper:kp_max:ACT``/``pupper:kd_max:ACT`` numerics or ``kp_max``/``kd_max``.
+
+    The gains are what to command. On a calibrated model (its gain scales,
+    a fit's ``pupper:kp_scale:ACT``) the motors deliver other gains, and
+    every margin is of those. ``current``: the gains the robot runs today
+    (``(kp, kd)`` for every group; default the model's own servo gains),
+    run on the same robots and set beside the pick on the card.
+    ``robot_config``: the robot's controller configuration (a ROS 2
+    parameter file): the ``controller`` node's ``joint_names`` are the
+    default ``joint_order`` and its ``kps``/``kds`` (or ``init_kps``/
+    ``init_kds``) the default ``current``.
 
     ``out``: the run directory (recommend.csv: a card per group;
     trials.csv; tradeoffs.csv: the candidates no other beats at once on push
@@ -197,6 +210,7 @@ def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommenda
     if best is not None:
         pick, near = polish_pick(p, best, models, say, every, wins)
         rec.searched = pick
+        rec.current = in_use(p, models, say)
         rec.cards, rec.neighbours, rec.warnings, rec.pick = card_of(p, pick, near, d, say)
     if keep:
         write_trials(d, p, every)

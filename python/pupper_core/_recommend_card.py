@@ -47,6 +47,10 @@ class Card:
     p95_peak_torque: float
     torque_limit: float
     torque_headroom_pct: float
+    #: what the motors deliver of kp and kd (the model's gain scales, a
+    #: fit's; None where they are 1): the margins are of these
+    motor_kp: float | None = None
+    motor_kd: float | None = None
 
 
 def _step_response(plan: Plan, xml: Path) -> dict[str, dict[str, float]]:
@@ -100,6 +104,31 @@ def _on_margin(plan: Plan, pick: Candidate) -> list[str]:
             "--min-phase-margin for room"]
 
 
+#: Torque headroom (%) under which the card warns: the motors reach their
+#: limit under the push on the worst-side robots.
+LOW_HEADROOM_PCT = 1.0
+
+
+def _headroom(plan: Plan, pick: Candidate) -> list[str]:
+    lim = min(g.torque_limit for g in plan.groups)
+    if not (math.isfinite(lim) and pick.p95_peak_torque >= lim * (1 - LOW_HEADROOM_PCT / 100)):
+        return []
+    return [f"the p95 peak torque {pick.p95_peak_torque:.3g} N·m reaches the {lim:.3g} N·m limit (0 % headroom): "
+            "under the push the motors saturate on the worst-side robots, so a harder push or a heavier robot finds "
+            "no torque left; lower --max-saturation, or check the motors' limit in the model"]
+
+
+def _caps(plan: Plan) -> list[str]:
+    """Searched ranges no motor cap bounded, said: a robot's firmware may
+    refuse gains past what its own configuration allows."""
+    if plan.caps:
+        return []
+    tops = ", ".join(f"{g.name} kp {g.kp_range[1]:.3g} kd {g.kd_range[1]:.3g}" for g in plan.groups)
+    return [f"no motor caps given (--kp-max/--kd-max, or pupper:kp_max/kd_max numerics in the model): the search "
+            f"reached {tops}, 20x and 50x the model's own gains; give the largest gains the robot's firmware and "
+            "configuration accept"]
+
+
 def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], d: Path,
             say: Callable[[str], None]) -> tuple[list[Card], list[str], list[str], Candidate]:
     """The cards, why each neighbour lost, the warnings that qualify the
@@ -107,7 +136,7 @@ def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], 
     d.mkdir(parents=True, exist_ok=True)
     xml = d / "recommended.xml"
     atomic_write_text(xml, mjcf(plan, pick))
-    warnings = _edges(plan, pick) + _on_margin(plan, pick)
+    warnings = _edges(plan, pick) + _on_margin(plan, pick) + _caps(plan)
     reasons = [why_lost(plan, label, c, pick) for label, c in near]
     winners = [label for label, c in near if c.feasible and better(plan, c, pick)]
     if winners:
@@ -118,15 +147,36 @@ def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], 
         # six digits, which moves a chaotic push dip in its fourth
         pick = _on_export(plan, pick, xml, say, warnings)
     step = _step_response(plan, xml)
+    warnings += _headroom(plan, pick)
     cards = []
     for g in plan.groups:
         kp, kd = pick.gains[g.name]
         lim = g.torque_limit
+        # the nominal motor: the middle of its scales (one value where the fit found one)
+        mkp, mkd = (kp * math.sqrt(g.kp_scale[0] * g.kp_scale[1]), kd * math.sqrt(g.kd_scale[0] * g.kd_scale[1])
+                    ) if g.scaled else (None, None)
         cards.append(Card(g.name, kp, kd, pick.phase_deg[g.name], pick.gain_db[g.name],
                           step[g.name]["rise_time_s"], step[g.name]["overshoot_pct"],
                           step[g.name]["settling_time_s"], pick.p95_dip_mm,
-                          pick.p95_peak_torque, lim, 100 * (1 - pick.p95_peak_torque / lim)))
+                          pick.p95_peak_torque, lim, 100 * (1 - pick.p95_peak_torque / lim), mkp, mkd))
     return cards, reasons, warnings, pick
+
+
+def in_use(plan: Plan, models: Sequence[str], say: Callable[[str], None]) -> Candidate | None:
+    """The gains the robot runs today (`Plan.current`), checked and run on
+    the same robots as every candidate: what the card sets the pick beside."""
+    from pupper_core._recommend_search import check_margins
+
+    if not plan.current:
+        return None
+    c = Candidate(dict(plan.current), stage="current")
+    check_margins(plan, c)
+    # run even when its margins fail: the owner runs these today
+    failed = c.failed
+    c.failed = ""
+    simulate(plan, [c], models, say)
+    c.failed = failed or c.failed
+    return c
 
 
 def _on_export(plan: Plan, pick: Candidate, xml: Path, say: Callable[[str], None],
@@ -213,9 +263,24 @@ def ros2_yaml(plan: Plan, pick: Candidate) -> str:
         "kps": [per[n][0] for n in plan.joint_order],
         "kds": [per[n][1] for n in plan.joint_order],
     }}}
-    head = "# " + _comment(f"pupper recommend: {plan.model}, {plan.robots} drawn robots, firmware "
-                           f"{plan.motor or 'ideal'}, sensing delay {plan.sensing_delay:g} s") + "\n"
+    head = ("# " + _comment(f"pupper recommend: {plan.model}, {plan.robots} drawn robots, firmware "
+                            f"{plan.motor or 'ideal'}, sensing delay {plan.sensing_delay:g} s")
+            + f"\n# kps, kds: the gains to command{_delivered_note(plan)}\n")
     return head + str(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=100))
+
+
+def _delivered_note(plan: Plan) -> str:
+    """What the motors deliver of the commanded gains, where the model's
+    gain scales say they differ."""
+    scaled = [g for g in plan.groups if g.scaled]
+    if not scaled:
+        return ""
+
+    def span(lo: float, hi: float) -> str:
+        return f"{lo:.3g}x" if f"{lo:.3g}" == f"{hi:.3g}" else f"{lo:.3g}-{hi:.3g}x"
+
+    return ("; the motors deliver " + ", ".join(f"{g.name} {span(*g.kp_scale)} the kp and {span(*g.kd_scale)} "
+                                                 "the kd" for g in scaled) + " (the model's fitted gain scales)")
 
 
 def reproduce(plan: Plan, d: Path) -> str:
@@ -282,11 +347,15 @@ def write_outputs(rec: Recommendation, d: Path, keep: bool, wall: float) -> tupl
     if pick:
         atomic_write_text(d / "recommended.yaml", yaml_text)
 
+        rows = [asdict(c) for c in rec.cards]
+        # the motors' delivered gains only where the model scales them
+        names = [k for k in rows[0] if any(r[k] is not None for r in rows)]
+
         def cards(tmp: Path) -> None:
             with open(tmp, "w", newline="") as f:
-                w = csv.DictWriter(f, fieldnames=list(asdict(rec.cards[0])), lineterminator="\n")
+                w = csv.DictWriter(f, fieldnames=names, lineterminator="\n", extrasaction="ignore")
                 w.writeheader()
-                w.writerows(asdict(c) for c in rec.cards)
+                w.writerows(rows)
 
         atomic_write(d / "recommend.csv", cards)
     atomic_write_text(d / "manifest.json", json.dumps(_manifest(rec, wall), indent=1) + "\n")
@@ -310,6 +379,11 @@ def _manifest(rec: Recommendation, wall: float) -> dict[str, Any]:
         "neighbours": rec.neighbours,
         "warnings": rec.warnings,
         "reproduce": reproduce(rec.plan, rec.out) if pick and rec.out else "",
+        "current": None if rec.current is None else {
+            "gains": {g: {"kp": kp, "kd": kd} for g, (kp, kd) in rec.current.gains.items()},
+            OBJECTIVE: rec.current.p95_dip_mm, "fell": rec.current.fell, "failed": rec.current.failed,
+            "p95_peak_torque": rec.current.p95_peak_torque, "phase_margin_deg": rec.current.phase_deg,
+            "gain_margin_db": rec.current.gain_db},
         "candidates": len(rec.candidates),
         "cell_steps": sum(c.cell_steps for c in rec.candidates),
         "complete": True,
@@ -336,12 +410,17 @@ def print_card(rec: Recommendation) -> None:
         print(_no_pick(rec, len(ran)))
         return
     print(f"recommended gains, holding on each of {plan.robots} drawn robots: {constraints_line(plan)}")
-    head = ("group", "kp", "kd", "phase °", "gain dB", "rise s", "overshoot %", "settle s")
+    scaled = any(c.motor_kp is not None for c in rec.cards)
+    head = ("group", "kp", "kd", *(("motor kp", "motor kd") if scaled else ()), "phase °", "gain dB", "rise s",
+            "overshoot %", "settle s")
     print("".join(f"{h:>12}" for h in head))
     for c in rec.cards:
-        vals = (c.group, f"{c.kp:.4g}", f"{c.kd:.4g}", f"{c.phase_margin_deg:.1f}", f"{c.gain_margin_db:.1f}",
-                f"{c.rise_time_s:.3g}", f"{c.overshoot_pct:.3g}", f"{c.settling_time_s:.3g}")
+        motor = (f"{c.motor_kp:.4g}", f"{c.motor_kd:.4g}") if c.motor_kp is not None and c.motor_kd is not None else ()
+        vals = (c.group, f"{c.kp:.4g}", f"{c.kd:.4g}", *motor, f"{c.phase_margin_deg:.1f}",
+                f"{c.gain_margin_db:.1f}", f"{c.rise_time_s:.3g}", f"{c.overshoot_pct:.3g}", f"{c.settling_time_s:.3g}")
         print("".join(f"{v:>12}" for v in vals))
+    print(f"kp, kd: the gains to command (recommended.yaml's kps, kds){_delivered_note(plan)}"
+          + ("; the margins are of the delivered gains (motor kp, motor kd)" if scaled else ""))
     c0 = rec.cards[0]
     searched = rec.searched
     also = (f" (on the exported MJCF, whose numbers MjSpec writes to six digits; {searched.p95_dip_mm:.4g} mm in "
@@ -349,6 +428,8 @@ def print_card(rec: Recommendation) -> None:
     print(f"p95 push dip {pick.p95_dip_mm:.4g} mm{also}; peak torque p95 {pick.p95_peak_torque:.3g} N·m of "
           f"{min(c.torque_limit for c in rec.cards):.3g} ({c0.torque_headroom_pct:.0f} % headroom); "
           "step response: the nominal robot hung in the air")
+    if rec.current is not None:
+        print(in_use_line(plan, rec.current))
     if rec.neighbours:
         print("why the neighbours lost:")
         for r in rec.neighbours:
@@ -362,6 +443,24 @@ def print_card(rec: Recommendation) -> None:
     polished = sum(1 for c in ran if c.stage == "polish")
     print(f"{len(ran)} candidates on the robots ({len(rec.candidates)} asked, {polished} of them neighbours "
           f"in the polish), {steps} cell-steps")
+
+
+def in_use_line(plan: Plan, c: Candidate) -> str:
+    """The gains the robot runs today, on the same robots, in a line."""
+    gains = sorted(set(c.gains.values()))
+    which = (f"kp {gains[0][0]:.4g} kd {gains[0][1]:.4g} on every group" if len(gains) == 1 else
+             ", ".join(f"{g} kp {kp:.4g} kd {kd:.4g}" for g, (kp, kd) in c.gains.items()))
+    worst = min(plan.groups, key=lambda g: c.phase_deg[g.name])
+    loop = (f"worst loop {worst.name} phase {c.phase_deg[worst.name]:.1f}°, gain "
+            f"{min(c.gain_db.values()):.1f} dB")
+    lim = min(g.torque_limit for g in plan.groups)
+    if c.fell:
+        ran = f"{c.fell} of {c.robots} robots fell, diverged or lay past the stability bound"
+    else:
+        head = f" ({100 * (1 - c.p95_peak_torque / lim):.0f} % headroom)" if math.isfinite(lim) else ""
+        ran = f"p95 push dip {c.p95_dip_mm:.4g} mm, peak torque p95 {c.p95_peak_torque:.3g} N·m{head}"
+    held = "holds every constraint" if not c.failed else f"breaks one: {c.failed}"
+    return f"in use ({plan.current_from}: {which}): {ran}; {loop}; {held}"
 
 
 def _no_pick(rec: Recommendation, ran: int) -> str:

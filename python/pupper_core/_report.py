@@ -496,7 +496,8 @@ def _recommend_sections(page: Page) -> list[str]:
         dip = num(cards[0].get("p95_push_dip_mm", "nan"))
         page.answer.append(f"<p class='pick'>Put these gains on the robot: every constraint held on each drawn "
                            f"robot, p95 push dip {dip:.4g} mm over them.</p><p>Rule: {html.escape(rule)}.</p>"
-                           + _table(ch, cards, None, key="group"))
+                           + _table(ch, cards, None, key="group") + _commanded(cards)
+                           + _in_use(manifest.get("current"), dip))
         parts.append("<h2>Figures</h2>" + bars([c["group"] for c in cards],
                                                {"phase margin": [num(c["phase_margin_deg"]) for c in cards]},
                                                "phase margin at the spread's worst corner (deg)", unit="°"))
@@ -519,6 +520,27 @@ def _recommend_sections(page: Page) -> list[str]:
     if trials:
         parts.append("<h2>Candidates (trials.csv)</h2>" + _table(th, trials, None, key="trial"))
     return parts
+
+
+def _commanded(cards: list[dict[str, str]]) -> str:
+    """What the card's gains are: to command; and, on a calibrated model,
+    what the motors deliver of them (the margins are of those)."""
+    line = "kp, kd: the gains to command (recommended.yaml's kps, kds)"
+    if cards and cards[0].get("motor_kp"):
+        line += ("; motor kp, motor kd: what the motors deliver of them by the model's fitted gain scales; the "
+                 "margins are of the delivered gains")
+    return f"<p>{html.escape(line)}.</p>"
+
+
+def _in_use(current: dict[str, Any] | None, dip: float) -> str:
+    """The gains the robot runs today, on the same robots, beside the pick."""
+    if not current:
+        return ""
+    gains = ", ".join(f"{g} kp {v['kp']:.4g} kd {v['kd']:.4g}" for g, v in current["gains"].items())
+    ran = (f"{current['fell']} robot(s) fell" if current.get("fell") else
+           f"p95 push dip {num(str(current.get('p95_push_dip_mm'))):.4g} mm (the pick's {dip:.4g} mm)")
+    held = "holds every constraint" if not current.get("failed") else f"breaks one: {current['failed']}"
+    return f"<p>In use today ({html.escape(gains)}): {html.escape(ran)}; {html.escape(held)}.</p>"
 
 
 def _tradeoff_figure(inputs: dict[str, Any], trials: list[dict[str, str]], front: list[dict[str, str]],
