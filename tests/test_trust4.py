@@ -535,8 +535,9 @@ def test_done_when_a_full_stdout_is_one_line_in_any_command(pupper_bin: Path, tm
         p = subprocess.run([str(pupper_bin), *args], stdout=full, stderr=subprocess.PIPE, text=True,
                            env=clean_env(), cwd=tmp_path, timeout=300)
     _no_internal(p)
-    if p.returncode != 0:  # a command that prints nothing on stdout may succeed
-        _one_error(p, "standard output")
+    errors = [ln for ln in p.stderr.splitlines() if ln.startswith("error:")]
+    if p.returncode != 0 or errors:  # a command that prints nothing on stdout may succeed
+        assert p.returncode == 2 and len(errors) == 1 and "standard output" in errors[0], p.stderr
 
 
 def test_done_when_python_writers_refuse_a_fifo(tmp_path: Path) -> None:

@@ -569,7 +569,7 @@ def _check_types(kw: Mapping[str, Any]) -> None:
         v = kw[n]
         if v is None or isinstance(v, str):
             continue
-        if isinstance(v, (bytes, Mapping)) or not hasattr(v, "__iter__") or not all(isinstance(x, str) for x in v):
+        if not isinstance(v, Sequence) or not all(isinstance(x, str) for x in v):
             raise bad(n, "a string or a list of strings")
 
 
