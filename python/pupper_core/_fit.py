@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from pupper_core._files import flush_stdout, printing, say
 from pupper_core._fit_excite import _excite, excite
 from pupper_core._fit_firmware import parse_motor
 from pupper_core._fit_jacobian import jacobian_fn, rollouts_per_jacobian
@@ -458,22 +459,24 @@ def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float,
 def _cli_fit(args_json: str) -> list[str]:
     a = json.loads(args_json)
     res = fit(a.pop("logs"), **a)
-    width = max(len(r["parameter"]) for r in res.table)
-    print(f"{'parameter':<{width}}  {'nominal':>10}  {'fitted':>10}  {'95 % interval':>25}  unit")
-    for r in res.table:
-        interval = (f"[{r['low95']:>10.4g}, {r['high95']:>10.4g}]" if not math.isnan(r["low95"])
-                    else f"{'(not meaningful)':>25}")
-        print(f"{r['parameter']:<{width}}  {r['nominal']:>10.4g}  {r['fitted']:>10.4g}  {interval}  {r['unit']}")
-    for name in res.rms_before:
-        b, f = np.mean(res.rms_before[name]) * 1e3, np.mean(res.rms_after[name]) * 1e3
-        n = len(res.actuators)
-        print(f"{name}: RMS angle error {b:.3f} -> {f:.3f} mrad (mean over {n} joint{'s' if n > 1 else ''})")
-    if res.validation:
-        print_table(res.validation)
-    for w in res.warnings:
-        print(f"warning: {w}", file=sys.stderr)
-    print(f"fitted in {res.seconds:.1f} s")
-    sys.stdout.flush()
+    # the run directory is whole by now: a stdout that cannot take the table
+    # (a full disk) is one line
+    with printing():
+        width = max(len(r["parameter"]) for r in res.table)
+        print(f"{'parameter':<{width}}  {'nominal':>10}  {'fitted':>10}  {'95 % interval':>25}  unit")
+        for r in res.table:
+            interval = (f"[{r['low95']:>10.4g}, {r['high95']:>10.4g}]" if not math.isnan(r["low95"])
+                        else f"{'(not meaningful)':>25}")
+            print(f"{r['parameter']:<{width}}  {r['nominal']:>10.4g}  {r['fitted']:>10.4g}  {interval}  {r['unit']}")
+        for name in res.rms_before:
+            b, f = np.mean(res.rms_before[name]) * 1e3, np.mean(res.rms_after[name]) * 1e3
+            n = len(res.actuators)
+            print(f"{name}: RMS angle error {b:.3f} -> {f:.3f} mrad (mean over {n} joint{'s' if n > 1 else ''})")
+        if res.validation:
+            print_table(res.validation)
+        for w in res.warnings:
+            say(f"warning: {w}")
+        print(f"fitted in {res.seconds:.1f} s")
     if res.out is None:
         return []
     wrote = [str(res.out / n) for n in ("fit.csv", "residuals.csv", "calibrated.xml")]
@@ -491,6 +494,6 @@ def _cli_excite(args_json: str) -> list[str]:
     a = json.loads(args_json)
     path, notes = _excite(a.pop("model", "pupper_v3"), **a)
     for note in notes:
-        print(f"note: {note}", file=sys.stderr)
-    sys.stdout.flush()
+        say(f"note: {note}")
+    flush_stdout()
     return [str(path)]

@@ -247,8 +247,11 @@ def _stability_notes(robot: Robot, kp: np.ndarray, kd: np.ndarray) -> list[str]:
     integrated PD at the timestep (pupper gains' margin, 1 or more)."""
     from pupper_core import _native
 
+    # at the stand pose, where the model has legs to pose; else (a bench of
+    # one joint) at the rest pose the excitation starts from
+    legged = any(leg >= 0 for leg in robot.legs)
     g = _native.gains(str(robot.file), kp=float(kp.max()), kd=float(kd.max()), bandwidth=None,
-                      damping=0.7, pose=None)
+                      damping=0.7, pose=None if legged else [float(q) for q in robot.rest])
     worst = max(g.get("joints", []), key=lambda j: float(j.get("stability_margin", 0.0)), default=None)
     if worst is None or not float(worst["stability_margin"]) >= 1:
         return []

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from pupper_core._files import refuse_non_regular
 from pupper_core._fit_problem import FitResult, _Problem, _Solution
 from pupper_core._fit_robot import Robot, _history_samples
 from pupper_core._fit_sysid import _predictions
@@ -40,11 +41,14 @@ def _write_run(out: Path, res: FitResult, pb: _Problem, sol: _Solution, model: A
         # a --force run's validation is this run's, or none
         for old in [out / "validation.csv", out / "validation_bode.csv", *out.glob("plots/validate_*.png")]:
             old.unlink(missing_ok=True)
-        for f in sorted(stage.rglob("*")):
-            if f.is_file():
-                dest = out / f.relative_to(stage)
-                dest.parent.mkdir(parents=True, exist_ok=True)
-                os.replace(f, dest)
+        staged = [f for f in sorted(stage.rglob("*")) if f.is_file()]
+        # none moved over a FIFO or a device: all refused before any moves
+        for f in staged:
+            refuse_non_regular(out / f.relative_to(stage))
+        for f in staged:
+            dest = out / f.relative_to(stage)
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(f, dest)
         from pupper_core import _report
 
         _report.report(out)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 import tempfile
 import time
 from collections.abc import Callable, Sequence
@@ -21,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from pupper_core._files import printing
 from pupper_core._recommend_card import Card, card_of, in_use, print_card, write_outputs, write_trials
 from pupper_core._public import exported_from
 from pupper_core._recommend_plan import Plan, RecommendError, plan as make_plan
@@ -51,6 +51,9 @@ class Recommendation:
     searched: Candidate | None = None
     #: the gains the robot runs today (`Plan.current`) on the same robots
     current: Candidate | None = None
+    #: the groups whose loop margins hold nowhere in their searched ranges
+    #: (then no candidate is asked at all)
+    no_window: list[str] = field(default_factory=list)
 
     @property
     def gains(self) -> dict[str, tuple[float, float]]:
@@ -159,7 +162,9 @@ def recommend(
         # Ctrl-C and SIGTERM stop it between sweeps too; the candidates run so
         # far stay in trials.csv (written after every generation)
         kept = f"the candidates run so far, if any, are in {out_dir / 'trials.csv'}"
-        with _locked(out_dir), _stop_on_signals("recommend", kept):
+        with _locked(out_dir, RecommendError), _stop_on_signals("recommend", kept):
+            if not made:
+                _clear(out_dir)
             try:
                 return _run(p, out_dir, say, keep=True)
             except KeyboardInterrupt as e:
@@ -176,6 +181,25 @@ def recommend(
         raise
 
 
+#: What a recommend run writes in its directory (robots/ too, with --from-fit).
+OUTPUTS = ("recommend.csv", "trials.csv", "tradeoffs.csv", "recommended.yaml", "recommended.xml", "manifest.json",
+           "report.html")
+
+
+def _clear(d: Path) -> None:
+    """An existing run directory (--force), before anything runs: every
+    file a run writes there refused if it is not a regular file, then the
+    older run's removed, so none of its answer (its candidates, its report)
+    outlives it whatever the new run finds."""
+    from pupper_core._files import refuse_non_regular
+
+    robots = sorted((d / "robots").glob("robot_*.xml")) if (d / "robots").is_dir() else []
+    for f in [d / n for n in OUTPUTS] + robots:
+        refuse_non_regular(f)
+    for f in [d / n for n in OUTPUTS] + robots:
+        f.unlink(missing_ok=True)
+
+
 def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommendation:
     """The search, the polish, the card and the files."""
     started = time.time()
@@ -184,6 +208,7 @@ def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommenda
     every = search(p, models, say, lambda cands: write_trials(d, p, cands) if keep else None, wins)
     best = best_of(p, every)
     rec = Recommendation(None, [], every, p, d if keep else None)
+    rec.no_window = [g.name for g in p.groups if wins[g.name].kp_span() is None]
     if best is not None:
         pick, near = polish_pick(p, best, models, say, every, wins)
         rec.searched = pick
@@ -200,8 +225,10 @@ def _cli(args_json: str) -> list[str]:
     a = json.loads(args_json)
     model = a.pop("model")
     rec = recommend(model, **a)
-    print_card(rec)
-    sys.stdout.flush()
+    # printed after every file is written: a stdout that cannot take the
+    # card (a full disk) leaves the run whole, and says so in one line
+    with printing():
+        print_card(rec)
     if rec.out is None:
         return []
     return [str(rec.out / f) for f in ("recommend.csv", "trials.csv", "tradeoffs.csv", "recommended.yaml",

@@ -212,14 +212,44 @@ def mjcf(plan: Plan, pick: Candidate) -> str:
     # assets stay where the original's are
     spec.meshdir = str((base / spec.meshdir).resolve()) if spec.meshdir else str(base.resolve())
     spec.texturedir = str((base / spec.texturedir).resolve()) if spec.texturedir else str(base.resolve())
+    limits = _torque_limits(spec)
     for name, (kp, kd) in zip(plan.actuators, gains_per_actuator(plan, pick.gains)):
         act = spec.actuator(name)
+        if name in limits:
+            # a torque motor becomes a PD servo: its control is now the target
+            # angle, and its torque limit (the control range) the force range
+            act.forcerange = limits[name]
+            act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
         act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
         act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
         act.gainprm[0] = kp
         act.biasprm[0], act.biasprm[1], act.biasprm[2] = 0.0, -kp, -kd
     spec.modelname = f"{spec.modelname}_recommended" if spec.modelname else "recommended"
     return str(spec.to_xml())
+
+
+def _torque_limits(spec: Any) -> dict[str, list[float]]:
+    """The torque motors (no bias: the control is the torque) whose limit is
+    their control range alone, by name: the force range (gain x control
+    range) the exported PD servo must keep, or plain MuJoCo would apply any
+    torque and clamp the target angle instead."""
+    import mujoco
+
+    m = spec.compile()
+    out = {}
+    for a in range(m.nu):
+        if (m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE and not m.actuator_forcelimited[a]
+                and m.actuator_ctrllimited[a]):
+            lo, hi = sorted(float(m.actuator_gainprm[a, 0] * c) for c in m.actuator_ctrlrange[a])
+            out[m.actuator(a).name] = [lo, hi]
+    return out
+
+
+def _comment(text: str) -> str:
+    """`text` safe on one comment line: a character YAML reads as a line
+    break (a newline in a path), or any other unprintable one, escaped."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 def ros2_yaml(plan: Plan, pick: Candidate) -> str:
@@ -233,8 +263,9 @@ def ros2_yaml(plan: Plan, pick: Candidate) -> str:
         "kps": [per[n][0] for n in plan.joint_order],
         "kds": [per[n][1] for n in plan.joint_order],
     }}}
-    head = (f"# pupper recommend: {plan.model}, {plan.robots} drawn robots, firmware {plan.motor or 'ideal'}, "
-            f"sensing delay {plan.sensing_delay:g} s\n# kps, kds: the gains to command{_delivered_note(plan)}\n")
+    head = ("# " + _comment(f"pupper recommend: {plan.model}, {plan.robots} drawn robots, firmware "
+                            f"{plan.motor or 'ideal'}, sensing delay {plan.sensing_delay:g} s")
+            + f"\n# kps, kds: the gains to command{_delivered_note(plan)}\n")
     return head + str(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=100))
 
 
@@ -376,10 +407,7 @@ def print_card(rec: Recommendation) -> None:
     ran = [c for c in rec.candidates if c.cell_steps]
     steps = sum(c.cell_steps for c in rec.candidates)
     if pick is None:
-        print(f"no gains held every constraint on all {plan.robots} robots ({constraints_line(plan)}): "
-              f"{len(rec.candidates)} candidates asked, {len(ran)} ran on the robots; most common reason: "
-              f"{_commonest(rec.candidates)}. Try a faster firmware (--motor rate=), less sensing delay, "
-              "a lower --min-phase-margin, or (for a robot that sags) a larger --max-sag")
+        print(_no_pick(rec, len(ran)))
         return
     print(f"recommended gains, holding on each of {plan.robots} drawn robots: {constraints_line(plan)}")
     scaled = any(c.motor_kp is not None for c in rec.cards)
@@ -435,10 +463,40 @@ def in_use_line(plan: Plan, c: Candidate) -> str:
     return f"in use ({plan.current_from}: {which}): {ran}; {loop}; {held}"
 
 
+def _no_pick(rec: Recommendation, ran: int) -> str:
+    """Why no candidate held, with what to try."""
+    plan = rec.plan
+    head = f"no gains held every constraint on all {plan.robots} robots ({constraints_line(plan)})"
+    if not rec.candidates:
+        # the margin map found no gains at all: nothing was asked or run
+        where = "; ".join(f"{g.name} (kp {g.kp_range[0]:.3g} to {g.kp_range[1]:.3g}, kd {g.kd_range[0]:.3g} to "
+                          f"{g.kd_range[1]:.3g})" for g in plan.groups if g.name in rec.no_window)
+        return (f"{head}: no gains keep the loop margins, so no candidate was asked: they hold nowhere in the "
+                f"searched range of {where or 'the groups'}. Try a lower --min-phase-margin or --min-gain-margin, "
+                "less sensing delay, a faster firmware (--motor rate=), or a wider range (--kp-max, --kd-max)")
+    said = (f"{head}: {len(rec.candidates)} candidates asked, {ran} ran on the robots; most common reason "
+            f"{_commonest(rec.candidates)}.")
+    tried = [c for c in rec.candidates if c.robots]
+    if tried and all(c.fell == c.robots for c in tried):
+        top = max(g.kp_range[1] for g in plan.groups)
+        return (f"{said} Every robot fell with every candidate: gains up to kp {top:.3g} may be too soft to hold the "
+                "robot up; raise --kp-max if the motors allow it, or check that the robot stands "
+                f"(pupper stand --model {plan.model})")
+    return (f"{said} Try a faster firmware (--motor rate=), less sensing delay, a lower --min-phase-margin, or "
+            "(for a robot that sags) a larger --max-sag")
+
+
 def _commonest(cands: Sequence[Candidate]) -> str:
+    """The reason most candidates failed on, as one of them says it (its
+    numbers are that candidate's), and how many share it."""
     import re
     from collections import Counter
 
     # the reason without its numbers: "kfe phase margin N° < N°"
-    kinds = Counter(re.sub(r"\d+(\.\d+)?", "N", c.failed) for c in cands if c.failed)
-    return kinds.most_common(1)[0][0] if kinds else "none"
+    failed = [c for c in cands if c.failed]
+    kinds = Counter(re.sub(r"\d+(\.\d+)?", "N", c.failed) for c in failed)
+    if not kinds:
+        return "(none said)"
+    kind, n = kinds.most_common(1)[0]
+    first = next(c.failed for c in failed if re.sub(r"\d+(\.\d+)?", "N", c.failed) == kind)
+    return f"({n} of {len(failed)} candidates, e.g. trial {next(c.number for c in failed if c.failed == first)}): {first}"

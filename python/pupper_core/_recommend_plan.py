@@ -359,14 +359,21 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
          controller: str = "neural_controller", polish: int = 4, max_sag: float = 0.1,
          current: Sequence[float] | str | None = None, robot_config: str | os.PathLike[str] | None = None) -> Plan:
     """Every input checked, the model read; one line per mistake."""
+    _check_types(dict(locals()))
+    if isinstance(spread, str):
+        spread = [spread]  # one spec (a spec may hold a comma: N(0,0.001))
     if robots < 1 or trials < 1 or batch < 1:
         raise RecommendError(f"robots {robots}, trials {trials}, batch {batch}: each must be a whole number >= 1")
     if polish < 0:
         raise RecommendError(f"--polish {polish} must be a whole number >= 0 (0: the search's pick, unmoved)")
     _positive("the simulated seconds per robot, e.g. 4", seconds, "--seconds")
+    _reaches_the_push(seconds)
     _positive("seconds of feedback latency, e.g. 0.002", sensing_delay, "--sensing-delay", zero=True)
     _positive("seconds of command delay, e.g. 0.01", command_delay, "--command-delay", zero=True)
     _positive("degrees, e.g. 30", min_phase_margin, "--min-phase-margin", zero=True)
+    if min_phase_margin >= 180:
+        raise RecommendError(f"--min-phase-margin {min_phase_margin:g} must be below 180: a loop's phase margin is "
+                             "under 180 degrees (a PD's under 90), so no gains could keep it; give e.g. 30")
     _positive("decibels, e.g. 6", min_gain_margin, "--min-gain-margin", zero=True)
     if not (0 < max_sag < 1):
         raise RecommendError(f"--max-sag {max_sag} must lie in (0, 1): a share of the stance height, e.g. 0.1")
@@ -398,9 +405,11 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
     from pupper_core._run import info
 
     inf = info(model)
+    _standing_robot(model, inf)
     low = _armature_low(rows, [str(a["name"]) for a in inf["actuators"]])
     names, groups, dt, capped = _groups(model, inf, kp_max, kd_max, leg, low)
     motor_spec = _motor(motor, command_delay)
+    _servo_delay(motor_spec)
     from pupper_core._native import loop_margins, stance
 
     loop_margins(1.0, 1.0, 0.1, motor=motor_spec, sensing_delay=sensing_delay, timestep=dt)  # checks the spec
@@ -521,6 +530,99 @@ def _config_gains(config: tuple[list[str], list[float], list[float]], names: Seq
     return out, f"{path.name}'s kps and kds"
 
 
+#: The longest command delay (s) the card's predicted step response can
+#: show: it is measured over the 2.5 s after its step (_recommend_card), and
+#: a delayed step needs room to rise and settle there.
+MAX_COMMAND_DELAY = 1.0
+
+
+def _check_types(kw: Mapping[str, Any]) -> None:
+    """The keywords' types, as Python gives them (the CLI's are right by
+    construction): one line naming the keyword, before any work."""
+    import numbers
+
+    def bad(name: str, what: str) -> RecommendError:
+        return RecommendError(f"recommend({name}={kw[name]!r}): give {what}")
+
+    for n in ("robots", "trials", "batch", "polish", "seed"):
+        v = kw[n]
+        if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+            raise bad(n, "a whole number")
+    if not 0 <= kw["seed"] < 2**64:
+        raise bad("seed", "a whole number from 0 to 2**64 - 1")
+    for n in ("seconds", "sensing_delay", "command_delay", "min_phase_margin", "min_gain_margin", "max_saturation",
+              "max_sag", "push_force", "kp_max", "kd_max"):
+        v = kw[n]
+        if v is None and n in ("push_force", "kp_max", "kd_max"):
+            continue
+        if isinstance(v, bool) or not isinstance(v, numbers.Real):
+            raise bad(n, "a number")
+    if kw["push_force"] is not None and not math.isfinite(kw["push_force"]):
+        raise bad("push_force", "a finite number of newtons")
+    for n in ("motor", "controller"):
+        if not (isinstance(kw[n], str) or (n == "motor" and kw[n] is None)):
+            raise bad(n, "a string")
+    for n in ("model", "from_fit"):
+        if not (isinstance(kw[n], (str, os.PathLike)) or (n == "from_fit" and kw[n] is None)):
+            raise bad(n, "a path")
+    for n in ("spread", "joint_order"):
+        v = kw[n]
+        if v is None or isinstance(v, str):
+            continue
+        if not isinstance(v, Sequence) or not all(isinstance(x, str) for x in v):
+            raise bad(n, "a string or a list of strings")
+
+
+def _reaches_the_push(seconds: float) -> None:
+    """A run that ends before the push's dip is known measures no push dip,
+    so no candidate could hold: said before anything runs."""
+    from pupper_core._native import DIP_AFTER, sweep_defaults
+
+    d = sweep_defaults()
+    need = float(d["push_at"]) + float(d["push_duration"]) + DIP_AFTER
+    if seconds < need - 1e-9:
+        raise RecommendError(f"--seconds {seconds:g} ends before the push (at {d['push_at']:g} s, for "
+                             f"{d['push_duration']:g} s) and the {DIP_AFTER:g} s after it, where its dip is measured, "
+                             f"are over: give --seconds {need:g} or more")
+
+
+def _servo_delay(spec: str) -> None:
+    """A command delay (--command-delay, or delay= in --motor) the card's
+    step response can show."""
+    m = re.search(r"(?:^|,)\s*delay\s*=\s*([^,\s]+)", spec)
+    try:
+        delay = float(m.group(1)) if m else 0.0
+    except ValueError:
+        return  # the spec's own check says it
+    if delay > MAX_COMMAND_DELAY:
+        raise RecommendError(f"a command delay of {delay:g} s is longer than the {MAX_COMMAND_DELAY:g} s the card's "
+                             "step response (2.5 s after its step) can show: give the firmware's delay in seconds, "
+                             "e.g. --command-delay 0.01")
+
+
+def _standing_robot(model: str, inf: Mapping[str, Any]) -> None:
+    """A robot recommend can judge: legs it stands on, ground under them,
+    and a torque limit on every motor (saturation and headroom are judged
+    against it)."""
+    if not inf.get("legs"):
+        raise RecommendError(f"model '{model}' has no legs pupper can pose (a chain of abduction, hip and knee "
+                             "hinges under the base ending in a colliding foot): recommend tunes the gains of a "
+                             "robot standing on its legs; give a legged model")
+    # (a welded base has no ground to stand on and is refused by the runs themselves)
+    floating = any(j.get("kind") == "free" for j in inf["joints"])
+    if floating and inf.get("ground", True) is False:
+        raise RecommendError(f"model '{model}' has no ground the feet can touch (no geom fixed in the world that "
+                             "collides with them): every robot would fall at once; add a floor, e.g. "
+                             "<geom type=\"plane\" size=\"0 0 0.05\"/> in the worldbody, or include the model in a "
+                             "scene that has one")
+    free = [str(a["name"]) for a in inf["actuators"] if not math.isfinite(_limit(a))]
+    if free:
+        shown = ", ".join(free[:3]) + (f" and {len(free) - 3} more" if len(free) > 3 else "")
+        raise RecommendError(f"the model's actuators {shown} have no force or control range: recommend holds every "
+                             "robot to its motors' torque limit (saturation, headroom); give each actuator its "
+                             "limit in the model, e.g. forcerange=\"-3 3\" (N·m)")
+
+
 def _joint_order(order: Sequence[str] | str | None, names: list[str]) -> list[str]:
     if order is None:
         return list(names)
@@ -531,4 +633,14 @@ def _joint_order(order: Sequence[str] | str | None, names: list[str]) -> list[st
                              f"its actuators are {', '.join(names)}")
     if len(set(got)) != len(got):
         raise RecommendError("--joint-order names an actuator twice: name each once")
+    # the controller's kps and kds are one per joint: a joint left out would
+    # be dropped from the file, silently
+    if not got:
+        raise RecommendError(f"--joint-order names no actuator: give the controller's order of all {len(names)} "
+                             "actuators, comma-separated, or leave it out for the model's order")
+    missing = [n for n in names if n not in got]
+    if missing:
+        shown = ", ".join(missing[:3]) + (", ..." if len(missing) > 3 else "")
+        raise RecommendError(f"--joint-order names {len(got)} of the model's {len(names)} actuators: the YAML's kps "
+                             f"and kds are one per joint of the controller; add {shown}")
     return got
