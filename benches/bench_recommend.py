@@ -27,8 +27,8 @@ import time
 import numpy as np
 
 import pupper_core as pc
-from pupper_core._recommend_plan import plan as make_plan
-from pupper_core._recommend_search import Candidate, best_of, check_margins, margins, simulate
+from pupper_core._recommend import plan_for as make_plan
+from pupper_core._recommend.search import Candidate, best_of, check_margins, margins, simulate
 
 
 def grid_answer(side: int, cap: int) -> tuple[Candidate | None, int, float, int]:
@@ -41,7 +41,7 @@ def grid_answer(side: int, cap: int) -> tuple[Candidate | None, int, float, int]
                  for kd in np.geomspace(*g.kd_range, side)]
         # the margins are per group: a pair is kept where its group's loop holds
         feasible[g.name] = [(kp, kd) for kp, kd in pairs
-                            if (m := margins(plan, g, kp, kd))[0] >= plan.min_phase_deg and m[1] >= plan.min_gain_db]
+                            if (m := margins(plan, g, kp, kd))[0] >= plan.min_phase_margin and m[1] >= plan.min_gain_margin]
     combos = list(itertools.product(*(feasible[g.name] for g in plan.groups)))
     if len(combos) > cap:
         combos = [combos[i] for i in np.linspace(0, len(combos) - 1, cap).round().astype(int)]

@@ -37,7 +37,7 @@ def drawn_plots(d: Path) -> list[Drawn]:
     kind = json.loads((d / "manifest.json").read_text()).get("kind")
     with saved_figures() as figs:
         if kind == "tune":
-            from pupper_core._tune_figures import write_plots
+            from pupper_core._tune.figures import write_plots
 
             write_plots(d)
         else:

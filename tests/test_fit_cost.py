@@ -19,7 +19,7 @@ def test_a_per_joint_jacobian_is_the_finite_difference_one_at_a_quarter_of_the_r
     from mujoco.minimize import jacobian_fd
 
     from pupper_core._fit import DEFAULT_PARAMS, _problem, _read_logs, _residual_fn, _sysid, load_robot
-    from pupper_core._fit_jacobian import colours, jacobian_fn, rollouts_per_jacobian
+    from pupper_core._fit.jacobian import colours, jacobian_fn, rollouts_per_jacobian
 
     log = pc.excite(out=tmp_path / "log.csv", seconds=0.5, hold=0.2)
     robot = load_robot("pupper_v3")

@@ -88,7 +88,7 @@ def test_a_compressed_log_is_read_by_its_bytes_whatever_its_name(short, tmp_path
     """gzip, bzip2 and xz are read directly, told by their magic bytes (a
     .csv that is gzipped too); the samples are the plain log's, and so is
     the content digest (its bytes' SHA-256 differs). Never "binary"."""
-    from pupper_core._joint_log import LogError, read_log
+    from pupper_core._fit.log import LogError, read_log
 
     ranges = robot().ranges
     plain = read_log(short, ranges)
@@ -157,8 +157,8 @@ def test_each_log_has_its_own_map_and_it_names_the_log_s_motors(bench, tmp_path)
     """Logs of different motors in one command: each log's map names the
     actuators it covers (here one recording read as the right and as the
     left knee), its own map in place of --columns."""
-    from pupper_core._fit_problem import _read_logs
-    from pupper_core._log_columns import read_map
+    from pupper_core._fit.problem import _read_logs
+    from pupper_core._fit.columns import read_map
 
     left = tmp_path / "left.map"
     left.write_text(KNEE_MAP.replace(MOTOR, "leg_front_l_3"))
@@ -221,7 +221,7 @@ def test_the_real_bench_logs_read_as_they_are(tmp_path, run):
     held motors at 0; one quick fit of the knee from the command line."""
     if not REAL.is_dir():
         pytest.skip("../shared/real_logs is absent")
-    from pupper_core._fit_problem import _read_logs
+    from pupper_core._fit.problem import _read_logs
 
     motors = {3: "leg_front_l_1", 4: "leg_front_l_2", 5: "leg_front_l_3"}
     lines = []
@@ -273,7 +273,7 @@ def test_item_10_a_gain_given_twice_is_never_ignored(short, tmp_path, run):
     one_line(p, "'# kd: 0.1' and", "::kd=0.3 disagree")
     assert not (tmp_path / "out").exists()
     run("fit", short, "--kp", "5", "--kd", "0.1", *QUICK, "-o", tmp_path / "same", check=0)
-    from pupper_core._fit_problem import _read_logs
+    from pupper_core._fit.problem import _read_logs
 
     text = short.read_text().replace("# kp: 5.0", "# kp: 7.5")
     (tmp_path / "kp75.csv").write_text(text)
@@ -295,7 +295,7 @@ def test_item_12_held_past_the_joints_range_is_one_line(short, tmp_path, run):
 
 def test_item_15_excite_checks_its_seed_before_any_work(tmp_path, monkeypatch):
     """`pc.excite(seed=-1)` raised NumPy's ValueError from inside the work."""
-    import pupper_core._fit_excite as fe
+    import pupper_core._fit.excitation as fe
 
     def no_work(*a, **k):
         raise AssertionError("excite started work before checking its seed")

@@ -85,8 +85,8 @@ def test_a_header_line_map_and_the_flag_read_the_same(bench, tmp_path):
     gains from their columns) reads the same numbers; declared degrees and
     milliseconds are converted."""
     from pupper_core._fit import load_robot
-    from pupper_core._joint_log import read_log
-    from pupper_core._log_columns import read_map
+    from pupper_core._fit.log import read_log
+    from pupper_core._fit.columns import read_map
 
     ranges = load_robot("pupper_v3").ranges
     flag = read_log(bench[0.1], ranges, columns=read_map(COLUMNS))
@@ -148,8 +148,8 @@ def test_held_and_the_gains_flags_fill_what_a_log_does_not_say(bench, tmp_path):
     thigh's angle loads the knee differently), --kp/--kd the gains of a log
     without them."""
     from pupper_core._fit import load_robot
-    from pupper_core._fit_problem import _read_logs
-    from pupper_core._log_columns import read_map
+    from pupper_core._fit.problem import _read_logs
+    from pupper_core._fit.columns import read_map
 
     robot = load_robot("pupper_v3")
     no_gains = COLUMNS.replace(f",{MOTOR}.kp=fr_knee_kp,{MOTOR}.kd=fr_knee_kd", "")

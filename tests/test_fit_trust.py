@@ -64,7 +64,7 @@ def one_line(p: subprocess.CompletedProcess, *words: str) -> str:
 
 def test_fit_and_log_errors_are_pupper_config_errors():
     from pupper_core._fit import FitError
-    from pupper_core._joint_log import LogError
+    from pupper_core._fit.log import LogError
 
     for cls in (FitError, LogError):
         # catchable as pupper's own errors, and as the ValueError they were
@@ -126,7 +126,7 @@ def test_the_same_log_twice_is_refused(nominal, tmp_path, run):
 
 def test_a_bom_and_trailing_blank_lines_are_read(nominal, tmp_path):
     from pupper_core._fit import load_robot
-    from pupper_core._joint_log import read_log
+    from pupper_core._fit.log import read_log
 
     ranges = load_robot("pupper_v3").ranges
     odd = tmp_path / "odd.csv"

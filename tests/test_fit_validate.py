@@ -102,7 +102,7 @@ def test_the_frequency_response_of_a_known_system():
     and 12 ms of delay left against the undelayed one; its phase is the
     delay's plus the hold's (the command is held between its stamps, as the
     servo holds it: on average E[gap^2] / (2 E[gap]) later than the sine)."""
-    from pupper_core._fit_freq import bandwidth, delay_left, phase_at, response
+    from pupper_core._fit.freq import bandwidth, delay_left, phase_at, response
 
     rng = np.random.default_rng(0)
     gaps = 0.004 + rng.uniform(-0.0019, 0.0019, 6000)

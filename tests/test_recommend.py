@@ -169,8 +169,8 @@ def test_no_ranked_candidate_sags_and_the_tradeoff_set_is_undominated(default_ru
 
 def test_a_crouch_that_barely_dips_is_refused():
     # gains that leave the robot standing 19 % low: no fall, a small dip, no answer
-    from pupper_core._recommend_plan import plan as make_plan
-    from pupper_core._recommend_search import Candidate, simulate
+    from pupper_core._recommend import plan_for as make_plan
+    from pupper_core._recommend.search import Candidate, simulate
 
     plan = make_plan(robots=8)
     crouch = Candidate({"hfe": (2.104, 0.5014), "haa": (0.8152, 0.1214), "kfe": (3.362, 0.2498)})
@@ -388,8 +388,8 @@ def test_the_report_opens_with_the_card_in_chromium(default_run, tmp_path):
 def test_the_margin_window_ends_where_the_margins_do():
     # the knee's stiffest kp that holds, found between the map's grid rows:
     # margins held there (kd mid-window), not 1 % stiffer at any kd of the range
-    from pupper_core._recommend_plan import plan as make_plan
-    from pupper_core._recommend_search import margins, window
+    from pupper_core._recommend import plan_for as make_plan
+    from pupper_core._recommend.search import margins, window
 
     plan = make_plan(robots=8)
     g = next(g for g in plan.groups if g.name == "kfe")
@@ -397,10 +397,10 @@ def test_the_margin_window_ends_where_the_margins_do():
     top = w.kp_span()[1]
     lo, hi = w.kd_span(top)
     pm, gm = margins(plan, g, top, (lo * hi) ** 0.5)
-    assert pm >= plan.min_phase_deg and gm >= plan.min_gain_db
+    assert pm >= plan.min_phase_margin and gm >= plan.min_gain_margin
     for kd in np.geomspace(*g.kd_range, 200):
         pm, gm = margins(plan, g, top * 1.01, float(kd))
-        assert pm < plan.min_phase_deg or gm < plan.min_gain_db, kd
+        assert pm < plan.min_phase_margin or gm < plan.min_gain_margin, kd
 
 
 def test_no_gains_run_twice_and_none_twice_in_the_tradeoff_set(default_run):

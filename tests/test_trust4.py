@@ -348,9 +348,9 @@ def test_item_17_no_gains_keeping_the_margins_is_said(no_candidates) -> None:
 def test_item_18_robots_that_fall_are_counted_and_a_floorless_model_refused(run, tmp_path: Path,
                                                                              capsys) -> None:
     from pupper_core._recommend import Recommendation
-    from pupper_core._recommend_card import print_card
-    from pupper_core._recommend_plan import plan as make_plan
-    from pupper_core._recommend_search import Candidate
+    from pupper_core._recommend.card import print_card
+    from pupper_core._recommend import plan_for as make_plan
+    from pupper_core._recommend.search import Candidate
 
     p = make_plan(robots=2, trials=2, batch=2, kp_max=0.3)
     fell = "2 of 2 robots fell, diverged or lay past the stability bound"
@@ -397,7 +397,7 @@ def test_item_21_a_late_shove_asks_for_enough_seconds(run, tmp_path: Path) -> No
 
 
 def test_item_24_recommend_takes_a_spread_string_as_one_spec_and_refuses_half_robots(tmp_path: Path) -> None:
-    from pupper_core._recommend_plan import plan as make_plan
+    from pupper_core._recommend import plan_for as make_plan
 
     p = make_plan(spread="torso_mass=±15%")
     assert p.spread[0] == "torso_mass=±15%", p.spread
@@ -424,8 +424,8 @@ def test_item_26_a_file_that_is_no_model_prints_no_mujoco_warning(run, tmp_path:
 
 
 def test_item_27_a_command_delay_moves_the_cards_settling_by_exactly_the_delay() -> None:
-    from pupper_core._recommend_card import _step_response
-    from pupper_core._recommend_plan import plan as make_plan
+    from pupper_core._recommend.card import _step_response
+    from pupper_core._recommend import plan_for as make_plan
     from pupper_core.render import builtin_model_path
 
     xml = builtin_model_path("pupper_v3")
@@ -541,7 +541,7 @@ def test_done_when_a_full_stdout_is_one_line_in_any_command(pupper_bin: Path, tm
 
 
 def test_done_when_python_writers_refuse_a_fifo(tmp_path: Path) -> None:
-    from pupper_core._files import atomic_write_text
+    from pupper_core._rundir import atomic_write_text
 
     fifo = _fifo(tmp_path / "f")
     with pytest.raises(pc.OutputError, match="not a regular file"):

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 
 from pupper_core import _native
 from pupper_core._native import SweepResult
-from pupper_core._public import exported_from
+from pupper_core._types import exported_from
 from pupper_core._spec import DEFAULTS, Variant, parse_sine, sweep_options, with_spec_signature
 from pupper_core._types import ModelInfo, SimOptions, StandReport, SweepOptions
 

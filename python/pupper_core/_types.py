@@ -1,10 +1,11 @@
 """The shapes of what pupper_core returns and takes, as TypedDicts (the
-native module's stubs import them from here, so each is written once)."""
+native module's stubs import them from here, so each is written once), and
+where a public function or error is used from."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, Literal, TypedDict
+from typing import TYPE_CHECKING, Any, Callable, Literal, TypedDict, TypeVar
 
 if TYPE_CHECKING:
     from typing_extensions import NotRequired
@@ -212,3 +213,19 @@ class SweepOptions(SimOptions, total=False):
     max_cells: int
     force: bool
     resume: bool
+
+
+_T = TypeVar("_T")
+
+
+def exported_from(module: str) -> Callable[[_T], _T]:
+    """Marks a function or an exception class as ``module``'s own (it must
+    re-export it under the same name): help(), repr and pickle name the
+    module a user imports it from (``pupper_core``, ``pupper_core.plots``,
+    ...), not the private module that holds its code."""
+
+    def mark(obj: _T) -> _T:
+        obj.__module__ = module
+        return obj
+
+    return mark

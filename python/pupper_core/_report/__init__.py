@@ -34,7 +34,7 @@ SECTIONS: dict[str, Sections] = {
 
 def report(run_dir: str | os.PathLike[str]) -> Path:
     """Writes ``run_dir/report.html`` from the files in it; returns its path."""
-    from pupper_core._files import atomic_write
+    from pupper_core._rundir import atomic_write
 
     d = Path(run_dir)
     mpath = d / "manifest.json"

@@ -137,6 +137,35 @@ def check(device: str) -> int:
     return MOST_WORLDS["cuda" if device.startswith("cuda") else "cpu"]
 
 
+def _assign_per_world(m: Any, model: Any, n: int, actuators: tuple[np.ndarray, np.ndarray, np.ndarray],
+                      floor: tuple[np.ndarray | None, list[int]], bodies: tuple[list[Any], np.ndarray] | None) -> None:
+    """What differs between the device model's ``n`` worlds, in float32:
+    each actuator's gains and force range, the floor's friction on the
+    colliding geoms, and (``bodies``) each world's body constants."""
+    f32 = np.float32
+    gain, bias, force_range = actuators
+    friction, colliding = floor
+    gp = np.repeat(model.actuator_gainprm[None].astype(f32), n, axis=0)
+    bp = np.repeat(model.actuator_biasprm[None].astype(f32), n, axis=0)
+    gp[:, :, :3] = gain
+    bp[:, :, :3] = bias
+    m.actuator_gainprm.assign(gp)
+    m.actuator_biasprm.assign(bp)
+    m.actuator_forcerange.assign(np.ascontiguousarray(force_range, dtype=f32))
+    if friction is not None:
+        fr = np.repeat(model.geom_friction[None].astype(f32), n, axis=0)
+        for g in colliding:
+            fr[:, g, 0] = friction
+        m.geom_friction.assign(fr)
+    if bodies is not None:
+        # the host's float64 constants of each body, rounded once:
+        # the numbers a model of that body alone would carry
+        rows, index = bodies
+        for i, f in enumerate(PER_WORLD_MASS):
+            per_world = np.stack([r[i] for r in rows])[np.asarray(index)]
+            getattr(m, f).assign(np.ascontiguousarray(per_world, dtype=np.float32))
+
+
 class Worlds:
     """One body's simulations on one Warp device, a world each.
 
@@ -194,25 +223,7 @@ class Worlds:
             # a diverging world overflows its constraint rows every step:
             # the record kernel marks it diverged instead of Warp printing
             m.opt.warn_overflow = 0
-            gp = np.repeat(model.actuator_gainprm[None].astype(f32), n, axis=0)
-            bp = np.repeat(model.actuator_biasprm[None].astype(f32), n, axis=0)
-            gp[:, :, :3] = gain
-            bp[:, :, :3] = bias
-            m.actuator_gainprm.assign(gp)
-            m.actuator_biasprm.assign(bp)
-            m.actuator_forcerange.assign(np.ascontiguousarray(force_range, dtype=f32))
-            if friction is not None:
-                fr = np.repeat(model.geom_friction[None].astype(f32), n, axis=0)
-                for g in colliding:
-                    fr[:, g, 0] = friction
-                m.geom_friction.assign(fr)
-            if bodies is not None:
-                # the host's float64 constants of each body, rounded once:
-                # the numbers a model of that body alone would carry
-                rows, index = bodies
-                for i, f in enumerate(PER_WORLD_MASS):
-                    per_world = np.stack([r[i] for r in rows])[np.asarray(index)]
-                    getattr(m, f).assign(np.ascontiguousarray(per_world, dtype=f32))
+            _assign_per_world(m, model, n, (gain, bias, force_range), (friction, colliding), bodies)
             d = mjw.put_data(model, host, nworld=n)
             d.qpos.assign(np.ascontiguousarray(qpos, dtype=f32))
             d.ctrl.assign(np.ascontiguousarray(ctrl, dtype=f32))

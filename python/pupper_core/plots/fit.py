@@ -1,5 +1,5 @@
-"""A fit's figures in its run directory (``pupper_core._fit_output`` and
-``pupper_core._fit_validate`` hand them the angles): per fitted log, the
+"""A fit's figures in its run directory (``pupper_core._fit.output`` and
+``pupper_core._fit.validate`` hand them the angles): per fitted log, the
 measured against the simulated angle of each joint before and after the
 fit, its residual beneath; per validated log, the Bode plot of the log and
 both models over their angle error in time. Every title wrapped to its
@@ -16,13 +16,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pupper_core._files import atomic_write
+from pupper_core._rundir import atomic_write
 from pupper_core.plots.style import plain_log_axis
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
-
-    from pupper_core._fit_validate import Validation
 
 #: The fit's figures' resolution (dots per inch).
 DPI = 90
@@ -90,7 +88,7 @@ def fit_figure(log: str, t: np.ndarray, measured: np.ndarray, nominal: np.ndarra
 
 
 def validation_figure(log: str, traces: Sequence[Any]) -> "Figure":
-    """A validated log: per joint (a ``_fit_validate.Trace`` each), the
+    """A validated log: per joint (a ``pupper_core._fit.validate.Trace`` each), the
     gain and phase of the log, the nominal and the calibrated model against
     frequency, and both models' angle error over time."""
     n = len(traces)
@@ -125,10 +123,11 @@ def validation_figure(log: str, traces: Sequence[Any]) -> "Figure":
     return fig
 
 
-def write_validation(out: Path, v: "Validation") -> list[Path]:
-    """plots/validate_<log>.png for each validated log."""
+def write_validation(out: Path, traces: Sequence[Any]) -> list[Path]:
+    """plots/validate_<log>.png for each validated log (``traces``: the
+    validation's, a ``pupper_core._fit.validate.Trace`` each)."""
     wrote = []
-    for log in dict.fromkeys(tr.log for tr in v.traces):
-        fig = validation_figure(log, [tr for tr in v.traces if tr.log == log])
+    for log in dict.fromkeys(tr.log for tr in traces):
+        fig = validation_figure(log, [tr for tr in traces if tr.log == log])
         wrote.append(save(fig, out / "plots" / f"validate_{Path(log).stem}.png"))
     return wrote

@@ -42,7 +42,7 @@ from pupper_core.plots.tables import (
     _status,
     read_run,
 )
-from pupper_core._public import exported_from
+from pupper_core._types import exported_from
 from pupper_core._spec import DEFAULT_METRIC, OVERSHOOT_NOISE_PCT
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -202,6 +202,37 @@ def _whole_run_range(ax: "Axes", traces: Traces, steady: list[str], landing: flo
 
 
 @exported_from("pupper_core.plots")
+def _colour_bar(fig: "Figure", cb: Any, norm: Any, metric: str) -> None:
+    """The heatmap's colour bar: plain numbers on a log scale, its label
+    wrapped to the bar."""
+    from matplotlib.colors import LogNorm
+
+    if isinstance(norm, LogNorm):
+        plain_log_axis(cb.long_axis)
+    # wrapped to the bar's height (about half the figure's; 10 pt
+    # glyphs about 6 pt wide); a label longer than two such lines (a
+    # statistic over replicates) would stick out past the bar into
+    # the title: the bar says the statistic and unit, the title the rest
+    import textwrap
+
+    label = textwrap.wrap(label_of(metric), max(14, int(fig.get_figheight() * 0.45 * 72 / 6)),
+                          break_long_words=False)
+    cb.set_label("\n".join(label) if len(label) <= 2 else _bar_label(metric))
+
+
+def _heading(fig: "Figure", ax: "Axes | None", head: str, sub: str) -> None:
+    """The heatmap's title and key line: the figure's, or one panel's when
+    drawn into a given ``ax``."""
+    if ax is None:
+        # both wrapped to the figure, a little inside it (wide glyphs)
+        width = 0.9 * fig.get_figwidth()
+        heading = f"{_wrap_parts(head, width, 12)}\n{_wrap_parts(sub, width, 12)}"
+        _room_for_title(fig, heading)
+        fig.suptitle(heading, fontsize=12)
+    else:
+        ax.set_title(f"{head}\n{sub}", fontsize=11)
+
+
 def heatmap(
     table: TableLike,
     metric: str = DEFAULT_METRIC,
@@ -276,31 +307,9 @@ def heatmap(
             if pv is not None:
                 a.set_title(f"{by} = {_fmt(pv)}" if by in SHORT or by in LABELS else str(pv))
         if im is not None:
-            cb = fig.colorbar(im, ax=axs, shrink=0.9 if len(yv) > 3 else 1.0)
-            from matplotlib.colors import LogNorm
-
-            if isinstance(norm, LogNorm):
-                plain_log_axis(cb.long_axis)
-            # wrapped to the bar's height (about half the figure's; 10 pt
-            # glyphs about 6 pt wide); a label longer than two such lines (a
-            # statistic over replicates) would stick out past the bar into
-            # the title: the bar says the statistic and unit, the title the rest
-            import textwrap
-
-            label = textwrap.wrap(label_of(metric), max(14, int(fig.get_figheight() * 0.45 * 72 / 6)),
-                                  break_long_words=False)
-            cb.set_label("\n".join(label) if len(label) <= 2 else _bar_label(metric))
-        best_word = "lowest" if minimize else "highest"
-        sub = _key_line(best_word, status, metric, _has_dip(table, metric))
-        head = title if title is not None else label_of(metric)
-        if ax is None:
-            # both wrapped to the figure, a little inside it (wide glyphs)
-            width = 0.9 * fig.get_figwidth()
-            heading = f"{_wrap_parts(head, width, 12)}\n{_wrap_parts(sub, width, 12)}"
-            _room_for_title(fig, heading)
-            fig.suptitle(heading, fontsize=12)
-        else:
-            ax.set_title(f"{head}\n{sub}", fontsize=11)
+            _colour_bar(fig, fig.colorbar(im, ax=axs, shrink=0.9 if len(yv) > 3 else 1.0), norm, metric)
+        _heading(fig, ax, title if title is not None else label_of(metric),
+                 _key_line("lowest" if minimize else "highest", status, metric, _has_dip(table, metric)))
         fig.pupper_best = best_marks  # type: ignore[attr-defined]
         return fig
 

@@ -4,7 +4,6 @@ heatmap per body on one colour scale, and each body at its best gains."""
 from __future__ import annotations
 
 import csv
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Mapping, Sequence
 
@@ -24,7 +23,7 @@ from pupper_core.plots.style import (
     plain_log_axis,
 )
 from pupper_core.plots.tables import RunLike, describe, read_run, run_dir_of
-from pupper_core._public import exported_from
+from pupper_core._types import exported_from
 from pupper_core._spec import DEFAULT_METRIC, ROBUST_METRIC
 
 if TYPE_CHECKING:  # pragma: no cover

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import csv
 import math
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
@@ -14,7 +13,7 @@ import numpy as np
 
 from pupper_core.plots.style import _new_figure, _style, label_of, plain_log_axis
 from pupper_core.plots.tables import FIRST_METRIC, RunLike, read_replicates, run_dir_of
-from pupper_core._public import exported_from
+from pupper_core._types import exported_from
 from pupper_core._spec import DEFAULT_METRIC
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -69,6 +68,19 @@ def _best_cells(rows: list[dict[str, str]], key: str, cells: int) -> tuple[list[
 
 
 @exported_from("pupper_core.plots")
+def _shown_cells(d: Path, key: str, cells: int, by: str | None) -> tuple[list[dict[str, str]], list[str], set[str]]:
+    """summary.csv's rows, the cells shown (best.csv's with ``by``, else the
+    ``cells`` best by ``key``) and those pupper's rule picks."""
+    with open(d / "summary.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    if by is not None and (d / "best.csv").exists():
+        with open(d / "best.csv", newline="") as f:
+            chosen = [r["id"] for r in csv.DictReader(f) if r["id"]]
+        return rows, chosen, set(chosen)
+    chosen, picked = _best_cells(rows, key, cells)
+    return rows, chosen, picked
+
+
 def replicate_spread(run_dir: RunLike, metric: str = DEFAULT_METRIC,
                      cells: int = 6, by: str | None = None) -> "Figure | None":
     """The spread of ``metric`` over every replicate at the best cells: a
@@ -84,15 +96,8 @@ def replicate_spread(run_dir: RunLike, metric: str = DEFAULT_METRIC,
     if not (d / "replicates.csv").exists():
         return None
     reps = read_replicates(d)
-    with open(d / "summary.csv", newline="") as f:
-        rows = list(csv.DictReader(f))
     key = f"p95:{metric}"
-    if by is not None and (d / "best.csv").exists():
-        with open(d / "best.csv", newline="") as f:
-            chosen = [r["id"] for r in csv.DictReader(f) if r["id"]]
-        picked = set(chosen)
-    else:
-        chosen, picked = _best_cells(rows, key, cells)
+    rows, chosen, picked = _shown_cells(d, key, cells, by)
     if not chosen:
         return None
     by_id = {r["id"]: r for r in rows}
@@ -117,7 +122,6 @@ def replicate_spread(run_dir: RunLike, metric: str = DEFAULT_METRIC,
             q = np.asarray(reps[colour_by], dtype=float)
             lo, hi = float(np.nanmin(q[shown])), float(np.nanmax(q[shown]))
         labels = []
-        any_cross = False
         for i, cid in enumerate(chosen):
             x = i + jitter.uniform(-0.15, 0.15, len(up[i]))
             if colour_by is not None:
@@ -127,7 +131,6 @@ def replicate_spread(run_dir: RunLike, metric: str = DEFAULT_METRIC,
                 ax.plot(x, data[i], "o", ms=3, alpha=0.6, color="#59a14f")
             down = [j for j in members[cid] if reps["status"][j] != "ok"]
             if down:
-                any_cross = True
                 ax.plot(i + jitter.uniform(-0.15, 0.15, len(down)), [cross_y] * len(down), "x",
                         color="red", ms=7, mew=2, zorder=4,
                         label="a replicate that fell or diverged" if not any(

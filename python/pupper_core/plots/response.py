@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
 
@@ -27,7 +26,7 @@ from pupper_core.plots.tables import (
     run_dir_of,
     RunLike,
 )
-from pupper_core._public import exported_from
+from pupper_core._types import exported_from
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure

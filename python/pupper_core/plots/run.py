@@ -3,7 +3,6 @@ re-exports them), and a hold's, which are a sweep's of its own metrics."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
@@ -26,7 +25,7 @@ from pupper_core.plots.tables import (
     read_run,
     run_dir_of,
 )
-from pupper_core._public import exported_from
+from pupper_core._types import exported_from
 from pupper_core._spec import DEFAULT_METRIC, ROBUST_METRIC
 
 if TYPE_CHECKING:  # pragma: no cover

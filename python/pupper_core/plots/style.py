@@ -13,8 +13,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterator, Sequence
 
-from pupper_core._files import atomic_write
-from pupper_core._public import exported_from
+from pupper_core._rundir import atomic_write
+from pupper_core._types import exported_from
 
 if TYPE_CHECKING:  # pragma: no cover
     import numpy as np

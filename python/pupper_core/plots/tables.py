@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence, Union
 import numpy as np
 
 from pupper_core.plots.style import SHORT, _fmt
-from pupper_core._public import exported_from
+from pupper_core._types import exported_from
 
 if TYPE_CHECKING:  # pragma: no cover
     from pupper_core._native import SweepResult

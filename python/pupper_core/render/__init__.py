@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any, Sequence, Union
 
 import numpy as np
 
-from pupper_core._files import atomic_write
+from pupper_core._rundir import atomic_write
 from pupper_core.render.gl import FIX_HINT, RenderUnavailable, _one_line, _require_gl, gl_available
 from pupper_core.render.panels import _atomic_save, _compose, _font, _labels, _panel, _push_text, _shared_palette
 from pupper_core._spec import DEFAULT_METRIC
@@ -331,10 +331,6 @@ def write_effects(
 
     Returns ``(png_path, gif_path or None, csv_path)``.
     """
-    import csv
-
-    from PIL import Image
-
     if not recordings:
         raise ValueError("write_effects needs at least one recording")
     drawn = _draw(recordings, width, height, camera, shadows)
@@ -368,33 +364,38 @@ def write_effects(
     centis = max(1, round(100 / fps))
     still, moving = _captions(caption, fps, gif)
 
-    def captioned(img: "PILImage.Image", line: str = moving) -> "PILImage.Image":
-        from PIL import ImageDraw
-
-        font = fonts[1]
-        strip = Image.new("RGB", (img.width, font.size + 12), (245, 245, 245))
-        ImageDraw.Draw(strip).text((8, 5), line, font=font, fill=(60, 60, 60))
-        both = Image.new("RGB", (img.width, img.height + strip.height), (255, 255, 255))
-        both.paste(img, (0, 0))
-        both.paste(strip, (0, img.height))
-        return both
-
-    finals = [captioned(f, still) for f in [_compose(finals)]]
-    gif_frames = [captioned(f) for f in gif_frames]
+    finals = [_captioned(_compose(finals), still, fonts[1])]
+    gif_frames = [_captioned(f, moving, fonts[1]) for f in gif_frames]
     _atomic_save(finals[0], png_path, "PNG")
     if gif:
         _atomic_save(_shared_palette(gif_frames), gif_path, "GIF", duration=centis * 10, loop=0)
 
-    def table(tmp: Path) -> None:
-        with open(tmp, "w", newline="") as f:
-            w = csv.writer(f, lineterminator="\n")
-            w.writerow(["id", "frame", "time", "base_z", "pushing"])
-            for rec, dr in zip(recordings, drawn):
-                for k, z in enumerate(dr.base_z):
-                    w.writerow([rec["id"], k, repr(float(rec["times"][k])), repr(z), int(bool(rec["pushing"][k]))])
-
-    atomic_write(csv_path, table)
+    atomic_write(csv_path, lambda tmp: _frames_table(tmp, recordings, drawn))
     return png_path, (gif_path if gif else None), csv_path
+
+
+def _captioned(img: "PILImage.Image", line: str, font: Any) -> "PILImage.Image":
+    """``img`` with ``line`` in a grey strip under it."""
+    from PIL import Image, ImageDraw
+
+    strip = Image.new("RGB", (img.width, font.size + 12), (245, 245, 245))
+    ImageDraw.Draw(strip).text((8, 5), line, font=font, fill=(60, 60, 60))
+    both = Image.new("RGB", (img.width, img.height + strip.height), (255, 255, 255))
+    both.paste(img, (0, 0))
+    both.paste(strip, (0, img.height))
+    return both
+
+
+def _frames_table(tmp: Path, recordings: Sequence["Recording"], drawn: Sequence[Any]) -> None:
+    """The effects' CSV: id, frame, time, base z and push of every frame drawn."""
+    import csv
+
+    with open(tmp, "w", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(["id", "frame", "time", "base_z", "pushing"])
+        for rec, dr in zip(recordings, drawn):
+            for k, z in enumerate(dr.base_z):
+                w.writerow([rec["id"], k, repr(float(rec["times"][k])), repr(z), int(bool(rec["pushing"][k]))])
 
 
 def _still(rec: "Recording", k: int, title: str, width: int, height: int,

@@ -11,7 +11,7 @@ import os
 import subprocess
 import sys
 
-from pupper_core._public import exported_from
+from pupper_core._types import exported_from
 
 FIX_HINT = (
     "install libegl1 and libgl1-mesa-dri (apt-get) and set MUJOCO_GL=egl, "

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
-from pupper_core._files import atomic_write
+from pupper_core._rundir import atomic_write
 
 if TYPE_CHECKING:  # pragma: no cover
     from PIL import Image as PILImage

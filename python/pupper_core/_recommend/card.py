@@ -11,17 +11,16 @@ import json
 import math
 import shlex
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from pupper_core._files import atomic_write, atomic_write_text
-from pupper_core._recommend_plan import Plan
-from pupper_core._recommend_search import (OBJECTIVE, Candidate, better, gains_key, gains_per_actuator, simulate,
+from pupper_core._rundir import atomic_write, atomic_write_text
+from pupper_core._recommend.plan import Plan
+from pupper_core._recommend.result import Card, Recommendation
+from pupper_core._recommend.search import (OBJECTIVE, Candidate, better, gains_key, gains_per_actuator, simulate,
                                            slowest_hz, tradeoffs, why_lost)
 
-if TYPE_CHECKING:
-    from pupper_core._recommend import Recommendation
 
 #: Seconds at the stand pose before the predicted step (the softest gains
 #: take about a second to settle from where the robot starts).
@@ -29,28 +28,6 @@ STEP_HOLD = 2.0
 #: A pick within this share of a range's log span from its end is said to
 #: lie on the edge of the searched range.
 EDGE = 0.05
-
-
-@dataclass
-class Card:
-    """One joint group's recommendation."""
-
-    group: str
-    kp: float
-    kd: float
-    phase_margin_deg: float
-    gain_margin_db: float
-    rise_time_s: float
-    overshoot_pct: float
-    settling_time_s: float
-    p95_push_dip_mm: float
-    p95_peak_torque: float
-    torque_limit: float
-    torque_headroom_pct: float
-    #: what the motors deliver of kp and kd (the model's gain scales, a
-    #: fit's; None where they are 1): the margins are of these
-    motor_kp: float | None = None
-    motor_kd: float | None = None
 
 
 def _step_response(plan: Plan, xml: Path) -> dict[str, dict[str, float]]:
@@ -94,12 +71,12 @@ ON_MARGIN_DEG = 1.0
 def _on_margin(plan: Plan, pick: Candidate) -> list[str]:
     """Groups as stiff as their loop margins allow, said: the margins hold
     for the latency assumed, and no more."""
-    on = [g.name for g in plan.groups if pick.phase_deg[g.name] < plan.min_phase_deg + ON_MARGIN_DEG
-          or pick.gain_db[g.name] < plan.min_gain_db + ON_MARGIN_DEG / 5]
+    on = [g.name for g in plan.groups if pick.phase_deg[g.name] < plan.min_phase_margin + ON_MARGIN_DEG
+          or pick.gain_db[g.name] < plan.min_gain_margin + ON_MARGIN_DEG / 5]
     if not on:
         return []
-    return [f"{', '.join(on)} sit(s) on the margin limit (phase >= {plan.min_phase_deg:g}°, gain >= "
-            f"{plan.min_gain_db:g} dB at the spread's worst corner): they hold for the firmware and the "
+    return [f"{', '.join(on)} sit(s) on the margin limit (phase >= {plan.min_phase_margin:g}°, gain >= "
+            f"{plan.min_gain_margin:g} dB at the spread's worst corner): they hold for the firmware and the "
             f"{plan.sensing_delay:g} s of sensing delay assumed, no more; measure the robot's latency, or raise "
             "--min-phase-margin for room"]
 
@@ -165,7 +142,7 @@ def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], 
 def in_use(plan: Plan, models: Sequence[str], say: Callable[[str], None]) -> Candidate | None:
     """The gains the robot runs today (`Plan.current`), checked and run on
     the same robots as every candidate: what the card sets the pick beside."""
-    from pupper_core._recommend_search import check_margins
+    from pupper_core._recommend.search import check_margins
 
     if not plan.current:
         return None
@@ -397,7 +374,7 @@ def constraints_line(plan: Plan) -> str:
     sag = (f"none ends more than {100 * plan.max_sag:g} % below its {1000 * plan.stance:.1f} mm stance height, "
            if math.isfinite(plan.stance) else "")
     return (f"none fell, saturation under {100 * plan.max_saturation:g} % of steps, {sag}phase margin >= "
-            f"{plan.min_phase_deg:g}°, gain margin >= {plan.min_gain_db:g} dB (firmware {plan.motor or 'ideal'}, "
+            f"{plan.min_phase_margin:g}°, gain margin >= {plan.min_gain_margin:g} dB (firmware {plan.motor or 'ideal'}, "
             f"sensing delay {plan.sensing_delay:g} s)")
 
 

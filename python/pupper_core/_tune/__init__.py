@@ -35,27 +35,27 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pupper_core._files import atomic_write_text, printing, say
+from pupper_core._rundir import atomic_write_text, printing
 from pupper_core._native import PupperError
-from pupper_core._public import exported_from
-from pupper_core._signals import _stop_on_signals
-from pupper_core._tune_figures import progress_figure as progress_figure
-from pupper_core._tune_figures import trials_figure as trials_figure
-from pupper_core._tune_figures import write_plots
-from pupper_core._tune_plan import AGGREGATES as AGGREGATES
-from pupper_core._tune_plan import INPUT_KEYS as INPUT_KEYS
-from pupper_core._tune_plan import PENALTY as PENALTY
-from pupper_core._tune_plan import SAMPLERS as SAMPLERS
-from pupper_core._tune_plan import Dimension as Dimension
-from pupper_core._tune_plan import TuneError as TuneError
-from pupper_core._tune_plan import RUN_ONLY, STUDY, VARIANTS, _optuna, _Plan, _plan, parse_space
-from pupper_core._tune_search import _search
-from pupper_core._tune_study import JOURNAL as JOURNAL
-from pupper_core._tune_study import LOCK as LOCK
-from pupper_core._tune_study import STUDY_FILES as STUDY_FILES
-from pupper_core._tune_study import TEST_SIGNAL as TEST_SIGNAL
-from pupper_core._tune_study import _check_fresh, _check_resume, _discard, _locked, _manifest, _resumed, _started
-from pupper_core._tune_tables import _best, _finished, _rows, _write
+from pupper_core._types import exported_from
+from pupper_core._rundir import locked, sayer, stop_on_signals
+from pupper_core._tune.figures import progress_figure as progress_figure
+from pupper_core._tune.figures import trials_figure as trials_figure
+from pupper_core._tune.figures import write_plots
+from pupper_core._tune.plan import AGGREGATES as AGGREGATES
+from pupper_core._tune.plan import INPUT_KEYS as INPUT_KEYS
+from pupper_core._tune.plan import PENALTY as PENALTY
+from pupper_core._tune.plan import SAMPLERS as SAMPLERS
+from pupper_core._tune.plan import Dimension as Dimension
+from pupper_core._tune.plan import TuneError as TuneError
+from pupper_core._tune.plan import RUN_ONLY, STUDY, VARIANTS, _optuna, _Plan, _plan, parse_space
+from pupper_core._tune.search import _search
+from pupper_core._tune.study import JOURNAL as JOURNAL
+from pupper_core._rundir import LOCK as LOCK
+from pupper_core._tune.study import STUDY_FILES as STUDY_FILES
+from pupper_core._tune.study import TEST_SIGNAL as TEST_SIGNAL
+from pupper_core._tune.study import _check_fresh, _check_resume, _discard, _manifest, _resumed, _started
+from pupper_core._tune.tables import _best, _finished, _rows, _write
 from pupper_core._spec import DEFAULT_METRIC
 
 __all__ = ["tune", "TuneResult", "parse_space"]
@@ -136,7 +136,7 @@ def tune(
     optuna = _optuna()
     plan = _plan(space, objective, maximize, trials, budget, batch, sampler, seed, aggregate, halving,
                  dict(options))
-    say = _sayer(progress)
+    say = sayer(progress)
     if out is None and resume:
         raise TuneError("resume=True needs the run directory to continue: give out (or --resume DIR)")
     if out is None:
@@ -149,7 +149,7 @@ def tune(
     else:
         _check_fresh(out_dir, force)
     made = not out_dir.exists()
-    with _locked(out_dir):
+    with locked(out_dir, TuneError):
         if not resume:
             # again under the lock: a tune that ended between the first
             # check and the lock has left a study here
@@ -168,14 +168,6 @@ def tune(
 
         _report.report(out_dir)
     return _result(study, plan, out_dir, spent)
-
-
-def _sayer(progress: bool | Callable[[str], None]) -> Callable[[str], None]:
-    if callable(progress):
-        return progress
-    if progress:
-        return say
-    return lambda line: None
 
 
 def _result(study: Any, plan: _Plan, out_dir: Path | None, spent: int) -> TuneResult:
@@ -235,7 +227,7 @@ def _cli(args_json: str) -> list[str]:
     # handler only sets a flag that Rust's loops read, and a study is Python's)
     kept = (f"the trials finished so far are kept; continue with: pupper tune --resume {a['out']}" if a.get("out")
             else "nothing written")
-    with _stop_on_signals("tune", kept):
+    with stop_on_signals("tune", kept):
         res = tune(space, **a)
     lines = []
     for b in res.best:
@@ -306,7 +298,7 @@ def lab_tune(
 def _lab_cli(args_json: str) -> list[str]:
     """`pupper lab --tune`: the CLI's parsed flags as JSON; a line per body."""
     a = json.loads(args_json)
-    with _stop_on_signals("lab --tune", "each body's trials finished so far are kept in its own directory"):
+    with stop_on_signals("lab --tune", "each body's trials finished so far are kept in its own directory"):
         res = lab_tune(a.pop("variants"), **a)
     with printing():
         for body, r in res.items():

@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from pupper_core._fit_firmware import Firmware, rollout_fn
-from pupper_core._fit_robot import Robot
-from pupper_core._fit_terms import NOISE_FLOOR, FitError
+from pupper_core._fit.firmware import Firmware, rollout_fn
+from pupper_core._fit.robot import Robot
+from pupper_core._fit.terms import NOISE_FLOOR, FitError
 
 
 def _sysid() -> Any:
@@ -49,7 +49,7 @@ def _held(t: np.ndarray, target: np.ndarray, dt: float) -> tuple[np.ndarray, np.
 
 def _modifier(kind: str, members: list[int], robot: Robot, gains: dict[int, tuple[np.ndarray, np.ndarray]],
               firmware: bool = False) -> Any:
-    from pupper_core._fit_firmware import DELAY_SLOT, KD_SLOT, KP_SLOT
+    from pupper_core._fit.firmware import DELAY_SLOT, KD_SLOT, KP_SLOT
 
     slot = {"kp_scale": KP_SLOT, "kd_scale": KD_SLOT, "delay": DELAY_SLOT}
 

@@ -16,11 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from pupper_core._fit_robot import Robot, load_robot, simulate, suspended_spec
-from pupper_core._fit_terms import GROUPS, MAX_LOG_SECONDS, FitError
-from pupper_core._joint_log import LogError, check_gains, write_log
-from pupper_core._public import exported_from
-from pupper_core._signals import _stop_on_signals
+from pupper_core._fit.robot import Robot, load_robot, simulate, suspended_spec
+from pupper_core._fit.terms import GROUPS, MAX_LOG_SECONDS, FitError
+from pupper_core._fit.columns import LogError
+from pupper_core._fit.log import check_gains, write_log
+from pupper_core._types import exported_from
+from pupper_core._rundir import stop_on_signals
 
 
 def _multisine(t: np.ndarray, band: tuple[float, float], count: int, rng: np.random.Generator) -> np.ndarray:
@@ -76,7 +77,7 @@ def _excite(model: str | os.PathLike[str], *, out: str | os.PathLike[str] | None
     gains_kp, gains_kd = _excite_gains(robot, kp, kd)
     _excite_rate_fits(robot, stride, gains_kp, chosen, hi)
     notes = _stability_notes(robot, gains_kp, gains_kd)
-    with _stop_on_signals("excite"):
+    with stop_on_signals("excite"):
         times, targets = _excite_targets(robot, gains_kp, signal, (lo, hi), seconds, hold, amplitude,
                                          max_velocity, seed, chosen)
         # a slower log's targets: each held until the next sample, as the servo holds it

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from pupper_core._recommend_plan import NEIGHBOUR, Group, Plan
+from pupper_core._recommend.plan import NEIGHBOUR, Group, Plan
 
 #: What a candidate that cannot be ranked is told.
 PENALTY = 1e6
@@ -96,10 +96,10 @@ def check_margins(plan: Plan, c: Candidate) -> None:
         kp, kd = c.gains[g.name]
         pm, gm = margins(plan, g, kp, kd)
         c.phase_deg[g.name], c.gain_db[g.name] = pm, gm
-        if not c.failed and not pm >= plan.min_phase_deg:
-            c.failed = f"{g.name} phase margin {pm:.1f}° < {plan.min_phase_deg:g}°"
-        elif not c.failed and not gm >= plan.min_gain_db:
-            c.failed = f"{g.name} gain margin {gm:.1f} dB < {plan.min_gain_db:g} dB"
+        if not c.failed and not pm >= plan.min_phase_margin:
+            c.failed = f"{g.name} phase margin {pm:.1f}° < {plan.min_phase_margin:g}°"
+        elif not c.failed and not gm >= plan.min_gain_margin:
+            c.failed = f"{g.name} gain margin {gm:.1f} dB < {plan.min_gain_margin:g} dB"
 
 
 #: The grid a group's margin map is computed on (log kp x log kd).
@@ -135,7 +135,7 @@ def _slack(plan: Plan, g: Group, kp: float, kd: float) -> float:
     """How far inside its limits a group's loop is (> 0: both margins hold;
     a decibel weighs as 5 degrees, only the sign and the zero matter)."""
     pm, gm = margins(plan, g, kp, kd)
-    return min(pm - plan.min_phase_deg, 5 * (gm - plan.min_gain_db))
+    return min(pm - plan.min_phase_margin, 5 * (gm - plan.min_gain_margin))
 
 
 #: Golden-section and bisection steps that refine a row's best kd and its
@@ -325,7 +325,7 @@ def _stiffest(plan: Plan, g: Group, w: Window, lo: float, hi: float) -> float:
         kp = max(hi / f, lo)
         c = Candidate({g.name: _at(w, kp, 0.5)})
         pm, gm = margins(plan, g, *c.gains[g.name])
-        if pm >= plan.min_phase_deg and gm >= plan.min_gain_db:
+        if pm >= plan.min_phase_margin and gm >= plan.min_gain_margin:
             return kp
     return max(hi / 1.05, lo)
 
@@ -336,7 +336,7 @@ def search(plan: Plan, robot_models: Sequence[str], say: Callable[[str], None],
     """Generations of `batch` candidates whose margins hold (those that do
     not are told so at once, costing no simulation) until `trials` have
     run on the robots. Every candidate asked, in order."""
-    from pupper_core._tune_plan import _optuna
+    from pupper_core._tune.plan import _optuna
 
     optuna = _optuna()
     optuna.logging.set_verbosity(optuna.logging.WARNING)

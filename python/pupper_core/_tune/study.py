@@ -1,31 +1,21 @@
-"""A tune's run directory (``pupper_core._tune`` runs the study): its
-lock, a fresh start, a resume's checks, and the journal of finished
+"""A tune's run directory (``pupper_core._tune`` runs the study): a fresh
+start, a resume's checks, and the journal of finished
 generations that a resume rebuilds study.db from."""
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import signal
-import socket
 import tempfile
-import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any
 
-from pupper_core._files import atomic_write_text, refuse_non_regular
-from pupper_core._tune_plan import INPUT_KEYS, STUDY, TuneError, _compared, _Plan
-from pupper_core._tune_tables import _spent, _write, _write_manifest
+from pupper_core._rundir import LOCK, atomic_write_text, is_ours_to_ignore
+from pupper_core._tune.plan import INPUT_KEYS, STUDY, TuneError, _compared, _Plan
+from pupper_core._tune.tables import _spent, _write, _write_manifest
 
-if TYPE_CHECKING:
-    from pupper_core._native import ErrorCode
-
-#: The run directory's lock file, the one pupper's Rust commands take (an
-#: flock: the OS drops it when its holder dies, kill -9 included).
-LOCK = ".pupper.lock"
 #: Finished generations, a JSON line each, appended and fsynced once the
 #: whole generation is told: what a resume rebuilds study.db from.
 JOURNAL = "journal.jsonl"
@@ -48,19 +38,13 @@ def _test_signal(point: str, generation: int, k: int) -> None:
         os.kill(os.getpid(), getattr(signal, f"SIG{sig}"))
 
 
-# -- the run directory: its lock, a fresh start, a resume -------------------
-
-
-def _is_ours_to_ignore(name: str) -> bool:
-    """The lock, and the temporary files a killed writer left: not a study."""
-    # atomic_write's temporary files are `.NAME.tmpPID`
-    return name == LOCK or name.startswith(".") and ".tmp" in name
+# -- the run directory: a fresh start, a resume ----------------------------
 
 
 def _check_fresh(out_dir: Path, force: bool) -> None:
     if out_dir.exists() and not out_dir.is_dir():
         raise TuneError(f"output directory '{out_dir}' is a file: choose another -o")
-    if out_dir.is_dir() and not force and not all(_is_ours_to_ignore(p.name) for p in out_dir.iterdir()):
+    if out_dir.is_dir() and not force and not all(is_ours_to_ignore(p.name) for p in out_dir.iterdir()):
         raise TuneError(f"output directory '{out_dir}' already exists: choose another -o, "
                         "add --force to overwrite it, or --resume it")
 
@@ -101,51 +85,6 @@ def _check_resume(out_dir: Path, plan: _Plan) -> None:
                         "rerun the original command with --resume, or use a new -o", kind="resume_mismatch")
 
 
-@contextmanager
-def _locked(out_dir: Path, error: Callable[[str], Exception] = TuneError) -> Iterator[None]:
-    """The run directory's lock for the study's whole life: an flock on
-    .pupper.lock, the file pupper's Rust commands lock, so a second tune or
-    a sweep there is refused; the OS drops it when this process dies, kill
-    -9 included, so a resume after a kill finds it free. At the end the
-    file names nobody, as a sweep leaves it. A directory that cannot be
-    written (read-only, a full disk) is `error`, one line."""
-    import fcntl
-
-    def unwritable(e: OSError) -> Exception:
-        return error(f"cannot write the run directory '{out_dir}' ({e.strerror or e}): "
-                     + ("free some space, or choose another -o" if e.errno == 28 else "choose another -o"))
-
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        refuse_non_regular(out_dir / LOCK)
-        f = open(out_dir / LOCK, "a+")
-    except OSError as e:
-        raise unwritable(e) from None
-    with f:
-        try:
-            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            f.seek(0)
-            holder = f.read().strip() or "a process starting up"
-            raise TuneError(f"run directory '{out_dir}' is being written by another pupper ({holder}): "
-                            "wait for it to end, or choose another -o",
-                            kind=cast("ErrorCode", "run_busy")) from None  # (the stub's ErrorCode lacks it)
-        try:
-            f.truncate(0)
-            f.write(f"pid {os.getpid()} on {socket.gethostname()}, since unix time {int(time.time())}")
-            f.flush()
-        except OSError as e:
-            raise unwritable(e) from None
-        # a killed writer's temporary files (we hold the lock: no live writer owns them)
-        for p in out_dir.iterdir():
-            if p.name != LOCK and _is_ours_to_ignore(p.name):
-                p.unlink(missing_ok=True)
-        try:
-            yield
-        finally:
-            # the file stays (a second writer must lock this one, not a new one)
-            with contextlib.suppress(OSError):
-                f.truncate(0)
 
 
 def _discard(out_dir: Path, made: bool) -> None:

@@ -13,9 +13,9 @@ from pathlib import Path
 from typing import Any
 
 from pupper_core._run import sweep
-from pupper_core._tune_plan import PENALTY, VARIANTS, _Plan, _sampler, _steps_per_cell
-from pupper_core._tune_study import _append_journal, _test_signal
-from pupper_core._tune_tables import _best, _finished, _write
+from pupper_core._tune.plan import PENALTY, VARIANTS, _Plan, _sampler, _steps_per_cell
+from pupper_core._tune.study import _append_journal, _test_signal
+from pupper_core._tune.tables import _best, _finished, _write
 
 
 def _value(res: Any, i: int, objective: str, aggregate: str, maximize: bool) -> tuple[float, str]:

@@ -12,8 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from pupper_core import _native
-from pupper_core._files import atomic_write_text
-from pupper_core._tune_plan import PENALTY, Dimension, _Plan
+from pupper_core._rundir import atomic_write_text
+from pupper_core._tune.plan import PENALTY, Dimension, _Plan
 
 
 def _finished(study: Any) -> list[Any]:

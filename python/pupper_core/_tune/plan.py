@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 from pupper_core import _native
 from pupper_core._run import info
 from pupper_core._native import ConfigError, GridError, PupperError
-from pupper_core._public import exported_from
+from pupper_core._types import exported_from
 
 if TYPE_CHECKING:
     from pupper_core._native import ErrorCode

@@ -4,75 +4,34 @@ drawn from what the model does not know (none falls, none saturates past
 the limit, each group's loop keeps its phase and gain margins as the
 firmware closes it); among those, the lowest worst-side push dip wins.
 
-The inputs are in ``_recommend_plan``, the search in ``_recommend_search``,
-the card and the files in ``_recommend_card``; this module runs it and is
+The inputs are in ``plan``, the search in ``search``, what it found in
+``result``, the card and the files in ``card``; this module runs it and is
 the CLI's entry.
 """
 
 from __future__ import annotations
 
+import inspect
 import json
 import os
 import tempfile
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pupper_core._files import printing
-from pupper_core._recommend_card import Card, card_of, in_use, print_card, write_outputs, write_trials
-from pupper_core._public import exported_from
-from pupper_core._recommend_plan import Plan, RecommendError, plan as make_plan
-from pupper_core._recommend_search import Candidate, best_of, robot_model_files, search, windows
-from pupper_core._recommend_search import polish as polish_pick
-from pupper_core._signals import _stop_on_signals
-from pupper_core._tune import _sayer
+from pupper_core._rundir import printing
+from pupper_core._recommend.card import card_of, in_use, print_card, write_outputs, write_trials
+from pupper_core._types import exported_from
+from pupper_core._recommend.inputs import plan as make_plan
+from pupper_core._recommend.plan import Plan, RecommendError
+from pupper_core._recommend.search import best_of, robot_model_files, windows
+from pupper_core._recommend.search import search as search_candidates
+from pupper_core._recommend.search import polish as polish_pick
+from pupper_core._recommend.result import Recommendation
+from pupper_core._rundir import is_ours_to_ignore, locked, sayer, stop_on_signals
 
 __all__ = ["recommend", "Recommendation", "RecommendError"]
-
-
-@dataclass
-class Recommendation:
-    """What `recommend` found: the pick (None when no candidate held every
-    constraint), its card per group, every candidate, the run directory."""
-
-    pick: Candidate | None
-    cards: list[Card]
-    candidates: list[Candidate]
-    plan: Plan
-    out: Path | None
-    yaml: str = ""
-    mjcf: str = ""
-    neighbours: list[str] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-    #: the pick as the search measured it (on the model it read; the card's
-    #: numbers are the exported MJCF's)
-    searched: Candidate | None = None
-    #: the gains the robot runs today (`Plan.current`) on the same robots
-    current: Candidate | None = None
-    #: the groups whose loop margins hold nowhere in their searched ranges
-    #: (then no candidate is asked at all)
-    no_window: list[str] = field(default_factory=list)
-
-    @property
-    def gains(self) -> dict[str, tuple[float, float]]:
-        """The recommended (kp, kd) per joint group; empty without a pick."""
-        return dict(self.pick.gains) if self.pick else {}
-
-    def to_pandas(self) -> Any:
-        """Every candidate as a pandas DataFrame (trials.csv's columns)."""
-        try:
-            import pandas as pd
-        except ImportError as e:
-            raise ImportError("Recommendation.to_pandas needs pandas: pip install pandas") from e
-        return pd.DataFrame([c.row(self.plan.groups) for c in self.candidates])
-
-    def __repr__(self) -> str:
-        if not self.pick:
-            return f"Recommendation(no pick over {len(self.candidates)} candidates)"
-        g = ", ".join(f"{k} kp {p:.4g} kd {d:.4g}" for k, (p, d) in self.pick.gains.items())
-        return f"Recommendation({g}; p95 push dip {self.pick.p95_dip_mm:.4g} mm on {self.plan.robots} robots)"
 
 
 @exported_from("pupper_core")
@@ -137,24 +96,38 @@ def recommend(
     ``kds`` for ``controller`` in ``joint_order``; recommended.xml: the
     model with the gains in its actuators; report.html; manifest.json).
     """
-    # every keyword but these four is the plan's, checked there
-    options = {k: v for k, v in locals().items() if k not in ("model", "out", "force", "progress")}
-    say = _sayer(progress)
+    say = sayer(progress)
     try:
         import optuna  # noqa: F401  (the search's sampler)
     except ImportError:
         raise RecommendError("pupper recommend needs Optuna: install the extra with `make setup PUPPER_EXTRAS=tune` "
                              "(or pip install 'pupper_core[tune]')") from None
-    p = make_plan(model, **options)
-    out_dir = None if out is None else Path(out)
-    if out_dir is None:
-        with tempfile.TemporaryDirectory(prefix="pupper-recommend-") as tmp, _stop_on_signals("recommend"):
+    p = make_plan(model, robots=robots, trials=trials, batch=batch, seed=seed, polish=polish, seconds=seconds,
+                  push_force=push_force, motor=motor, sensing_delay=sensing_delay, command_delay=command_delay,
+                  spread=spread, from_fit=from_fit, min_phase_margin=min_phase_margin,
+                  min_gain_margin=min_gain_margin, max_saturation=max_saturation, max_sag=max_sag, kp_max=kp_max,
+                  kd_max=kd_max, current=current, robot_config=robot_config, joint_order=joint_order,
+                  controller=controller)
+    if out is None:
+        with tempfile.TemporaryDirectory(prefix="pupper-recommend-") as tmp, stop_on_signals("recommend"):
             return _run(p, Path(tmp), say, keep=False)
-    from pupper_core._tune_study import _is_ours_to_ignore, _locked
+    return _run_in(p, Path(out), force, say)
 
+
+def plan_for(model: str | os.PathLike[str] = "pupper_v3", **changes: Any) -> Plan:
+    """The plan `recommend` makes of ``model`` with these keywords and its
+    own defaults for the rest (tests and benches look at a plan alone)."""
+    kw = {k: p.default for k, p in inspect.signature(recommend).parameters.items()
+          if k not in ("model", "out", "force", "progress")}
+    return make_plan(model, **{**kw, **changes})
+
+
+def _run_in(p: Plan, out_dir: Path, force: bool, say: Callable[[str], None]) -> Recommendation:
+    """The run in its directory: refused if another run's is there (unless
+    --force), locked, and removed again if stopped before any candidate."""
     if out_dir.exists() and not out_dir.is_dir():
         raise RecommendError(f"output directory '{out_dir}' is a file: choose another -o")
-    if out_dir.is_dir() and not force and not all(_is_ours_to_ignore(f.name) for f in out_dir.iterdir()):
+    if out_dir.is_dir() and not force and not all(is_ours_to_ignore(f.name) for f in out_dir.iterdir()):
         raise RecommendError(f"output directory '{out_dir}' already exists: choose another -o, or add --force "
                              "to overwrite it")
     made = not out_dir.exists()
@@ -162,7 +135,7 @@ def recommend(
         # Ctrl-C and SIGTERM stop it between sweeps too; the candidates run so
         # far stay in trials.csv (written after every generation)
         kept = f"the candidates run so far, if any, are in {out_dir / 'trials.csv'}"
-        with _locked(out_dir, RecommendError), _stop_on_signals("recommend", kept):
+        with locked(out_dir, RecommendError), stop_on_signals("recommend", kept):
             if not made:
                 _clear(out_dir)
             try:
@@ -191,7 +164,7 @@ def _clear(d: Path) -> None:
     file a run writes there refused if it is not a regular file, then the
     older run's removed, so none of its answer (its candidates, its report)
     outlives it whatever the new run finds."""
-    from pupper_core._files import refuse_non_regular
+    from pupper_core._rundir import refuse_non_regular
 
     robots = sorted((d / "robots").glob("robot_*.xml")) if (d / "robots").is_dir() else []
     for f in [d / n for n in OUTPUTS] + robots:
@@ -205,7 +178,7 @@ def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommenda
     started = time.time()
     models = robot_model_files(p, d / "robots")
     wins = windows(p)
-    every = search(p, models, say, lambda cands: write_trials(d, p, cands) if keep else None, wins)
+    every = search_candidates(p, models, say, lambda cands: write_trials(d, p, cands) if keep else None, wins)
     best = best_of(p, every)
     rec = Recommendation(None, [], every, p, d if keep else None)
     rec.no_window = [g.name for g in p.groups if wins[g.name].kp_span() is None]

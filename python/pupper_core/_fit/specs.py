@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pupper_core._joint_log import LogError
+from pupper_core._fit.columns import LogError
 
 __all__ = ["LogSpec", "log_specs", "name_pattern", "gains_in_name", "option_text", "path_list", "OPTIONS"]
 

@@ -13,8 +13,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from pupper_core._fit_problem import _Problem
-from pupper_core._fit_robot import Robot
+from pupper_core._fit.problem import _Problem
+from pupper_core._fit.robot import Robot
 
 
 def _leg(pb: _Problem, members: list[int]) -> int | None:

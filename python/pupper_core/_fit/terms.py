@@ -5,7 +5,7 @@ fit keep to, the files a fit writes, and the error bad input gets."""
 from __future__ import annotations
 
 from pupper_core._native import ConfigError
-from pupper_core._public import exported_from
+from pupper_core._types import exported_from
 
 #: Each fittable quantity: unit, lower bound, upper bound (None: from the nominal).
 PARAMS: dict[str, tuple[str, float, float]] = {

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from pupper_core._fit_terms import FitError
+from pupper_core._fit.terms import FitError
 
 #: --motor's keys fit replays (the delay is fit's own parameter).
 KEYS = ("rate", "filter", "counts", "noload", "noise")

@@ -4,7 +4,7 @@ logs with MuJoCo's system-identification toolbox (`mujoco.sysid`).
 `excite` writes a trajectory to play on the hardware (per joint group a
 multisine or chirp around the rest pose, inside the joint ranges and under
 velocity and torque limits, with holds between) and the nominal model's
-response to it, in the joint-log format (`pupper_core._joint_log`).
+response to it, in the joint-log format (`pupper_core._fit.log`).
 
 `fit` replays each log's targets, at the log's gains, through the robot
 hung in the air (the free joint removed, contacts off), and fits joint
@@ -46,17 +46,17 @@ from typing import Any
 
 import numpy as np
 
-from pupper_core._files import flush_stdout, printing, say
-from pupper_core._fit_excite import _excite, excite
-from pupper_core._fit_firmware import parse_motor
-from pupper_core._fit_jacobian import jacobian_fn, rollouts_per_jacobian
-from pupper_core._fit_output import _write_run
-from pupper_core._fit_problem import FitResult, _Problem, _problem, _read_logs, _Solution
-from pupper_core._fit_robot import BUILTINS as BUILTINS
-from pupper_core._fit_robot import initial_state as initial_state
-from pupper_core._fit_robot import simulate as simulate
-from pupper_core._fit_robot import Robot, load_robot, suspended_spec
-from pupper_core._fit_sysid import (
+from pupper_core._rundir import flush_stdout, printing, say
+from pupper_core._fit.excitation import _excite, excite
+from pupper_core._fit.firmware import parse_motor
+from pupper_core._fit.jacobian import jacobian_fn, rollouts_per_jacobian
+from pupper_core._fit.output import _write_run
+from pupper_core._fit.problem import FitResult, _Problem, _problem, _read_logs, _Solution
+from pupper_core._fit.robot import BUILTINS as BUILTINS
+from pupper_core._fit.robot import initial_state as initial_state
+from pupper_core._fit.robot import simulate as simulate
+from pupper_core._fit.robot import Robot, load_robot, suspended_spec
+from pupper_core._fit.sysid import (
     Predictions,
     _correlation_time,
     _information_shares,
@@ -67,15 +67,15 @@ from pupper_core._fit_sysid import (
     _sysid,
     _whitening,
 )
-from pupper_core._fit_validate import Validation, check_apart, print_table
-from pupper_core._fit_validate import validate as validate_logs
-from pupper_core._fit_terms import GROUPS as GROUPS
-from pupper_core._fit_terms import MAX_LOG_SECONDS as MAX_LOG_SECONDS
-from pupper_core._fit_terms import NOISE_FLOOR as NOISE_FLOOR
-from pupper_core._fit_terms import RUN_FILES as RUN_FILES
-from pupper_core._fit_terms import SCALE_NUMERIC as SCALE_NUMERIC
-from pupper_core._fit_terms import STILL_RAD as STILL_RAD
-from pupper_core._fit_terms import (
+from pupper_core._fit.validate import Validation, check_apart, print_table
+from pupper_core._fit.validate import validate as validate_logs
+from pupper_core._fit.terms import GROUPS as GROUPS
+from pupper_core._fit.terms import MAX_LOG_SECONDS as MAX_LOG_SECONDS
+from pupper_core._fit.terms import NOISE_FLOOR as NOISE_FLOOR
+from pupper_core._fit.terms import RUN_FILES as RUN_FILES
+from pupper_core._fit.terms import SCALE_NUMERIC as SCALE_NUMERIC
+from pupper_core._fit.terms import STILL_RAD as STILL_RAD
+from pupper_core._fit.terms import (
     CONFOUNDED,
     DEFAULT_PARAMS,
     MEMORY_COPIES,
@@ -84,11 +84,12 @@ from pupper_core._fit_terms import (
     PER,
     FitError,
 )
-from pupper_core._joint_log import JointLog, LogError
-from pupper_core._log_columns import ColumnMap, read_map
-from pupper_core._public import exported_from
-from pupper_core._log_specs import option_text, path_list
-from pupper_core._signals import _stop_on_signals
+from pupper_core._fit.columns import LogError
+from pupper_core._fit.log import JointLog
+from pupper_core._fit.columns import ColumnMap, read_map
+from pupper_core._types import exported_from
+from pupper_core._fit.specs import option_text, path_list
+from pupper_core._rundir import stop_on_signals
 
 __all__ = ["fit", "excite", "FitResult", "FitError", "PARAMS"]
 
@@ -146,7 +147,7 @@ def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Ma
         raise FitError(f"--out {out_dir} is a file: give a directory for the run (e.g. runs/fit)")
     if out_dir is not None and out_dir.exists() and any(out_dir.iterdir()) and not force:
         raise FitError(f"{out_dir} exists and is not empty: give another --out, or --force")
-    with _stop_on_signals("fit"):
+    with stop_on_signals("fit"):
         robot = load_robot(model)
         firmware = parse_motor(motor, robot.timestep)
         options = _log_options(columns, kp, kd, held)
@@ -360,7 +361,7 @@ def _draw_spread(sysid: Any, pb: _Problem, opt: Any, jac: np.ndarray, r_star: li
     logs' damping by 0.9 % (1 sigma) against the hardware's noise's 1.3 %."""
     from dataclasses import replace
 
-    from pupper_core._fit_firmware import DRAWS
+    from pupper_core._fit.firmware import DRAWS
 
     assert pb.firmware is not None
     x = opt.as_vector()

@@ -1,4 +1,4 @@
-"""A joint log's column map (``pupper_core._joint_log`` reads through it):
+"""A joint log's column map (``pupper_core._fit.log`` reads through it):
 the robot's own column names and units for pupper's ``time`` and
 ``ACTUATOR.FIELD`` columns, so that a log written by the robot's control
 loop (a ROS 2 bag exported to CSV, say) is read as it is.
@@ -18,6 +18,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from pupper_core._native import ConfigError
+
+class LogError(ConfigError, ValueError):
+    """A joint log that cannot be used: one line naming file, column and row."""
+
+    kind = "config"
+
 
 #: The units each field may be declared in, and the factor to pupper's own.
 UNITS: dict[str, dict[str, float]] = {
@@ -55,8 +63,6 @@ def field_of(key: str) -> str:
 def parse_map(text: str, where: str) -> ColumnMap:
     """A map's text (``where``: what to name in an error: the flag or the
     header line). A bad entry is a one-line error naming it."""
-    from pupper_core._joint_log import LogError
-
     out = ColumnMap()
     entries = [e.strip() for line in text.splitlines() for e in line.split("#", 1)[0].split(",")]
     for entry in (e for e in entries if e):
@@ -89,8 +95,6 @@ def read_map(value: str, base: Path | None = None, flag: str = "--columns") -> C
     """``--columns``' value (or a log's own ``columns=``: ``flag`` names
     it): a map, or the path of a file holding one (relative to ``base``
     where given: a list of logs' folder)."""
-    from pupper_core._joint_log import LogError
-
     p = Path(value)
     if base is not None and not p.is_absolute():
         p = base / p
@@ -109,8 +113,6 @@ def resolve(header: list[str], cmap: ColumnMap, actuators: set[str], name: str) 
     """Each of the log's columns as pupper's key (None: not read). Without
     a map every column must be pupper's own; with one, a column neither
     mapped nor named as pupper's is not read (a ROS export carries many)."""
-    from pupper_core._joint_log import LogError
-
     keys: list[str | None] = []
     by_column = {c: k for k, c in cmap.column.items()}
     for k, c in cmap.column.items():

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from pupper_core._run import info as model_info
-from pupper_core._fit_terms import GROUPS, PARAMS, FitError
+from pupper_core._fit.terms import GROUPS, PARAMS, FitError
 
 #: The built-in models: their file, and whether the base is welded.
 BUILTINS = {"pupper_v3": ("pupper_v3/scene.xml", False), "pupper_v3_fixed": ("pupper_v3/pupper_v3.xml", True)}
@@ -27,7 +27,7 @@ def _model_file(model: str | os.PathLike[str]) -> tuple[Path, bool]:
         return p.resolve(), False
     if str(model) in BUILTINS:
         rel, fixed = BUILTINS[str(model)]
-        return Path(__file__).parent / "models" / rel, fixed
+        return Path(__file__).parent.parent / "models" / rel, fixed
     raise FitError(f"model '{model}' is neither an MJCF file nor a built-in model "
                    f"({', '.join(BUILTINS)}): give --model PATH or pupper_v3")
 
@@ -182,7 +182,7 @@ def _torque_motor(act: Any, kp: float, kd: float) -> None:
     delay in its unused gain parameters (gainprm[1:4])."""
     import mujoco
 
-    from pupper_core._fit_firmware import DELAY_SLOT, KD_SLOT, KP_SLOT
+    from pupper_core._fit.firmware import DELAY_SLOT, KD_SLOT, KP_SLOT
 
     act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
     act.biastype = mujoco.mjtBias.mjBIAS_NONE

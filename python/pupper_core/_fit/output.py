@@ -13,13 +13,13 @@ from typing import Any
 
 import numpy as np
 
-from pupper_core._files import refuse_non_regular
-from pupper_core._fit_problem import FitResult, _Problem, _Solution
-from pupper_core._fit_robot import Robot, _history_samples
-from pupper_core._fit_sysid import _predictions
-from pupper_core._fit_terms import NOISE_FLOOR, SCALE_NUMERIC, FitError
-from pupper_core._fit_validate import Validation
-from pupper_core._fit_validate import write as write_validation
+from pupper_core._rundir import refuse_non_regular
+from pupper_core._fit.problem import FitResult, _Problem, _Solution
+from pupper_core._fit.robot import Robot, _history_samples
+from pupper_core._fit.sysid import _predictions
+from pupper_core._fit.terms import NOISE_FLOOR, SCALE_NUMERIC, FitError
+from pupper_core._fit.validate import Validation
+from pupper_core._fit.validate import write as write_validation
 
 
 def _write_run(out: Path, res: FitResult, pb: _Problem, sol: _Solution, model: Any, names: list[str], per: str,
@@ -67,7 +67,7 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
            val: Validation | None) -> None:
     import mujoco
 
-    from pupper_core._files import atomic_write
+    from pupper_core._rundir import atomic_write
 
     robot, logs = pb.robot, pb.logs
 
@@ -120,7 +120,7 @@ def _write_text(path: Path, text: str) -> None:
 def _write_warnings(out: Path, res: FitResult) -> None:
     """warnings.csv: one row per warning (the parameter it is about, if
     one), only when there are any (a stale one from --force goes)."""
-    from pupper_core._files import atomic_write
+    from pupper_core._rundir import atomic_write
 
     path = out / "warnings.csv"
     if not res.warnings:

@@ -1,4 +1,4 @@
-"""A joint's frequency response from a log of sines (``pupper_core._fit_validate``
+"""A joint's frequency response from a log of sines (``pupper_core._fit.validate``
 compares the log's with the models'): stepped sines and chirps, from the
 commanded angle to the measured one, at the recorded time stamps.
 

@@ -13,7 +13,7 @@ A log is plain CSV with a few ``# key: value`` lines above its header::
 Units: ``time`` in s (strictly increasing, from any start, evenly spaced
 or as recorded), ``.target`` (the commanded angle) and ``.q`` (the
 measured angle) in rad, ``.qd`` in rad/s, ``.tau`` in N·m; a column map
-(``# columns:`` or the caller's, ``pupper_core._log_columns``) reads the
+(``# columns:`` or the caller's, ``pupper_core._fit.columns``) reads the
 robot's own column names and units instead. Each logged actuator needs
 ``.target`` and ``.q``; ``.qd`` and ``.tau`` are optional (most servos
 report no torque). A log may cover any subset of the actuators (``held``:
@@ -41,8 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pupper_core._log_columns import ColumnMap, parse_map, resolve
-from pupper_core._native import ConfigError
+from pupper_core._fit.columns import ColumnMap, LogError, parse_map, resolve
 
 __all__ = ["JointLog", "LogError", "read_log", "write_log", "FIELDS", "KP_MAX", "KD_MAX"]
 
@@ -61,12 +60,6 @@ KP_MAX = 1e4
 KD_MAX = 1e3
 #: Header keys that say how the log was run: each may appear once.
 SINGLE_KEYS = ("kp", "kd", "mode", "base", "columns", "held")
-
-
-class LogError(ConfigError, ValueError):
-    """A joint log that cannot be used: one line naming file, column and row."""
-
-    kind = "config"
 
 
 @dataclass
@@ -253,6 +246,33 @@ def _content_digest(times: np.ndarray, actuators: Sequence[str], arrays: Sequenc
     return h.hexdigest()
 
 
+def _sources(stated: Mapping[str, Sequence[tuple[str, str]]] | None,
+             defaults: Mapping[str, str | None] | None) -> dict[str, list[tuple[str, str]]]:
+    """Each header key's values said outside the log: the caller's, then --KEY's."""
+    sources = {k: list(v) for k, v in (stated or {}).items()}
+    for key, v in (defaults or {}).items():
+        if v is not None:
+            sources.setdefault(key, []).append((str(v), f"--{key} {v}"))
+    return sources
+
+
+def _settle(meta: dict[str, str], where: dict[str, str], said: dict[str, str],
+            sources: Mapping[str, Sequence[tuple[str, str]]], name: str, acts: list[str],
+            ranges: Mapping[str, tuple[float, float] | None], advice: str) -> None:
+    """Every source of a key agrees with the log's own (which it fills in
+    where the log says nothing); gains nobody states are refused."""
+    for key, given in sources.items():
+        if given and key not in meta:
+            (meta[key], said[key]), where[key] = given[0], name
+            given = given[1:]
+        for v, w in given:
+            _agree(key, (meta[key], where[key], said[key]), (v, w), len(acts), ranges, acts)
+    for key in ("kp", "kd"):
+        if key not in meta:
+            raise LogError(f"{name}: no '# {key}:' line and no {key} given for it: " + (
+                advice or f"write e.g. '# kp: 5' and '# kd: 0.1' above the header, or give --{key}"))
+
+
 def read_log(path: str | Path, ranges: Mapping[str, tuple[float, float] | None], *,
              columns: ColumnMap | None = None, defaults: Mapping[str, str | None] | None = None,
              stated: Mapping[str, Sequence[tuple[str, str]]] | None = None, advice: str = "") -> JointLog:
@@ -301,20 +321,7 @@ def read_log(path: str | Path, ranges: Mapping[str, tuple[float, float] | None],
         if key in columns_of[acts[0]]:
             meta[key], where[key] = _gain_columns(data, header, keys, acts, key, meta.get(key), name)
             where[key], said[key] = name, f"the {key} columns ({meta[key]})"
-    sources = {k: list(v) for k, v in (stated or {}).items()}
-    for key, v in (defaults or {}).items():
-        if v is not None:
-            sources.setdefault(key, []).append((str(v), f"--{key} {v}"))
-    for key, given in sources.items():
-        if given and key not in meta:
-            (meta[key], said[key]), where[key] = given[0], name
-            given = given[1:]
-        for v, w in given:
-            _agree(key, (meta[key], where[key], said[key]), (v, w), len(acts), ranges, acts)
-    for key in ("kp", "kd"):
-        if key not in meta:
-            raise LogError(f"{name}: no '# {key}:' line and no {key} given for it: " + (
-                advice or f"write e.g. '# kp: 5' and '# kd: 0.1' above the header, or give --{key}"))
+    _settle(meta, where, said, _sources(stated, defaults), name, acts, ranges, advice)
     mode = meta.get("mode", "servo")
     base = meta.get("base", "suspended")
     if mode not in MODES:
@@ -551,7 +558,7 @@ def write_log(path: str | Path, times: np.ndarray, actuators: Sequence[str], *,
               tau: np.ndarray | None = None, kp: Sequence[float] | np.ndarray, kd: Sequence[float] | np.ndarray,
               mode: str = "servo", base: str = "suspended", note: str = "") -> None:
     """Writes a log in the format above (every digit of each float)."""
-    from pupper_core._files import atomic_write
+    from pupper_core._rundir import atomic_write
 
     fields = [("target", target), ("q", q)] + [(f, a) for f, a in (("qd", qd), ("tau", tau))
                                                if a is not None]

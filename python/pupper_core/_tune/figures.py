@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from pupper_core.plots.style import _new_figure, _save, _style, label_of, plain_log_axis
-from pupper_core._tune_plan import PENALTY, TuneError, parse_space
+from pupper_core._tune.plan import PENALTY, TuneError, parse_space
 
 
 def _study_table(out: Path) -> tuple[dict[str, Any], list[dict[str, str]]]:

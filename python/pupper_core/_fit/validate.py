@@ -2,7 +2,7 @@
 nominal and the calibrated model, each beside the log's own behaviour.
 
 Per log and logged joint: the RMS angle error of both models, and the
-frequency response (``pupper_core._fit_freq``: stepped sines and chirps)
+frequency response (``pupper_core._fit.freq``: stepped sines and chirps)
 of the log and of both models, from command to angle: gain and phase per
 frequency, the -3 dB bandwidth, the phase at a few frequencies and the
 delay the model leaves unexplained (the pure delay that best explains the
@@ -21,11 +21,11 @@ from typing import Any
 
 import numpy as np
 
-from pupper_core._fit_freq import PHASE_AT, Response, bandwidth, delay_left, phase_at, response
-from pupper_core._fit_problem import _Problem, _problem, _Solution
-from pupper_core._fit_sysid import _predictions, _residual_fn
-from pupper_core._fit_terms import FitError
-from pupper_core._joint_log import JointLog
+from pupper_core._fit.freq import PHASE_AT, Response, bandwidth, delay_left, phase_at, response
+from pupper_core._fit.problem import _Problem, _problem, _Solution
+from pupper_core._fit.sysid import _predictions, _residual_fn
+from pupper_core._fit.terms import FitError
+from pupper_core._fit.log import JointLog
 
 MODELS = ("log", "nominal", "calibrated")
 
@@ -145,7 +145,7 @@ def print_table(rows: list[dict[str, Any]]) -> None:
 
 def write(out: Path, v: Validation) -> None:
     """validation.csv, validation_bode.csv and the Bode plots."""
-    from pupper_core._files import atomic_write
+    from pupper_core._rundir import atomic_write
 
     for name, rows in (("validation.csv", v.rows), ("validation_bode.csv", v.bode)):
         if not rows:
@@ -168,4 +168,4 @@ def _plot(out: Path, v: Validation) -> None:
     over time (``pupper_core.plots.fit`` draws them)."""
     from pupper_core.plots.fit import write_validation
 
-    write_validation(out, v)
+    write_validation(out, v.traces)

@@ -12,13 +12,14 @@ from typing import Any
 
 import numpy as np
 
-from pupper_core._fit_firmware import Firmware
-from pupper_core._fit_robot import Robot, initial_state, suspended_spec
-from pupper_core._fit_sysid import _held, _modifier
-from pupper_core._fit_terms import MAX_LOG_SECONDS, PARAMS, STILL_RAD, FitError
-from pupper_core._joint_log import JointLog, LogError, read_log
-from pupper_core._log_columns import ColumnMap, read_map
-from pupper_core._log_specs import LogSpec, gains_in_name, log_specs, name_pattern
+from pupper_core._fit.firmware import Firmware
+from pupper_core._fit.robot import Robot, initial_state, suspended_spec
+from pupper_core._fit.sysid import _held, _modifier
+from pupper_core._fit.terms import MAX_LOG_SECONDS, PARAMS, STILL_RAD, FitError
+from pupper_core._fit.columns import LogError
+from pupper_core._fit.log import JointLog, read_log
+from pupper_core._fit.columns import ColumnMap, read_map
+from pupper_core._fit.specs import LogSpec, gains_in_name, log_specs, name_pattern
 
 
 @dataclass

@@ -1,0 +1,392 @@
+"""`pupper recommend`'s inputs checked before anything runs, into its
+`Plan`: the model's joint groups and their own gains, the searched ranges,
+the robots drawn from what the model does not know (or from a fit's
+intervals), the firmware, the constraints."""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from pupper_core._recommend.plan import DEFAULT_MOTOR, DEFAULT_SPREAD, FIT_MODELS, Group, Plan, RecommendError
+from pupper_core._recommend.robot_config import config_gains, current_gains, joint_order_of, read_robot_config
+
+
+def _positive(name: str, v: float, flag: str, *, zero: bool = False) -> float:
+    ok = math.isfinite(v) and (v >= 0 if zero else v > 0)
+    if not ok:
+        raise RecommendError(f"{flag} {v} must be a number {'>= 0' if zero else '> 0'}: give {name}")
+    return float(v)
+
+
+def _relative(spread: Sequence[str], quantity: str) -> float:
+    """P/100 of a `QUANTITY=±P%` spec in the spread (0 when absent)."""
+    for s in spread:
+        m = re.fullmatch(rf"{quantity}=(?:±|\+-)([0-9.]+)%", s.strip())
+        if m:
+            return float(m.group(1)) / 100
+    return 0.0
+
+
+def _numerics(model: str) -> dict[str, float]:
+    """The model's `pupper:...` custom numerics, by name."""
+    from pupper_core.render import _load_model
+
+    m = _load_model(model)
+    out: dict[str, float] = {}
+    for i in range(m.nnumeric):
+        name = m.numeric(i).name
+        if name.startswith("pupper:") and m.numeric_size[i] >= 1:
+            out[name] = float(m.numeric_data[m.numeric_adr[i]])
+    return out
+
+
+def _limit(actuator: Mapping[str, Any]) -> float:
+    r = actuator["forcerange"] or actuator["ctrlrange"]
+    return float(r[1]) if r else math.inf
+
+
+def _gain_scale(actuator: Mapping[str, Any]) -> tuple[float, float]:
+    """What the motor delivers of a commanded kp and kd (its `info`'s
+    gain_scale, absent when both are 1)."""
+    kp, kd = actuator.get("gain_scale") or (1.0, 1.0)
+    return float(kp), float(kd)
+
+
+def _groups(model: str, inf: Mapping[str, Any], kp_max: float | None, kd_max: float | None, leg: float,
+            armature_low: Mapping[str, float]) -> tuple[list[str], list[Group], float, bool]:
+    """The model's actuators (from its `info`), its joint groups with their
+    searched ranges, its timestep, and whether motor caps bound every
+    group's kp and kd."""
+    from pupper_core._run import gains
+
+    names = [str(a["name"]) for a in inf["actuators"]]
+    own_kp = [float(a["gainprm"][0]) for a in inf["actuators"]]
+    own_kd = [-float(a["biasprm"][2]) for a in inf["actuators"]]
+    rep = gains(model, kp=max(own_kp[0], 1e-3), kd=max(own_kd[0], 0.0))
+    numerics = _numerics(model)
+    members: dict[str, list[int]] = {}
+    lo_i: dict[str, float] = {}
+    hi_i: dict[str, float] = {}
+    # a group's inertia extremes by the pair of gain scales its joints' motors have
+    loops: dict[str, dict[tuple[float, float], tuple[float, float]]] = {}
+    for j in rep["joints"]:
+        a, g, inertia = names.index(j["actuator"]), str(j["group"]), float(j["inertia"])
+        members.setdefault(g, []).append(a)
+        # the links' part scales with leg mass; a fit's armature may be as
+        # low as its interval allows (armature_low: how much lower)
+        light = max((inertia - armature_low.get(names[a], 0.0)) * (1 - leg), 1e-9)
+        heavy = inertia * (1 + leg)
+        lo_i[g] = min(lo_i.get(g, math.inf), light)
+        hi_i[g] = max(hi_i.get(g, 0.0), heavy)
+        pair = _gain_scale(inf["actuators"][a])
+        lo, hi = loops.setdefault(g, {}).get(pair, (math.inf, 0.0))
+        loops[g][pair] = (min(lo, light), max(hi, heavy))
+    # a position servo's own gains (kp, and kv as -biasprm[2]); a <motor>
+    # has none (gain 1, no bias): its range comes from the caps alone
+    servo = [float(a["gainprm"][0]) > 0 and float(a["biasprm"][1]) == -float(a["gainprm"][0])
+             for a in inf["actuators"]]
+    groups = []
+    capped = True
+    for name, acts in members.items():
+        caps_p = [numerics[f"pupper:kp_max:{names[a]}"] for a in acts if f"pupper:kp_max:{names[a]}" in numerics]
+        caps_d = [numerics[f"pupper:kd_max:{names[a]}"] for a in acts if f"pupper:kd_max:{names[a]}" in numerics]
+        caps_p += [kp_max] if kp_max else []
+        caps_d += [kd_max] if kd_max else []
+        capped = capped and bool(caps_p) and bool(caps_d)
+        if all(servo[a] for a in acts) and max(own_kd[a] for a in acts) > 0:
+            kp0 = max(own_kp[a] for a in acts)
+            kd0 = max(own_kd[a] for a in acts)
+            hi_p, hi_d = min([kp0 * 20, *caps_p]), min([kd0 * 50, *caps_d])
+            lo_p, lo_d = min(kp0 / 10, hi_p / 2), min(kd0 / 10, hi_d / 2)
+        elif caps_p and caps_d:
+            # the same spans as a servo's own gains give: 200x in kp, 500x in kd
+            hi_p, hi_d = min(caps_p), min(caps_d)
+            lo_p, lo_d = hi_p / 200, hi_d / 500
+        else:
+            kind = "motors" if not any(servo[a] for a in acts) else "servos without damping"
+            raise RecommendError(f"the model's {name} actuators are {kind}, with no PD gains of their own to "
+                                 "search around: give --kp-max and --kd-max, the largest gains the motors take "
+                                 "(kp_max= and kd_max= in Python), or pupper:kp_max:ACT and pupper:kd_max:ACT "
+                                 "numerics in the model")
+        groups.append(Group(name, tuple(acts), (lo_p, hi_p), (lo_d, hi_d), (lo_i[name], hi_i[name]),
+                            min(_limit(inf["actuators"][a]) for a in acts),
+                            tuple((sp, sd, lo, hi) for (sp, sd), (lo, hi) in sorted(loops[name].items()))))
+    return names, groups, float(rep["timestep"]), capped
+
+
+def _motor(motor: str | None, command_delay: float) -> str:
+    """The firmware spec with the command delay in it."""
+    spec = DEFAULT_MOTOR if motor is None else motor
+    if command_delay > 0:
+        if re.search(r"(^|,)\s*delay\s*=", spec):
+            raise RecommendError("--command-delay and --motor delay= both set the command delay: keep one")
+        spec = f"{spec},delay={command_delay:g}" if spec else f"delay={command_delay:g}"
+    return spec
+
+
+def _fit_rows(d: Path) -> list[dict[str, str]]:
+    f = d / "fit.csv"
+    if not (f.is_file() and (d / "calibrated.xml").is_file()):
+        raise RecommendError(f"--from-fit {d}: no fit there (fit.csv and calibrated.xml): give a `pupper fit` "
+                             "run directory")
+    with open(f, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _interval(r: Mapping[str, str], floor: float = 0.0) -> tuple[float, float]:
+    """A fit.csv row's 95 % interval, inside the parameter's physical bound
+    (the fitted value alone where the interval is not meaningful)."""
+    try:
+        a, b, v = float(r["low95"] or "nan"), float(r["high95"] or "nan"), float(r["fitted"])
+    except (KeyError, ValueError):
+        raise RecommendError(f"fit.csv row {dict(r)} is not a fit's: give a `pupper fit` run directory") from None
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return v, v
+    return max(a, floor), max(b, floor)
+
+
+def _scale_factors(rows: Sequence[Mapping[str, str]], parameter: str) -> tuple[float, float]:
+    """What the motors deliver of a gain, relative to the calibrated
+    model's fitted scale: the widest interval over the fit's rows."""
+    lo, hi = 1.0, 1.0
+    for r in rows:
+        if r.get("parameter") == parameter:
+            a, b = _interval(r, 1e-6)
+            v = float(r["fitted"])
+            lo, hi = min(lo, a / v), max(hi, b / v)
+    return lo, hi
+
+
+def _actuators_of(r: Mapping[str, str], names: Sequence[str]) -> list[str]:
+    listed = [a for a in re.split(r"[ ;|]+", r.get("actuators", "").strip()) if a]
+    return [a for a in listed if a in names] or list(names)
+
+
+def _fit_draws(rows: Sequence[Mapping[str, str]], names: Sequence[str],
+               seed: int) -> list[list[tuple[str, list[str], float]]]:
+    """FIT_MODELS joint models, each fitted joint parameter drawn uniformly
+    inside its interval (a generator per model, keyed by the seed)."""
+    import numpy as np
+
+    draws = []
+    for k in range(FIT_MODELS):
+        rng = np.random.default_rng([seed, k])
+        one = []
+        for r in rows:
+            if r.get("parameter") in ("armature", "damping", "frictionloss"):
+                a, b = _interval(r)
+                one.append((str(r["parameter"]), _actuators_of(r, names), float(rng.uniform(a, b))))
+        draws.append(one)
+    return draws
+
+
+def _armature_low(rows: Sequence[Mapping[str, str]], names: Sequence[str]) -> dict[str, float]:
+    """By how much each actuator's armature may lie below its fitted value."""
+    out: dict[str, float] = {}
+    for r in rows:
+        if r.get("parameter") == "armature":
+            a, _ = _interval(r)
+            for n in _actuators_of(r, names):
+                out[n] = max(out.get(n, 0.0), float(r["fitted"]) - a)
+    return out
+
+
+def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int, seed: int, seconds: float,
+         push_force: float | None, motor: str | None, sensing_delay: float, command_delay: float,
+         spread: Sequence[str] | None, from_fit: str | os.PathLike[str] | None, min_phase_margin: float,
+         min_gain_margin: float, max_saturation: float, kp_max: float | None, kd_max: float | None,
+         joint_order: Sequence[str] | str | None, controller: str, polish: int, max_sag: float,
+         current: Sequence[float] | str | None, robot_config: str | os.PathLike[str] | None) -> Plan:
+    """Every input checked, the model read; one line per mistake. (No
+    defaults here: `pupper_core.recommend` declares them, once.)"""
+    _check_types(dict(locals()))
+    if isinstance(spread, str):
+        spread = [spread]  # one spec (a spec may hold a comma: N(0,0.001))
+    _check_numbers(robots=robots, trials=trials, batch=batch, polish=polish, seconds=seconds,
+                   sensing_delay=sensing_delay, command_delay=command_delay, min_phase_margin=min_phase_margin,
+                   min_gain_margin=min_gain_margin, max_sag=max_sag, max_saturation=max_saturation, kp_max=kp_max,
+                   kd_max=kd_max)
+    fit_dir = None if from_fit is None else Path(from_fit)
+    rows: list[dict[str, str]] = []
+    if fit_dir is not None:
+        rows = _fit_rows(fit_dir)
+        model = fit_dir / "calibrated.xml"
+    model = os.fspath(model)
+    base = list(DEFAULT_SPREAD if spread is None else spread)
+    g, leg = _relative(base, "motor_gain"), _relative(base, "leg_mass")
+    kp_f, kd_f = _scale_factors(rows, "kp_scale"), _scale_factors(rows, "kd_scale")
+    if rows:
+        # the fit's gain scales stand for motor_gain: a draw within their interval
+        w = max(kp_f[1] - 1, 1 - kp_f[0], kd_f[1] - 1, 1 - kd_f[0])
+        base = [s for s in base if not s.strip().startswith("motor_gain=")]
+        if w > 1e-4:
+            base.append(f"motor_gain=±{100 * w:.4g}%")
+        g = 0.0
+        delays = [_interval(r) for r in rows if r.get("parameter") == "delay"]
+        # a delay interval of round-off around 0 (a noise-free fit) is no delay
+        if delays and max(b for _, b in delays) > 1e-9:
+            base.append(f"motor_delay={min(a for a, _ in delays):.6g}:{max(b for _, b in delays):.6g}")
+    from pupper_core._run import info
+
+    inf = info(model)
+    _standing_robot(model, inf)
+    low = _armature_low(rows, [str(a["name"]) for a in inf["actuators"]])
+    names, groups, dt, capped = _groups(model, inf, kp_max, kd_max, leg, low)
+    motor_spec = _motor(motor, command_delay)
+    _servo_delay(motor_spec)
+    from pupper_core._native import loop_margins, stance
+
+    loop_margins(1.0, 1.0, 0.1, motor=motor_spec, sensing_delay=sensing_delay, timestep=dt)  # checks the spec
+    steps = math.ceil(sensing_delay / dt - 1e-9)
+    if any(s.strip().startswith("delay=") for s in base):
+        raise RecommendError("the sensing latency is --sensing-delay (drawn 0 to it in whole steps): "
+                             "drop delay= from --spread")
+    drawn = base + ([f"delay=0:{steps}"] if steps else [])
+    kp_factors = (kp_f[0] * (1 - g), kp_f[1] * (1 + g))
+    kd_factors = (kd_f[0] * (1 - g), kd_f[1] * (1 + g))
+    if robots % max(1, FIT_MODELS if rows else 1):
+        raise RecommendError(f"--robots {robots}: with --from-fit the robots are {FIT_MODELS} drawn joint models "
+                             f"with an equal share each: give a multiple of {FIT_MODELS}")
+    config = None if robot_config is None else read_robot_config(Path(robot_config), controller, names)
+    if config is not None and joint_order is None:
+        joint_order = config[0]
+    order = joint_order_of(joint_order, names)
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_/]*", controller):
+        raise RecommendError(f"--controller '{controller}' is not a ROS 2 node name: letters, digits, _ and /")
+    if config is not None and current is None:
+        now, now_from = config_gains(config, names, groups, Path(robot_config or ""))
+    else:
+        now, now_from = current_gains(current, inf, groups)
+    return Plan(model=model, actuators=names, groups=groups, timestep=dt, motor=motor_spec,
+                sensing_delay=sensing_delay, command_delay=command_delay, spread=drawn, kp_factors=kp_factors,
+                kd_factors=kd_factors, robots=robots, trials=trials, batch=batch, seed=seed, seconds=seconds,
+                push_force=push_force, min_phase_margin=min_phase_margin, min_gain_margin=min_gain_margin,
+                max_saturation=max_saturation, joint_order=order, controller=controller, polish=polish,
+                max_sag=max_sag, stance=stance(model=model), from_fit=fit_dir, fit_rows=rows,
+                fit_draws=_fit_draws(rows, names, seed) if rows else [], current=now, current_from=now_from,
+                caps=capped)
+
+
+def _check_numbers(*, robots: int, trials: int, batch: int, polish: int, seconds: float, sensing_delay: float,
+                   command_delay: float, min_phase_margin: float, min_gain_margin: float, max_sag: float,
+                   max_saturation: float, kp_max: float | None, kd_max: float | None) -> None:
+    """Each number in its range, or one line naming the flag and a value."""
+    if robots < 1 or trials < 1 or batch < 1:
+        raise RecommendError(f"robots {robots}, trials {trials}, batch {batch}: each must be a whole number >= 1")
+    if polish < 0:
+        raise RecommendError(f"--polish {polish} must be a whole number >= 0 (0: the search's pick, unmoved)")
+    _positive("the simulated seconds per robot, e.g. 4", seconds, "--seconds")
+    _reaches_the_push(seconds)
+    _positive("seconds of feedback latency, e.g. 0.002", sensing_delay, "--sensing-delay", zero=True)
+    _positive("seconds of command delay, e.g. 0.01", command_delay, "--command-delay", zero=True)
+    _positive("degrees, e.g. 30", min_phase_margin, "--min-phase-margin", zero=True)
+    if min_phase_margin >= 180:
+        raise RecommendError(f"--min-phase-margin {min_phase_margin:g} must be below 180: a loop's phase margin is "
+                             "under 180 degrees (a PD's under 90), so no gains could keep it; give e.g. 30")
+    _positive("decibels, e.g. 6", min_gain_margin, "--min-gain-margin", zero=True)
+    if not (0 < max_sag < 1):
+        raise RecommendError(f"--max-sag {max_sag} must lie in (0, 1): a share of the stance height, e.g. 0.1")
+    if not (0 < max_saturation <= 1):
+        raise RecommendError(f"--max-saturation {max_saturation} must lie in (0, 1]: a fraction of steps, e.g. 0.05")
+    for v, flag in ((kp_max, "--kp-max"), (kd_max, "--kd-max")):
+        if v is not None:
+            _positive("the motors' largest gain", v, flag)
+
+
+#: The longest command delay (s) the card's predicted step response can
+#: show: it is measured over the 2.5 s after its step (_recommend_card), and
+#: a delayed step needs room to rise and settle there.
+MAX_COMMAND_DELAY = 1.0
+
+
+def _check_types(kw: Mapping[str, Any]) -> None:
+    """The keywords' types, as Python gives them (the CLI's are right by
+    construction): one line naming the keyword, before any work."""
+    import numbers
+
+    def bad(name: str, what: str) -> RecommendError:
+        return RecommendError(f"recommend({name}={kw[name]!r}): give {what}")
+
+    for n in ("robots", "trials", "batch", "polish", "seed"):
+        v = kw[n]
+        if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+            raise bad(n, "a whole number")
+    if not 0 <= kw["seed"] < 2**64:
+        raise bad("seed", "a whole number from 0 to 2**64 - 1")
+    for n in ("seconds", "sensing_delay", "command_delay", "min_phase_margin", "min_gain_margin", "max_saturation",
+              "max_sag", "push_force", "kp_max", "kd_max"):
+        v = kw[n]
+        if v is None and n in ("push_force", "kp_max", "kd_max"):
+            continue
+        if isinstance(v, bool) or not isinstance(v, numbers.Real):
+            raise bad(n, "a number")
+    if kw["push_force"] is not None and not math.isfinite(kw["push_force"]):
+        raise bad("push_force", "a finite number of newtons")
+    for n in ("motor", "controller"):
+        if not (isinstance(kw[n], str) or (n == "motor" and kw[n] is None)):
+            raise bad(n, "a string")
+    for n in ("model", "from_fit"):
+        if not (isinstance(kw[n], (str, os.PathLike)) or (n == "from_fit" and kw[n] is None)):
+            raise bad(n, "a path")
+    for n in ("spread", "joint_order"):
+        v = kw[n]
+        if v is None or isinstance(v, str):
+            continue
+        if not isinstance(v, Sequence) or not all(isinstance(x, str) for x in v):
+            raise bad(n, "a string or a list of strings")
+
+
+def _reaches_the_push(seconds: float) -> None:
+    """A run that ends before the push's dip is known measures no push dip,
+    so no candidate could hold: said before anything runs."""
+    from pupper_core._native import DIP_AFTER, sweep_defaults
+
+    d = sweep_defaults()
+    need = float(d["push_at"]) + float(d["push_duration"]) + DIP_AFTER
+    if seconds < need - 1e-9:
+        raise RecommendError(f"--seconds {seconds:g} ends before the push (at {d['push_at']:g} s, for "
+                             f"{d['push_duration']:g} s) and the {DIP_AFTER:g} s after it, where its dip is measured, "
+                             f"are over: give --seconds {need:g} or more")
+
+
+def _servo_delay(spec: str) -> None:
+    """A command delay (--command-delay, or delay= in --motor) the card's
+    step response can show."""
+    m = re.search(r"(?:^|,)\s*delay\s*=\s*([^,\s]+)", spec)
+    try:
+        delay = float(m.group(1)) if m else 0.0
+    except ValueError:
+        return  # the spec's own check says it
+    if delay > MAX_COMMAND_DELAY:
+        raise RecommendError(f"a command delay of {delay:g} s is longer than the {MAX_COMMAND_DELAY:g} s the card's "
+                             "step response (2.5 s after its step) can show: give the firmware's delay in seconds, "
+                             "e.g. --command-delay 0.01")
+
+
+def _standing_robot(model: str, inf: Mapping[str, Any]) -> None:
+    """A robot recommend can judge: legs it stands on, ground under them,
+    and a torque limit on every motor (saturation and headroom are judged
+    against it)."""
+    if not inf.get("legs"):
+        raise RecommendError(f"model '{model}' has no legs pupper can pose (a chain of abduction, hip and knee "
+                             "hinges under the base ending in a colliding foot): recommend tunes the gains of a "
+                             "robot standing on its legs; give a legged model")
+    # (a welded base has no ground to stand on and is refused by the runs themselves)
+    floating = any(j.get("kind") == "free" for j in inf["joints"])
+    if floating and inf.get("ground", True) is False:
+        raise RecommendError(f"model '{model}' has no ground the feet can touch (no geom fixed in the world that "
+                             "collides with them): every robot would fall at once; add a floor, e.g. "
+                             "<geom type=\"plane\" size=\"0 0 0.05\"/> in the worldbody, or include the model in a "
+                             "scene that has one")
+    free = [str(a["name"]) for a in inf["actuators"] if not math.isfinite(_limit(a))]
+    if free:
+        shown = ", ".join(free[:3]) + (f" and {len(free) - 3} more" if len(free) > 3 else "")
+        raise RecommendError(f"the model's actuators {shown} have no force or control range: recommend holds every "
+                             "robot to its motors' torque limit (saturation, headroom); give each actuator its "
+                             "limit in the model, e.g. forcerange=\"-3 3\" (N·m)")

@@ -1,0 +1,168 @@
+"""`pupper recommend`'s plan (``inputs`` checks the keywords into one): the
+model's joint groups and their own gains, the searched ranges, the robots
+drawn from what the model does not know, the firmware, the constraints.
+
+Everything model-specific comes from the model: the groups and each
+actuator's own gains (the search spans a decade below and a factor of 20
+above them, capped by the model's `pupper:kp_max:ACT` / `pupper:kd_max:ACT`
+custom numerics or --kp-max / --kd-max), its timestep and torque limits.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pupper_core._native import ConfigError
+
+#: The spread a robot owner's Pupper plausibly differs from its model by,
+#: when no fit says better: battery and payload, leg parts, what each motor
+#: delivers of its gains, the floor, and the encoder's noise (rad). The
+#: sensing latency (whole steps, from --sensing-delay) is added to it.
+DEFAULT_SPREAD = ("torso_mass=±15%", "leg_mass=±10%", "motor_gain=±10%", "friction=0.6:1.2",
+                  "q_noise=N(0,0.001)")
+#: The firmware: the PD updated at 500 Hz (Pupper v3's control rate) on a
+#: 14-bit encoder, its derivative the encoder's difference over a period.
+DEFAULT_MOTOR = "rate=500,counts=16384"
+#: Robots drawn from a fit's intervals: joint models, each run on an equal
+#: share of the robots.
+FIT_MODELS = 8
+#: A neighbour of the pick, per group: its kp or kd times or over this.
+NEIGHBOUR = 1.25
+
+
+class RecommendError(ConfigError, ValueError):
+    """Bad input to `recommend`: one line naming the problem and the fix."""
+
+
+@dataclass(frozen=True)
+class Group:
+    """A joint group: its actuators (indices in the model's order), the
+    searched ranges, its joints' reflected inertia (the smallest: the
+    loop with the least inertia crosses over highest)."""
+
+    name: str
+    actuators: tuple[int, ...]
+    kp_range: tuple[float, float]
+    kd_range: tuple[float, float]
+    #: the least and most reflected inertia its joints may have (kg·m²)
+    inertia: tuple[float, float]
+    #: the smallest torque limit of its actuators (N·m): the force range,
+    #: else (a motor) the control range, as the runs take it
+    torque_limit: float
+    #: its loops by what their motors deliver of a commanded kp and kd:
+    #: (kp scale, kd scale, least inertia, most inertia), each distinct pair
+    #: of scales once with the inertia of its joints (the model's gain
+    #: scales, `pupper:kp_scale:ACT`: a fit's; (1, 1) on an uncalibrated
+    #: model). The loop is closed on the delivered gains.
+    loops: tuple[tuple[float, float, float, float], ...] = ()
+
+    @property
+    def scales(self) -> tuple[tuple[float, float], ...]:
+        return tuple((sp, sd) for sp, sd, _, _ in self.loops) or ((1.0, 1.0),)
+
+    @property
+    def scaled(self) -> bool:
+        """Whether its motors deliver other gains than they are told."""
+        return self.scales != ((1.0, 1.0),)
+
+    @property
+    def kp_scale(self) -> tuple[float, float]:
+        """The least and most of a commanded kp its motors deliver."""
+        return min(s[0] for s in self.scales), max(s[0] for s in self.scales)
+
+    @property
+    def kd_scale(self) -> tuple[float, float]:
+        return min(s[1] for s in self.scales), max(s[1] for s in self.scales)
+
+
+@dataclass
+class Plan:
+    model: str
+    actuators: list[str]
+    groups: list[Group]
+    timestep: float
+    motor: str
+    sensing_delay: float
+    command_delay: float
+    spread: list[str]
+    #: the least and most of a commanded kp and kd the motors deliver,
+    #: relative to the model's own gain scales (the spread's motor_gain, or
+    #: a fit's intervals about its fitted scales); `Group.kp_scale` are those
+    kp_factors: tuple[float, float]
+    kd_factors: tuple[float, float]
+    robots: int
+    trials: int
+    batch: int
+    seed: int
+    seconds: float
+    push_force: float | None
+    #: degrees and decibels every group's loop must keep
+    min_phase_margin: float
+    min_gain_margin: float
+    max_saturation: float
+    joint_order: list[str]
+    controller: str
+    #: how many times the pick may move to a better neighbour
+    polish: int
+    #: the most a robot may sag below its stance height (a share of it)
+    max_sag: float
+    #: the stance height (m): the base height with the lowest foot on the
+    #: floor in the start pose (NaN for a fixed base: no sag constraint)
+    stance: float
+    from_fit: Path | None
+    #: the fitted values and intervals (rows of fit.csv)
+    fit_rows: list[dict[str, str]] = field(default_factory=list)
+    #: with a fit: each drawn joint model's values, (parameter, actuators, value)
+    fit_draws: list[list[tuple[str, list[str], float]]] = field(default_factory=list)
+    #: the gains the robot runs today, per group, set beside the pick on the
+    #: card (empty: none known), and where they came from
+    current: dict[str, tuple[float, float]] = field(default_factory=dict)
+    current_from: str = ""
+    #: whether motor caps (--kp-max and --kd-max, or the model's numerics)
+    #: bound every group's search, rather than the defaults' x20 and x50
+    caps: bool = False
+
+    def sags(self, height: float) -> bool:
+        """Whether a robot whose lowest final base height is `height` (m)
+        sags past the limit (never, on a fixed base)."""
+        return math.isfinite(self.stance) and not height >= (1 - self.max_sag) * self.stance
+
+    @property
+    def per_model(self) -> int:
+        """Robots per joint model: all on the one model, or an equal share
+        of each drawn from a fit."""
+        return self.robots // max(1, len(self.fit_draws))
+
+    def sweep_options(self) -> dict[str, Any]:
+        """The sweep every candidate runs: torque mode through the firmware,
+        the robots drawn alike for every candidate (common draws)."""
+        opts: dict[str, Any] = {"mode": "torque", "motor": self.motor, "seconds": self.seconds,
+                                "seed": self.seed, "randomize": list(self.spread), "common_draws": True}
+        if self.push_force is not None:
+            opts["push_force"] = self.push_force
+        return opts
+
+    def inputs(self) -> dict[str, Any]:
+        """What the manifest records."""
+        return {
+            "model": self.model, "robots": self.robots, "trials": self.trials, "batch": self.batch,
+            "seed": self.seed, "seconds": self.seconds, "push_force": self.push_force, "motor": self.motor,
+            "sensing_delay": self.sensing_delay, "command_delay": self.command_delay, "spread": self.spread,
+            "kp_factors": list(self.kp_factors), "kd_factors": list(self.kd_factors),
+            "inertia": {g.name: list(g.inertia) for g in self.groups}, "min_phase_margin_deg": self.min_phase_margin,
+            "min_gain_margin_db": self.min_gain_margin, "max_saturation": self.max_saturation,
+            "max_sag": self.max_sag, "stance_m": self.stance,
+            "ranges": {g.name: {"kp": list(g.kp_range), "kd": list(g.kd_range)} for g in self.groups},
+            "joint_order": self.joint_order, "controller": self.controller, "polish": self.polish,
+            "from_fit": None if self.from_fit is None else os.fspath(self.from_fit),
+            "fit_draws": [[[p, a, v] for p, a, v in d] for d in self.fit_draws],
+            # what the motors deliver of a commanded gain, per group: the loop is closed on it
+            "delivered": {g.name: {"kp": [self.kp_factors[0] * g.kp_scale[0], self.kp_factors[1] * g.kp_scale[1]],
+                                   "kd": [self.kd_factors[0] * g.kd_scale[0], self.kd_factors[1] * g.kd_scale[1]]}
+                          for g in self.groups},
+            "current": {g: list(v) for g, v in self.current.items()}, "current_from": self.current_from,
+        }
