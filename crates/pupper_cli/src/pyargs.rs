@@ -105,11 +105,6 @@ impl PyArgs {
         serde_json::Value::String(format!("\0{}\0", self.literals.len() - 1))
     }
 
-    /// Paths as a JSON list.
-    pub fn paths<P: AsRef<OsStr>>(&mut self, paths: &[P]) -> serde_json::Value {
-        serde_json::Value::Array(paths.iter().map(|p| self.path(p)).collect())
-    }
-
     /// The JSON text of `args`, every placeholder replaced by its path.
     pub fn text(&self, args: &serde_json::Value) -> String {
         let mut text = args.to_string();

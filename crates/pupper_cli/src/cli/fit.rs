@@ -5,14 +5,15 @@ use std::path::PathBuf;
 
 use clap::Args;
 use pupper_core::{Error, Result};
+use serde::Serialize;
 
 use super::args::ModelArg;
 use super::python::python_command;
 use super::rundir_name;
-use crate::pyargs::PyArgs;
+use crate::pyargs;
 use pupper_mujoco::bridge::calls;
 
-#[derive(Args, Debug)]
+#[derive(Args, Debug, Serialize)]
 #[command(
     after_help = "The log (CSV, plain or gzip/bzip2/xz-compressed): `# key: value` lines, then a header
 time,ACTUATOR.target,ACTUATOR.q[,ACTUATOR.qd][,ACTUATOR.tau],... in s, rad, rad/s, N·m, for any
@@ -31,9 +32,11 @@ Examples:
 )]
 pub(super) struct ExciteArgs {
     #[command(flatten)]
+    #[serde(flatten)]
     model: ModelArg,
     /// The log to write.
     #[arg(long, short = 'o', value_name = "FILE", default_value = "excite.csv")]
+    #[serde(serialize_with = "pyargs::path")]
     out: PathBuf,
     /// Overwrite --out.
     #[arg(long)]
@@ -49,6 +52,7 @@ pub(super) struct ExciteArgs {
     signal: String,
     /// The excited band (Hz), F0,F1.
     #[arg(long, default_value = "0.3,6", value_name = "F0,F1")]
+    #[serde(skip)]
     band: String,
     /// Seconds of excitation per joint group.
     #[arg(long, default_value_t = 8.0, value_name = "S", allow_negative_numbers = true)]
@@ -75,6 +79,15 @@ pub(super) struct ExciteArgs {
     /// targets are held between samples, as the servo holds them [default: the physics rate]
     #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
     rate: Option<f64>,
+}
+
+/// What `pupper_core._fit._cli_excite` is given: the flags, the band as
+/// the two numbers read from --band.
+#[derive(Serialize)]
+struct ExciteCall<'a> {
+    #[serde(flatten)]
+    args: &'a ExciteArgs,
+    band: Vec<f64>,
 }
 
 impl ExciteArgs {
@@ -111,28 +124,13 @@ impl ExciteArgs {
                 )));
             }
         }
-        let mut py = PyArgs::new();
-        let args = serde_json::json!({
-            "model": self.model.model,
-            "out": py.path(&self.out),
-            "force": self.force,
-            "kp": self.kp,
-            "kd": self.kd,
-            "signal": self.signal,
-            "band": band,
-            "seconds": self.seconds,
-            "hold": self.hold,
-            "amplitude": self.amplitude,
-            "max_velocity": self.max_velocity,
-            "seed": self.seed,
-            "joints": self.joints,
-            "rate": self.rate,
-        });
-        python_command(&calls::EXCITE, &py.text(&args))
+        let call = ExciteCall { args: self, band };
+        let text = pyargs::to_text(&call).map_err(|e| Error::Internal(e.to_string()))?;
+        python_command(&calls::EXCITE, &text)
     }
 }
 
-#[derive(Args, Debug)]
+#[derive(Args, Debug, Serialize)]
 #[command(
     after_help = "The fit replays each log through the model hung in the air (free joint removed,
 contacts off) at the log's gains and fits the angles (and velocities and torques where
@@ -159,8 +157,10 @@ pub(super) struct FitArgs {
     /// --held and --columns for it); @FILE reads such logs from a file, one per line (# comments;
     /// paths relative to the file's folder).
     #[arg(required = true, value_name = "LOG")]
+    #[serde(serialize_with = "pyargs::paths")]
     logs: Vec<PathBuf>,
     #[command(flatten)]
+    #[serde(flatten)]
     model: ModelArg,
     /// What to fit, comma-separated: armature, damping, frictionloss, kp_scale, kd_scale, delay.
     #[arg(
@@ -174,6 +174,7 @@ pub(super) struct FitArgs {
     per: String,
     /// Run directory (default runs/<time>-fit).
     #[arg(long, short = 'o', value_name = "DIR")]
+    #[serde(skip)]
     out: Option<PathBuf>,
     /// Overwrite pupper's files in an existing --out directory.
     #[arg(long)]
@@ -211,6 +212,7 @@ pub(super) struct FitArgs {
     /// validation_bode.csv and plots/validate_<log>.png. Each at its own gains (its header,
     /// LOG::kp=K,kd=D, or --gains-from-name; not --kp/--kd); @FILE as for LOG.
     #[arg(long, value_name = "LOG", num_args = 1..)]
+    #[serde(serialize_with = "pyargs::paths")]
     validate: Vec<PathBuf>,
     /// Replay through the servo firmware, KEY=VALUE,...: rate (Hz), filter (Hz), counts (the
     /// encoder's difference velocity), noload (rad/s), noise (the encoder noise the PD reads, rad)
@@ -219,27 +221,21 @@ pub(super) struct FitArgs {
     motor: Option<String>,
 }
 
+/// What `pupper_core._fit._cli_fit` is given: the flags and the run
+/// directory.
+#[derive(Serialize)]
+struct FitCall<'a> {
+    #[serde(flatten)]
+    args: &'a FitArgs,
+    #[serde(serialize_with = "pyargs::path")]
+    out: PathBuf,
+}
+
 impl FitArgs {
     pub(super) fn run(&self) -> Result<u8> {
         let out = self.out.clone().unwrap_or_else(|| rundir_name("fit"));
-        let mut py = PyArgs::new();
-        let args = serde_json::json!({
-            "logs": py.paths(&self.logs),
-            "model": self.model.model,
-            "params": self.params,
-            "per": self.per,
-            "out": py.path(&out),
-            "force": self.force,
-            "max_iters": self.max_iters,
-            "plot": self.plot,
-            "columns": self.columns,
-            "kp": self.kp,
-            "kd": self.kd,
-            "gains_from_name": self.gains_from_name,
-            "held": self.held,
-            "validate": py.paths(&self.validate),
-            "motor": self.motor,
-        });
-        python_command(&calls::FIT, &py.text(&args))
+        let call = FitCall { args: self, out };
+        let text = pyargs::to_text(&call).map_err(|e| Error::Internal(e.to_string()))?;
+        python_command(&calls::FIT, &text)
     }
 }
