@@ -197,6 +197,11 @@ pub(super) struct FitArgs {
     /// [default: MuJoCo's ideal servo]
     #[arg(long, value_name = "KEY=VALUE,...")]
     motor: Option<String>,
+    /// Where the fit starts a kind of parameter, KIND=VALUE,... (e.g. delay=0.015); the delay is
+    /// also estimated from the logs, and the lowest cost of every start is kept
+    /// [default: the model's values]
+    #[arg(long, value_name = "KIND=VALUE,...")]
+    start: Option<String>,
 }
 
 impl FitArgs {
@@ -218,6 +223,7 @@ impl FitArgs {
             "held": self.held,
             "validate": py.paths(&self.validate),
             "motor": self.motor,
+            "start": self.start,
         });
         python_command(&calls::FIT, &py.text(&args))
     }
