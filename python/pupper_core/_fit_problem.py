@@ -192,26 +192,43 @@ def as_replayed(read: list[JointLog], dt: float) -> tuple[list[JointLog], list[s
     (``_velocity_lag``); ``dt``: the model's timestep."""
     from dataclasses import replace
 
-    out, notes = [], []
+    out: list[JointLog] = []
+    evened: list[tuple[str, float, float]] = []
+    lagged: list[tuple[str, float]] = []
     for lg in read:
         even = _even(lg)
         if even is not None:
             t, jitter = even
-            notes.append(f"{lg.path.name}: its angles change smoothly from row to row but not at their time "
-                         f"stamps (which jitter by {jitter * 1e3:.1f} ms RMS about an even "
-                         f"{float(np.mean(np.diff(lg.times))) * 1e3:.2f} ms): the rows are replayed evenly spaced, "
-                         "the stamps taken as the logger's clock")
+            evened.append((lg.path.name, jitter, float(np.mean(np.diff(lg.times)))))
             lg = replace(lg, times=t)
         lag = _velocity_lag(lg, dt)
         if lag and lg.qd is not None:
             t = lg.times
             qd = np.stack([np.interp(t + lag, t, lg.qd[:, k]) for k in range(lg.qd.shape[1])], axis=1)
-            notes.append(f"{lg.path.name}: its velocity runs {lag * 1e3:.1f} ms behind its angles' own "
-                         "derivative (an estimate from older samples): it is compared with the model's velocity "
-                         "that much earlier")
+            lagged.append((lg.path.name, lag))
             lg = replace(lg, qd=qd)
         out.append(lg)
+    notes = []
+    if evened:
+        jitter = _span([j * 1e3 for _, j, _ in evened])
+        period = _span([p * 1e3 for _, _, p in evened], ".2f")
+        notes.append(f"{_names([n for n, _, _ in evened])}: the angles change smoothly from row to row but not at "
+                     f"their time stamps (which jitter by {jitter} ms RMS about an even {period} ms): the rows are "
+                     "replayed evenly spaced, the stamps taken as the logger's clock")
+    if lagged:
+        notes.append(f"{_names([n for n, _ in lagged])}: the velocity runs {_span([g * 1e3 for _, g in lagged])} ms "
+                     "behind the angles' own derivative (an estimate from older samples): it is compared with the "
+                     "model's velocity that much earlier")
     return out, notes
+
+
+def _names(names: list[str]) -> str:
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+
+
+def _span(values: list[float], fmt: str = ".1f") -> str:
+    lo, hi = f"{min(values):{fmt}}", f"{max(values):{fmt}}"
+    return lo if lo == hi else f"{lo} to {hi}"
 
 
 def _moving(lg: JointLog) -> list[int]:
