@@ -3,6 +3,7 @@ written as a plain MuJoCo loop (not pupper's code): a stand-in for a real
 bench log, for docs/fit.md and the tests.
 
     python examples/stand_log.py stand.csv --kp 5 --kd 0.1 --seed 0
+    python examples/stand_log.py stand.csv.gz --kp 5 --kd 0.1 --seed 0 --gzip
 
 The "hardware" is the built-in robot hung in the air with heavier rotors,
 more damping and friction than the nominal model; it steps at 0.5 ms
@@ -22,11 +23,15 @@ from an arbitrary start, in its own column names:
 (the command message's gains, and a column nobody maps). The command is
 the sine at the stamp's time (what the loop believes); the angle carries
 encoder noise and a 14-bit encoder's quantisation; the velocity is the
-servo's estimate from the angles, ``VELOCITY_LAG`` behind the joint."""
+servo's estimate from the angles, ``VELOCITY_LAG`` behind the joint. With
+``gzip`` (``--gzip``) the file is gzipped as the Pupper team's bench logs
+are (``gzip -n -9``: no name, no time stamp)."""
 
 from __future__ import annotations
 
 import csv
+import gzip as _gzip
+import io
 import math
 from pathlib import Path
 
@@ -51,6 +56,9 @@ PERIOD, JITTER = 0.004, 0.0033
 VELOCITY_LAG = 0.005
 #: the motor's torque limit (the model's forcerange)
 TORQUE_LIMIT = 3.0
+#: the plain stand (stand_log's keywords): no torque lag, a 15 ms delay, rows at their stamps, a velocity on
+#: time, 0.2 rad; a servo the default parameters can follow, for tests whose subject is not the servo's lag
+PLAIN: dict = dict(truth={**TRUTH, "lag": 0.0, "delay": 0.015}, clock=False, velocity_lag=0.0, amplitude=0.2)
 
 
 def segments(freqs: tuple[float, ...] = FREQS, hold: float = 0.3) -> list[tuple[float, float, float]]:
@@ -112,11 +120,13 @@ def stamps(seconds: float, seed: int, start: float, clock: bool = True) -> tuple
 
 def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, float] = TRUTH,
               start: float = 1732600000.25, noise: float = 1e-3, held_columns: bool = False,
-              clock: bool = True, velocity_lag: float = VELOCITY_LAG) -> Path:
+              clock: bool = True, velocity_lag: float = VELOCITY_LAG, amplitude: float = AMPLITUDE,
+              gzip: bool = False) -> Path:
     """Plays the stepped sine on the stand and writes the loop's log (no
     header lines: the gains are the command line's to give). ``truth``:
     the stand's values (TRUTH's keys; ``lag`` and ``latency`` default 0);
-    ``clock``: rows on time, stamps late (else each row at its stamp)."""
+    ``clock``: rows on time, stamps late (else each row at its stamp);
+    ``amplitude``: the sine's (rad); ``gzip``: compressed as the bench's tool does (``gzip -n -9``)."""
     truth = {"lag": 0.0, "latency": 0.0, **truth}
     m = hardware(kp, kd, truth)
     d = mujoco.MjData(m)
@@ -126,7 +136,7 @@ def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, f
     seconds = segments()[-1][1] + 0.3
     when, ts = stamps(seconds, seed, start, clock)
     # the loop computes its command from the time it reads
-    cmd = command(ts - ts[0])
+    cmd = command(ts - ts[0], amplitude)
     rng = np.random.default_rng(seed + 100)
     q, qd = np.empty(len(ts)), np.empty(len(ts))
     g, dg = kp * truth["kp_scale"], kd * truth["kd_scale"]
@@ -151,7 +161,7 @@ def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, f
     step = 2 * math.pi / 2**14
     q = np.round((q + noise * rng.standard_normal(len(q))) / step) * step
     qd = qd + 0.05 * rng.standard_normal(len(qd))
-    with path.open("w", newline="") as f:
+    with io.StringIO(newline="") as f:
         w = csv.writer(f, lineterminator="\n")
         extra = ["fr_hip_cmd", "fr_hip_pos", "fr_hip_vel"] if held_columns else []
         w.writerow(["fr_knee_cmd", "fr_knee_kp", "fr_knee_kd", "fr_knee_pos", "fr_knee_vel", "fr_knee_effort",
@@ -160,6 +170,13 @@ def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, f
             row = [repr(float(cmd[i])), repr(kp), repr(kd), repr(float(q[i])), repr(float(qd[i])), "nan"]
             row += ["0.0", "0.0", "0.0"] if held_columns else []
             w.writerow(row + [f"{ts[i]:.6f}"])
+        data = f.getvalue().encode()
+    if gzip:
+        packed = bytearray(_gzip.compress(data, compresslevel=9, mtime=0))
+        # the OS byte gzip writes on Linux (Python's module writes 255, "unknown")
+        packed[9] = 3
+        data = bytes(packed)
+    path.write_bytes(data)
     return path
 
 
@@ -185,8 +202,9 @@ def main() -> None:
     p.add_argument("--kp", type=float, default=5.0)
     p.add_argument("--kd", type=float, default=0.1)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--gzip", action="store_true", help="gzip the log, as the bench's tool does")
     a = p.parse_args()
-    print(f"wrote {stand_log(a.out, kp=a.kp, kd=a.kd, seed=a.seed)}")
+    print(f"wrote {stand_log(a.out, kp=a.kp, kd=a.kd, seed=a.seed, gzip=a.gzip)}")
 
 
 if __name__ == "__main__":

@@ -46,7 +46,10 @@ RUNS: dict[str, list[list[str]]] = {
     "fit": [["@robot"],
             ["excite", "--model", "robot.xml", "--kd", "0.1", "--seconds", "3", "-o", "robot1.csv"],
             ["excite", "--model", "robot.xml", "--kd", "0.3", "--seconds", "3", "--seed", "1", "-o", "robot2.csv"],
-            ["fit", "robot1.csv", "robot2.csv", "-o", "fit"]],
+            # a log at other gains, of sines (a chirp) for the frequency response, not fitted: the verdict's
+            ["excite", "--model", "robot.xml", "--kp", "7.5", "--kd", "0.2", "--signal", "chirp", "--band", "1,12",
+             "--seconds", "3", "-o", "robot3.csv"],
+            ["fit", "robot1.csv", "robot2.csv", "--validate", "robot3.csv", "-o", "fit"]],
     "recommend": [["recommend", "--trials", "8", "--batch", "8", "--robots", "32", "--polish", "1", "-q",
                    "-o", "recommend"]],
 }

@@ -169,7 +169,7 @@ def test_held_and_the_gains_flags_fill_what_a_log_does_not_say(bench, tmp_path):
     assert np.all(lg.target[:, i2] == 0.5) and np.all(lg.q[:, i2] == 0.5)
     assert np.all(lg.target[:, 0] == robot.rest[0]) and np.ptp(lg.target[:, i3]) > 0.3
     assert np.all(lg.kp == 5.0) and np.all(lg.kd == 0.1)
-    with pytest.raises(pc.ConfigError, match=r"no '# kp:' line.*or give --kp"):
+    with pytest.raises(pc.ConfigError, match=r"no '# kp:' line.*give --kp K --kd D"):
         pc.fit(bench[0.1], columns=no_gains, progress=False)
 
 

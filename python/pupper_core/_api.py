@@ -321,13 +321,21 @@ def excite(model: str | os.PathLike[str] = "pupper_v3", **options: Any) -> Any:
 
 
 @exported_from("pupper_core")
-def fit(logs: Sequence[str | os.PathLike[str]] | str | os.PathLike[str], **options: Any) -> Any:
+def fit(logs: Sequence[str | os.PathLike[str]] | str | os.PathLike[str] | Mapping[str, Mapping[str, Any]],
+        **options: Any) -> Any:
     """Calibrate the model to joint logs with mujoco.sysid, as `pupper fit`
-    does: keywords model, params (armature, damping, frictionloss, kp_scale,
-    kd_scale, delay), per ("all", "group", "joint"), out, force, max_iters,
-    plot, columns (the logs' own column names and units: KEY=COLUMN[:UNIT],...
-    or a map file), kp, kd, held (for logs that do not say them), validate
-    (logs replayed, not fitted), motor (the servo firmware to replay through).
+    does. ``logs``: a path (plain, gzip, bzip2 or xz), a list of them, or
+    a dict LOG -> its own options ({"kp": 5, "kd": 0.25, "held": 0,
+    "columns": MAP}); a string may say them too ("LOG::kp=5,kd=0.25"), and
+    "@LIST" names a file listing such logs. Keywords model, params
+    (armature, damping, frictionloss, kp_scale, kd_scale, delay), per
+    ("all", "group", "joint"), out, force, max_iters, plot, columns (the
+    logs' own column names and units: KEY=COLUMN[:UNIT],... or a map file),
+    kp, kd (one value, or one per logged joint), held (for fitted logs that
+    do not say them), gains_from_name (a pattern such as "kp_{kp}_kd_{kd}"
+    that reads each log's gains from its file name), validate (one log or
+    a list, replayed, not fitted; each states its own gains), motor (the
+    servo firmware to replay through).
     Needs the fit extra; returns a FitResult (``table`` as fit.csv,
     ``value(name)``, ``interval(name)``, RMS angle error before and after)."""
     from pupper_core import _fit
@@ -335,7 +343,12 @@ def fit(logs: Sequence[str | os.PathLike[str]] | str | os.PathLike[str], **optio
     if isinstance(logs, (str, os.PathLike)):
         logs = [logs]
     elif isinstance(logs, Mapping):
-        raise TypeError(f"logs must be a joint log's path or a list of paths, not a dict ({logs!r})")
+        # each log with its own options: {"run.csv.gz": {"kp": 5, "kd": 0.25}}
+        for log, own in logs.items():
+            if not isinstance(own, Mapping):
+                raise TypeError(f"logs as a dict maps each log to its options ({{'kp': 5, 'kd': 0.25}}): "
+                                f"{log!r}'s {own!r} is not a dict")
+        return _fit.fit(list(logs.items()), **options)
     return _fit.fit(list(logs), **options)
 
 

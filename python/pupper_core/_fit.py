@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from pupper_core._files import flush_stdout, printing, say
 from pupper_core._fit_excite import _excite, excite
 from pupper_core._fit_firmware import Firmware, parse_motor
 from pupper_core._fit_jacobian import jacobian_fn, rollouts_per_jacobian
@@ -87,6 +88,7 @@ from pupper_core._fit_terms import (
 )
 from pupper_core._joint_log import JointLog, LogError
 from pupper_core._log_columns import ColumnMap, read_map
+from pupper_core._log_specs import option_text, path_list
 from pupper_core._signals import _stop_on_signals
 
 __all__ = ["fit", "excite", "FitResult", "FitError", "PARAMS"]
@@ -104,18 +106,26 @@ def _parse_params(params: str | Sequence[str]) -> list[str]:
     return names
 
 
-def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str] = "pupper_v3",
+def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Mapping[str, Any]]], *,
+        model: str | os.PathLike[str] = "pupper_v3",
         params: str | Sequence[str] = DEFAULT_PARAMS, per: str = "all", out: str | os.PathLike[str] | None = None,
         force: bool = False, max_iters: int = 50, plot: bool = False, progress: bool | Callable[[str], None] = True,
-        columns: str | None = None, kp: float | str | None = None, kd: float | str | None = None,
-        held: float | str | Mapping[str, float] | None = None,
-        validate: Sequence[str | os.PathLike[str]] = (), motor: str | None = None,
-        start: str | Mapping[str, float] | None = None) -> FitResult:
+        columns: str | os.PathLike[str] | None = None, kp: float | str | Sequence[float] | None = None,
+        kd: float | str | Sequence[float] | None = None, held: float | str | Mapping[str, float] | None = None,
+        validate: Sequence[str | os.PathLike[str]] | str | os.PathLike[str] = (), motor: str | None = None,
+        gains_from_name: str | None = None, start: str | Mapping[str, float] | None = None) -> FitResult:
     """Fits ``params`` (per ``all`` actuators, joint ``group`` or ``joint``)
     to the joint ``logs`` and, with ``out``, writes the run directory.
+    A log is a path (plain or gzip/bzip2/xz-compressed), ``"LOG::kp=5,kd=0.25"``
+    (its own gains, and held=, columns=), ``"@LIST"`` (a file naming such
+    logs, one per line), or (path, {"kp": 5, "kd": 0.25}).
     ``columns``: a column map (KEY=COLUMN[:UNIT],...) or its file, over
-    each log's own; ``kp``, ``kd``, ``held``: for a log that does not say
-    them in its header. ``validate``: logs not fitted, replayed through the
+    each log's own; ``kp``, ``kd`` (one value, or one per logged joint),
+    ``held``: for a fitted log that does not say them in its header (a
+    header that says other values is refused); ``gains_from_name``: a
+    pattern with {kp} and {kd} that reads each log's gains from its file
+    name. ``validate``: logs not fitted (one path, or a list; each states
+    its own gains), replayed through the
     nominal and the calibrated model (``FitResult.validation``). ``motor``:
     the servo firmware to replay through (rate, filter, counts, noload, as
     --motor takes them; default MuJoCo's ideal servo). ``start``: where
@@ -126,6 +136,10 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
     SIGTERM stop it (KeyboardInterrupt) with nothing written."""
     names = _parse_params(params)
     begin = parse_start(start, names)
+    try:
+        logs, validate = path_list(logs, "logs"), path_list(validate, "validate")
+    except LogError as e:
+        raise FitError(str(e)) from None
     if per not in PER:
         raise FitError(f"--per {per} is unknown: use all, group or joint")
     if not logs:
@@ -144,8 +158,8 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
             # the torque's lag and the PD's latency live in the firmware's loop: its replay, ideal otherwise
             firmware = Firmware()
         options = _log_options(columns, kp, kd, held)
-        read = _read_logs(logs, robot, *options)
-        held_out = _read_logs(validate, robot, *options) if validate else []
+        read = _read_logs(logs, robot, *options, pattern=gains_from_name)
+        held_out = _read_logs(validate, robot, *options, pattern=gains_from_name, role="validate") if validate else []
         check_apart(read, held_out)
         # only the legs the logs move are stepped (the others, hung from a welded base, do nothing)
         read, robot = narrowed(read, robot)
@@ -161,7 +175,7 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
             pb = _problem(sysid, robot, read, names, per, firmware)
             sol = _solve(sysid, pb, max_iters, begin, _Progress(progress))
             val = validate_logs(sysid, pb, sol, held_out, names, per) if held_out else None
-        result = _result(pb, sol, out_dir, time.perf_counter() - started, val)
+        result = _result(pb, sol, out_dir, time.perf_counter() - started, val, per)
         result.notes = notes
         result.delay_scan = sol.scan
         if out_dir is not None:
@@ -169,20 +183,15 @@ def fit(logs: Sequence[str | os.PathLike[str]], *, model: str | os.PathLike[str]
     return result
 
 
-def _log_options(columns: str | None, kp: float | str | None, kd: float | str | None,
-                 held: float | str | Mapping[str, float] | None) -> tuple[ColumnMap | None, dict[str, str | None]]:
-    """The column map and the header keys a log may leave to the caller."""
+def _log_options(columns: Any, kp: Any, kd: Any, held: Any) -> tuple[ColumnMap | None, dict[str, str | None]]:
+    """The column map and the header keys a log may leave to the caller
+    (numbers Python's or NumPy's, gains one per joint as a list)."""
     try:
-        cmap = read_map(columns) if columns else None
+        texts = {k: option_text(k, v, "") for k, v in (("columns", columns), ("kp", kp), ("kd", kd), ("held", held))}
+        cmap = read_map(texts["columns"]) if texts["columns"] else None
     except LogError as e:
         raise FitError(str(e)) from None
-    if isinstance(held, Mapping):
-        held = ",".join(f"{a}={float(v)!r}" for a, v in held.items())
-
-    def text(v: float | str | None) -> str | None:
-        return None if v is None else v if isinstance(v, str) else repr(float(v))
-
-    return cmap, {"kp": text(kp), "kd": text(kd), "held": text(held)}
+    return cmap, {"kp": texts["kp"], "kd": texts["kd"], "held": texts["held"]}
 
 
 def _memory_limit() -> float:
@@ -394,7 +403,7 @@ class _Progress:
         if callable(progress):
             self.say: Callable[[str], None] | None = progress
         elif progress and sys.stderr.isatty():
-            self.say = lambda line: print(line, file=sys.stderr, flush=True)
+            self.say = say
         else:
             self.say = None
         self.rollouts = 0
@@ -671,12 +680,15 @@ def _confounded(pb: _Problem, sol: _Solution) -> list[str]:
 
 
 def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float,
-            val: Validation | None = None) -> FitResult:
+            val: Validation | None = None, per: str = "all") -> FitResult:
+    from pupper_core._fit_output import _whole_labels
+
     table = []
-    for i, (name, kind, members, nom) in enumerate(pb.labels):
+    # the actuators each value goes to in calibrated.xml: the whole robot's, where only some legs were stepped
+    for i, (name, kind, members, nom) in enumerate(_whole_labels(pb.robot, pb.labels, per)):
         x, h = float(sol.x[i]), float(sol.half[i])
         table.append({"parameter": name, "kind": kind,
-                      "actuators": " ".join(pb.robot.actuators[k] for k in members),
+                      "actuators": " ".join(pb.robot.full.actuators[k] for k in members),
                       "nominal": nom, "fitted": x, "low95": x - h, "high95": x + h, "unit": PARAMS[kind][0]})
     kept = pb.kept
     return FitResult(table, {lg.path.name: v for lg, v in zip(pb.logs, sol.before)},
@@ -693,24 +705,26 @@ def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float,
 def _cli_fit(args_json: str) -> list[str]:
     a = json.loads(args_json)
     res = fit(a.pop("logs"), **a)
-    width = max(len(r["parameter"]) for r in res.table)
-    print(f"{'parameter':<{width}}  {'nominal':>10}  {'fitted':>10}  {'95 % interval':>25}  unit")
-    for r in res.table:
-        interval = (f"[{r['low95']:>10.4g}, {r['high95']:>10.4g}]" if not math.isnan(r["low95"])
-                    else f"{'(not meaningful)':>25}")
-        print(f"{r['parameter']:<{width}}  {r['nominal']:>10.4g}  {r['fitted']:>10.4g}  {interval}  {r['unit']}")
-    for name in res.rms_before:
-        b, f = np.mean(res.rms_before[name]) * 1e3, np.mean(res.rms_after[name]) * 1e3
-        n = len(res.actuators)
-        print(f"{name}: RMS angle error {b:.3f} -> {f:.3f} mrad (mean over {n} joint{'s' if n > 1 else ''})")
-    if res.validation:
-        print_table(res.validation)
-    for note in res.notes:
-        print(f"note: {note}", file=sys.stderr)
-    for w in res.warnings:
-        print(f"warning: {w}", file=sys.stderr)
-    print(f"fitted in {res.seconds:.1f} s")
-    sys.stdout.flush()
+    # the run directory is whole by now: a stdout that cannot take the table
+    # (a full disk) is one line
+    with printing():
+        width = max(len(r["parameter"]) for r in res.table)
+        print(f"{'parameter':<{width}}  {'nominal':>10}  {'fitted':>10}  {'95 % interval':>25}  unit")
+        for r in res.table:
+            interval = (f"[{r['low95']:>10.4g}, {r['high95']:>10.4g}]" if not math.isnan(r["low95"])
+                        else f"{'(not meaningful)':>25}")
+            print(f"{r['parameter']:<{width}}  {r['nominal']:>10.4g}  {r['fitted']:>10.4g}  {interval}  {r['unit']}")
+        for name in res.rms_before:
+            b, f = np.mean(res.rms_before[name]) * 1e3, np.mean(res.rms_after[name]) * 1e3
+            n = len(res.actuators)
+            print(f"{name}: RMS angle error {b:.3f} -> {f:.3f} mrad (mean over {n} joint{'s' if n > 1 else ''})")
+        if res.validation:
+            print_table(res.validation)
+        for note in res.notes:
+            say(f"note: {note}")
+        for w in res.warnings:
+            say(f"warning: {w}")
+        print(f"fitted in {res.seconds:.1f} s")
     if res.out is None:
         return []
     wrote = [str(res.out / n) for n in ("fit.csv", "residuals.csv", "calibrated.xml")]
@@ -728,6 +742,6 @@ def _cli_excite(args_json: str) -> list[str]:
     a = json.loads(args_json)
     path, notes = _excite(a.pop("model", "pupper_v3"), **a)
     for note in notes:
-        print(f"note: {note}", file=sys.stderr)
-    sys.stdout.flush()
+        say(f"note: {note}")
+    flush_stdout()
     return [str(path)]

@@ -7,6 +7,7 @@ joint-log format."""
 from __future__ import annotations
 
 import math
+import numbers
 import os
 import warnings as _warnings
 from collections.abc import Sequence
@@ -39,17 +40,19 @@ def _chirp(t: np.ndarray, band: tuple[float, float]) -> np.ndarray:
 
 
 @exported_from("pupper_core._fit")
-def excite(model: str | os.PathLike[str] = "pupper_v3", *, out: str | os.PathLike[str] = "excite.csv",
+def excite(model: str | os.PathLike[str] = "pupper_v3", *, out: str | os.PathLike[str] | None = "excite.csv",
            kp: float | None = None, kd: float | None = None, seconds: float = 8.0, hold: float = 1.0,
-           amplitude: float = 0.3, signal: str = "multisine", band: Sequence[float] = (0.3, 6.0),
+           amplitude: float = 0.3, signal: str = "multisine", band: Sequence[float] | str = (0.3, 6.0),
            max_velocity: float = 8.0, seed: int = 0, force: bool = False,
            joints: str | Sequence[str] | None = None, rate: float | None = None) -> Path:
     """Writes an excitation to play on the robot and the nominal model's
-    response to it, in the joint-log format; returns the file's path.
-    ``joints``: the actuators (or joint groups haa, hfe, kfe) excited and
-    logged, the others held at rest (a test stand); ``rate``: the log's
-    sample rate (Hz), targets held between samples. Gains past the explicit
-    PD's stability bound are said as a warning."""
+    response to it, in the joint-log format; returns the file's path
+    (``out``; None: excite.csv). Numbers may be Python's or NumPy's;
+    ``band`` is (F0, F1) or "F0,F1" (Hz). ``joints``: the actuators (or
+    joint groups haa, hfe, kfe) excited and logged, the others held at
+    rest (a test stand); ``rate``: the log's sample rate (Hz), targets held
+    between samples, fast enough for `fit` to read. Gains past the
+    explicit PD's stability bound are said as a warning."""
     path, notes = _excite(model, out=out, kp=kp, kd=kd, seconds=seconds, hold=hold, amplitude=amplitude,
                           signal=signal, band=band, max_velocity=max_velocity, seed=seed, force=force,
                           joints=joints, rate=rate)
@@ -58,11 +61,12 @@ def excite(model: str | os.PathLike[str] = "pupper_v3", *, out: str | os.PathLik
     return path
 
 
-def _excite(model: str | os.PathLike[str], *, out: str | os.PathLike[str], kp: float | None, kd: float | None,
-            seconds: float, hold: float, amplitude: float, signal: str, band: Sequence[float],
+def _excite(model: str | os.PathLike[str], *, out: str | os.PathLike[str] | None, kp: float | None, kd: float | None,
+            seconds: float, hold: float, amplitude: float, signal: str, band: Sequence[float] | str,
             max_velocity: float, seed: int, force: bool, joints: str | Sequence[str] | None = None,
             rate: float | None = None) -> tuple[Path, list[str]]:
-    """`excite`, and its notes."""
+    """`excite`, and its notes. Every option is checked before any work."""
+    seed = _seed(seed)
     robot = load_robot(model)
     out = _excite_out(out, force)
     chosen = _excite_joints(robot, joints)
@@ -70,6 +74,7 @@ def _excite(model: str | os.PathLike[str], *, out: str | os.PathLike[str], kp: f
                              {robot.groups[k] for k in chosen})
     stride = _excite_stride(robot, rate)
     gains_kp, gains_kd = _excite_gains(robot, kp, kd)
+    _excite_rate_fits(robot, stride, gains_kp, chosen, hi)
     notes = _stability_notes(robot, gains_kp, gains_kd)
     with _stop_on_signals("excite"):
         times, targets = _excite_targets(robot, gains_kp, signal, (lo, hi), seconds, hold, amplitude,
@@ -92,7 +97,18 @@ def _excite(model: str | os.PathLike[str], *, out: str | os.PathLike[str], kp: f
     return out, notes
 
 
-def _excite_out(out: str | os.PathLike[str], force: bool) -> Path:
+def _seed(seed: Any) -> int:
+    """The multisine's seed: a whole number >= 0 (NumPy's too), as the CLI's --seed."""
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or not 0 <= int(seed) < 2**64:
+        raise FitError(f"--seed {seed!r} is not a whole number from 0 to 2^64-1: give e.g. --seed 0")
+    return int(seed)
+
+
+def _excite_out(out: str | os.PathLike[str] | None, force: bool) -> Path:
+    if out is None:
+        out = "excite.csv"
+    if not isinstance(out, (str, os.PathLike)):
+        raise FitError(f"--out {out!r} is not a path: give the file to write, e.g. excite.csv")
     path = Path(out)
     if path.is_dir():
         raise FitError(f"--out {path} is a directory: give a file path (e.g. {path / 'excite.csv'})")
@@ -137,21 +153,46 @@ def _excite_stride(robot: Robot, rate: float | None) -> int:
     return stride
 
 
+def _excite_rate_fits(robot: Robot, stride: int, kp: np.ndarray, chosen: list[int], hi: float) -> None:
+    """Refuses a log rate fit could not read, before any work: fit refuses a
+    log sampled below twice the fastest joint's natural frequency at its
+    gains (it cannot show that motion), and below twice the band's top the
+    excitation itself aliases."""
+    if stride == 1:
+        return
+    top = 1 / robot.timestep
+    rate = top / stride
+    hz = robot.natural_hz(kp)[chosen]
+    k = int(np.argmax(hz))
+    swing = float(hz[k])
+    if rate >= 2 * max(swing, hi):
+        return
+    if swing >= hi:
+        why = (f"at kp {kp[chosen[k]]:g} {robot.actuators[chosen[k]]} swings at {swing:.3g} Hz, and fit refuses a "
+               f"log sampled below twice that ({2 * swing:.3g} Hz)")
+    else:
+        why = f"the --band reaches {hi:g} Hz, which a log below twice that ({2 * hi:g} Hz) cannot carry"
+    want = max(10 * swing, 2 * hi)
+    # the slowest rate that divides the physics rate into whole Hz at or above the one advised
+    ok = next((top / n for n in range(max(1, int(top // want)), 0, -1) if (top / n).is_integer()), top)
+    raise FitError(f"--rate {rate:g} Hz is too slow for fit: {why}; give --rate {ok:g} or more")
+
+
 def _number(name: str, v: Any) -> float:
-    """A flag's number; the CLI passes NaN and infinity as null."""
-    if v is None or not isinstance(v, (int, float)) or not math.isfinite(v):
+    """A flag's number (Python's or NumPy's); the CLI passes NaN and infinity as null."""
+    if v is None or isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(float(v)):
         # the CLI passes NaN and infinity alike, as null
         raise FitError(f"--{name} {'(nan or inf)' if v is None else v} is not a finite number: give e.g. "
                        f"--{name} {dict(seconds=8, hold=1, amplitude=0.3, band='0.3,6').get(name, 8)}")
     return float(v)
 
 
-def _excite_options(robot: Robot, signal: str, band: Sequence[float], seconds: float, hold: float,
+def _excite_options(robot: Robot, signal: str, band: Sequence[float] | str, seconds: float, hold: float,
                     amplitude: float, max_velocity: float, excited: set[str]) -> tuple[float, float]:
     """Checks excite's options; returns the band."""
     if signal not in ("multisine", "chirp"):
         raise FitError(f"--signal {signal} is unknown: use multisine or chirp")
-    lo, hi = (_number("band", b) for b in band)
+    lo, hi = _band(band)
     if not (0 < lo < hi < 0.5 / robot.timestep / 4):
         raise FitError(f"--band {lo:g},{hi:g} Hz is not 0 < F0 < F1 below a quarter of the "
                        f"Nyquist rate ({0.125 / robot.timestep:g} Hz): give e.g. 0.3,6")
@@ -170,13 +211,28 @@ def _excite_options(robot: Robot, signal: str, band: Sequence[float], seconds: f
     return lo, hi
 
 
+def _band(band: Any) -> tuple[float, float]:
+    """--band: (F0, F1), or the CLI's text "F0,F1"."""
+    parts = band.split(",") if isinstance(band, str) else band
+    try:
+        values = [float(p) if isinstance(p, str) else _number("band", p) for p in parts]
+    except (TypeError, ValueError, FitError):
+        values = []
+    if len(values) != 2 or not all(math.isfinite(v) for v in values):
+        raise FitError(f"--band {band!r} is not two numbers F0,F1 (Hz): give e.g. --band 0.3,6")
+    return values[0], values[1]
+
+
 def _excite_gains(robot: Robot, kp: float | None, kd: float | None) -> tuple[np.ndarray, np.ndarray]:
     """The gains to excite at: --kp/--kd, else the model's own."""
     n = len(robot.actuators)
     for key, v in (("kp", kp), ("kd", kd)):
         if v is not None:
+            if isinstance(v, bool) or not isinstance(v, numbers.Real):
+                raise FitError(f"--{key} {v!r} is not a number: excite runs every actuator at one {key}; "
+                               f"give e.g. --{key} 5")
             try:
-                check_gains([float(v)], key, f"--{key} {v:g}", "")
+                check_gains([float(v)], key, f"--{key} {float(v):g}", "")
             except LogError as e:
                 raise FitError(str(e)) from None
     gains_kp = np.full(n, float(kp)) if kp is not None else robot.own_kp
@@ -191,8 +247,11 @@ def _stability_notes(robot: Robot, kp: np.ndarray, kd: np.ndarray) -> list[str]:
     integrated PD at the timestep (pupper gains' margin, 1 or more)."""
     from pupper_core import _native
 
+    # at the stand pose, where the model has legs to pose; else (a bench of
+    # one joint) at the rest pose the excitation starts from
+    legged = any(leg >= 0 for leg in robot.legs)
     g = _native.gains(str(robot.file), kp=float(kp.max()), kd=float(kd.max()), bandwidth=None,
-                      damping=0.7, pose=None)
+                      damping=0.7, pose=None if legged else [float(q) for q in robot.rest])
     worst = max(g.get("joints", []), key=lambda j: float(j.get("stability_margin", 0.0)), default=None)
     if worst is None or not float(worst["stability_margin"]) >= 1:
         return []

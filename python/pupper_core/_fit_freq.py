@@ -127,9 +127,11 @@ def bandwidth(r: Response) -> float:
 
 
 def phase_at(r: Response, f: float) -> float:
-    """The phase (deg) at ``f``, interpolated in log frequency; NaN outside
-    the frequencies logged."""
-    if not r.freq[0] <= f <= r.freq[-1]:
+    """The phase (deg) at ``f``, interpolated in log frequency; within
+    POOL past an end of the frequencies logged, that end's (a step of a
+    stepped sine commanded at 2 Hz reads 2.0004 Hz off its stamps: it is
+    the 2 Hz step, as its cycles are pooled); NaN further out."""
+    if not r.freq[0] / (1 + POOL) <= f <= r.freq[-1] * (1 + POOL):
         return math.nan
     return float(np.interp(math.log(f), np.log(r.freq), r.phase))
 

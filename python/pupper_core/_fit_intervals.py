@@ -37,6 +37,8 @@ SEGMENT_S = 1.0
 MIN_SEGMENTS = 8
 #: The sandwich must exceed the noise interval by this factor for some parameter to call the residual structure.
 MODEL_RATIO = 2.0
+#: A log alone places a direction where it holds at least this share of all the logs' information.
+LOG_SHARE = 0.05
 
 
 def segments(times: list[np.ndarray], signals: int, period: float, tau: float) -> np.ndarray | None:
@@ -96,17 +98,29 @@ def ratio(noise: np.ndarray, model: np.ndarray) -> float:
 
 def per_log_shifts(jac: np.ndarray, r: np.ndarray, sizes: list[int]) -> np.ndarray | None:
     """Each log's own optimum less the fit's, to first order: one
-    Gauss–Newton step on its rows alone (logs, parameters); None with one
-    log or rows that do not match."""
+    Gauss–Newton step on its rows alone, in the directions it identifies
+    (logs, parameters); None with one log or rows that do not match."""
     if len(sizes) < 2 or jac is None or sum(sizes) != jac.shape[0] or r.shape[0] != jac.shape[0]:
         return None
+    # whitened by the whole fit's information H: in those coordinates each
+    # log's own information H_i has eigenvalues in [0, 1], its share of what
+    # all logs together know along each direction
+    h = jac.T @ jac
+    w, v = np.linalg.eigh(h)
+    if not np.all(np.isfinite(w)) or w[-1] <= 0:
+        return None
+    keep = w > w[-1] * 1e-12
+    white = v[:, keep] / np.sqrt(w[keep])
     out, start = [], 0
     for n in sizes:
-        j, ri = jac[start:start + n], r[start:start + n]
+        j, ri = jac[start:start + n] @ white, r[start:start + n]
         start += n
-        try:
-            out.append(-(np.linalg.pinv(j.T @ j, rcond=1e-12) @ (j.T @ ri)))
-        except np.linalg.LinAlgError:
-            return None
+        share, u = np.linalg.eigh(j.T @ j)
+        # a log alone places only the directions it knows a share of: along
+        # one it hardly sees (damping against kd's scale at its one kd) its
+        # "own optimum" is anywhere, and the other logs place it (no shift)
+        seen = share >= LOG_SHARE
+        step = u[:, seen] @ ((u[:, seen].T @ (j.T @ ri)) / share[seen])
+        out.append(-(white @ step))
     shifts = np.array(out)
     return shifts if np.all(np.isfinite(shifts)) else None

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import csv
 import json
-import math
 import os
 import shutil
 from pathlib import Path
@@ -14,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from pupper_core._files import refuse_non_regular
 from pupper_core._fit_problem import FitResult, _Problem, _Solution
 from pupper_core._fit_robot import Robot, _history_samples
 from pupper_core._fit_sysid import _predictions
@@ -41,11 +41,14 @@ def _write_run(out: Path, res: FitResult, pb: _Problem, sol: _Solution, model: A
         # a --force run's validation is this run's, or none
         for old in [out / "validation.csv", out / "validation_bode.csv", *out.glob("plots/validate_*.png")]:
             old.unlink(missing_ok=True)
-        for f in sorted(stage.rglob("*")):
-            if f.is_file():
-                dest = out / f.relative_to(stage)
-                dest.parent.mkdir(parents=True, exist_ok=True)
-                os.replace(f, dest)
+        staged = [f for f in sorted(stage.rglob("*")) if f.is_file()]
+        # none moved over a FIFO or a device: all refused before any moves
+        for f in staged:
+            refuse_non_regular(out / f.relative_to(stage))
+        for f in staged:
+            dest = out / f.relative_to(stage)
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(f, dest)
         from pupper_core import _report
 
         _report.report(out)
@@ -193,55 +196,13 @@ def _version() -> str:
 
 def _plot(out: Path, pb: _Problem, sol: _Solution) -> list[Path]:
     """Per log, measured against simulated angle of each fitted joint, at
-    the nominal and the fitted values, and beneath each joint its residual
-    (simulated minus measured, mrad): the lines on top lie on each other
-    where the fit is good, the residuals say by how much."""
-    import matplotlib
+    the nominal and the fitted values, each with its residual beneath
+    (``pupper_core._plots_fit`` draws them)."""
+    from pupper_core._plots_fit import fit_figure, save
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from pupper_core._files import atomic_write
-
-    kept = pb.kept
-    nu = len(kept)
     first = _predictions(sol.residual_fn, pb.pdict, pb.x_nominal)
     last = _predictions(sol.residual_fn, sol.params, sol.x)
-    (out / "plots").mkdir(exist_ok=True)
-    wrote = []
-    for lg, (t, me, p0), (_, _, p1) in zip(pb.logs, first, last):
-        cols = 4 if nu >= 4 else nu
-        rows = math.ceil(nu / cols)
-        fig = plt.figure(figsize=(4 * cols, 3.4 * rows))
-        grid = fig.add_gridspec(2 * rows, cols, height_ratios=[2.4, 1.0] * rows)
-        for k in range(nu):
-            r, c = k // cols, k % cols
-            ax = fig.add_subplot(grid[2 * r, c])
-            res = fig.add_subplot(grid[2 * r + 1, c], sharex=ax)
-            # the predictions' first columns are the fitted joints' angles
-            ax.plot(t, me[:, k], color="black", lw=1.0, label="measured")
-            ax.plot(t, p0[:, k], color="tab:gray", lw=0.8, ls="--", label="nominal model")
-            ax.plot(t, p1[:, k], color="tab:orange", lw=0.8, label="fitted model")
-            res.plot(t, (p0[:, k] - me[:, k]) * 1e3, color="tab:gray", lw=0.8, ls="--")
-            res.plot(t, (p1[:, k] - me[:, k]) * 1e3, color="tab:orange", lw=0.8)
-            res.axhline(0, color="black", lw=0.6)
-            r0 = np.sqrt(np.mean((me[:, k] - p0[:, k]) ** 2)) * 1e3
-            r1 = np.sqrt(np.mean((me[:, k] - p1[:, k]) ** 2)) * 1e3
-            ax.set_title(f"{pb.robot.actuators[kept[k]]}: RMS {r0:.2f} → {r1:.2f} mrad", fontsize=8)
-            ax.tick_params(labelsize=7, labelbottom=False)
-            res.tick_params(labelsize=7)
-            if k == 0:
-                ax.legend(fontsize=7, loc="upper right")
-            if c == 0:
-                ax.set_ylabel("angle (rad)", fontsize=8)
-                res.set_ylabel("sim − meas.\n(mrad)", fontsize=7)
-            if r == rows - 1 or k + cols >= nu:
-                res.set_xlabel("time (s)", fontsize=8)
-        fig.suptitle(f"{lg.path.name}: measured against simulated joint angle, before and after the fit; "
-                     "beneath each, the residual", fontsize=10)
-        fig.tight_layout()
-        path = out / "plots" / f"fit_{lg.path.stem}.png"
-        atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=90))
-        plt.close(fig)
-        wrote.append(path)
-    return wrote
+    names = [pb.robot.actuators[k] for k in pb.kept]
+    # the predictions' first columns are the fitted joints' angles
+    return [save(fit_figure(lg.path.name, t, me, p0, p1, names), out / "plots" / f"fit_{lg.path.stem}.png")
+            for lg, (t, me, p0), (_, _, p1) in zip(pb.logs, first, last)]

@@ -17,7 +17,8 @@ from pupper_core._fit_robot import Robot, initial_state, narrow, suspended_spec
 from pupper_core._fit_sysid import _held, _modifier
 from pupper_core._fit_terms import MAX_LOG_SECONDS, PARAMS, STILL_RAD, FitError
 from pupper_core._joint_log import JointLog, LogError, read_log
-from pupper_core._log_columns import ColumnMap
+from pupper_core._log_columns import ColumnMap, read_map
+from pupper_core._log_specs import LogSpec, gains_in_name, log_specs, name_pattern
 
 
 @dataclass
@@ -110,26 +111,69 @@ class _Solution:
     source: str = "noise"
 
 
-def _read_logs(paths: Sequence[str | os.PathLike[str]], robot: Robot, columns: ColumnMap | None = None,
-               defaults: dict[str, str | None] | None = None) -> list[JointLog]:
-    """Reads and checks every log (through the column map, with the header
-    keys ``defaults`` for a log that does not say them), widens each to the
-    model's actuators, and refuses the same log given twice."""
+def _read_logs(paths: Sequence[Any], robot: Robot, columns: ColumnMap | None = None,
+               defaults: dict[str, str | None] | None = None, *, pattern: str | None = None,
+               role: str = "fit") -> list[JointLog]:
+    """Reads and checks every log (``_log_specs``: a path, LOG::OPTIONS,
+    @LIST; through its column map, with the header keys ``defaults`` and
+    the gains its name states by ``pattern``, for a log that does not say
+    them), widens each to the model's actuators, and refuses the same
+    recording given twice. ``role``: "fit", or "validate", whose logs run
+    at gains of their own: --kp and --kd are not theirs."""
+    flag = "--validate" if role == "validate" else "LOG"
+    try:
+        specs = log_specs(paths, flag)
+        rx = name_pattern(pattern) if pattern else None
+    except LogError as e:
+        raise FitError(str(e)) from None
     read: list[JointLog] = []
-    for p in paths:
+    for spec in specs:
         try:
-            lg = read_log(Path(p), robot.ranges, columns=columns, defaults=defaults)
+            lg = read_log(spec.path, robot.ranges, **_sources(spec, columns, defaults or {}, rx, pattern, role))
         except LogError as e:
             raise FitError(str(e)) from None
         _check_log(lg, robot)
         lg = _widen(lg, robot)
-        twin = next((x for x in read if x.sha256 == lg.sha256), None)
+        twin = next((x for x in read if x.digest == lg.digest), None)
         if twin is not None:
-            # a copy adds no information, yet would narrow every interval
-            raise FitError(f"{lg.path} has the same content as {twin.path} (sha256 {lg.sha256[:12]}): "
-                           "give each log once")
+            # a copy adds no information, yet would narrow every interval: by the samples read, so
+            # that the same recording compressed, with a BOM or CRLF, or other columns, is one
+            how = (f"sha256 {lg.sha256[:12]}" if twin.sha256 == lg.sha256
+                   else "the same samples in other bytes")
+            raise FitError(f"{lg.path} has the same content as {twin.path} ({how}): give each log once")
         read.append(lg)
     return read
+
+
+def _sources(spec: LogSpec, columns: ColumnMap | None, defaults: dict[str, str | None], rx: Any,
+             pattern: str | None, role: str) -> dict[str, Any]:
+    """read_log's keywords for one log: its column map (its own
+    ``columns=`` in place of --columns), what states its gains and held
+    angles (its own options, its name, the flags: each must agree with the
+    log's header), and what to say when none does."""
+    own = spec.options
+    cmap = read_map(own["columns"], spec.base, f"{spec.given}::columns") if "columns" in own else columns
+    stated: dict[str, list[tuple[str, str]]] = {}
+    for key in ("kp", "kd", "held"):
+        if key in own:
+            stated.setdefault(key, []).append((own[key], f"{spec.given}::{key}={own[key]}"))
+    in_name = gains_in_name(rx, str(pattern), spec.path.name) if rx is not None else {}
+    for key, v in in_name.items():
+        stated.setdefault(key, []).append((v, f"{key} {v} in its name (--gains-from-name '{pattern}')"))
+    for key, flag in defaults.items():
+        # --kp/--kd are the fitted logs' gains; a validation log runs at its own
+        if flag is None or (role == "validate" and key in ("kp", "kd")) or (key == "held" and "held" in own):
+            continue
+        stated.setdefault(key, []).append((flag, f"--{key} {flag}"))
+    by_name = (f" (its name does not match --gains-from-name '{pattern}')" if rx is not None
+               else ", or --gains-from-name 'kp_{kp}_kd_{kd}' to read them from its name")
+    if role == "validate":
+        advice = (f"a --validate log runs at gains of its own (--kp and --kd are the fitted logs'): give "
+                  f"'{spec.given}::kp=K,kd=D', '# kp:' and '# kd:' lines above its header{by_name}")
+    else:
+        advice = (f"give --kp K --kd D (every log), '{spec.given}::kp=K,kd=D' (this one), '# kp:' and '# kd:' "
+                  f"lines above its header{by_name}")
+    return {"columns": cmap, "stated": stated, "advice": advice}
 
 
 def _widen(lg: JointLog, robot: Robot) -> JointLog:
@@ -156,7 +200,7 @@ def _widen(lg: JointLog, robot: Robot) -> JointLog:
     assert target is not None and q is not None
     return JointLog(lg.path, lg.times, list(robot.actuators), target, q, wide(lg.qd, np.zeros(nu)),
                     wide(lg.tau, np.zeros(nu)), gain[0], gain[1], lg.mode, lg.base, lg.sha256, lg.held,
-                    [a for a in robot.actuators if a in cols])
+                    [a for a in robot.actuators if a in cols], digest=lg.digest)
 
 
 def narrowed(read: list[JointLog], robot: Robot) -> tuple[list[JointLog], Robot]:

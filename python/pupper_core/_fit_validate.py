@@ -55,9 +55,9 @@ class Validation:
 
 
 def check_apart(fitted: list[JointLog], held_out: list[JointLog]) -> None:
-    """Refuses a validation log that is one of the fit's (by content)."""
+    """Refuses a validation log that is one of the fit's (by content: the samples read)."""
     for v in held_out:
-        twin = next((lg for lg in fitted if lg.sha256 == v.sha256), None)
+        twin = next((lg for lg in fitted if lg.digest == v.digest), None)
         if twin is not None:
             raise FitError(f"--validate {v.path} has the same content as the fitted log {twin.path}: validate on "
                            "logs the fit does not use")
@@ -167,43 +167,7 @@ def write(out: Path, v: Validation) -> None:
 def _plot(out: Path, v: Validation) -> None:
     """plots/validate_<log>.png: per joint, the gain and phase of log,
     nominal and calibrated against frequency, and both models' angle error
-    over time."""
-    import matplotlib
+    over time (``pupper_core._plots_fit`` draws them)."""
+    from pupper_core._plots_fit import write_validation
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from pupper_core._files import atomic_write
-
-    style = {"log": dict(color="black", lw=1.4, marker="o", ms=3), "nominal": dict(color="tab:gray", ls="--", lw=1.0),
-             "calibrated": dict(color="tab:orange", lw=1.0)}
-    (out / "plots").mkdir(exist_ok=True)
-    for log in dict.fromkeys(tr.log for tr in v.traces):
-        traces = [tr for tr in v.traces if tr.log == log]
-        fig, axes = plt.subplots(3, len(traces), figsize=(5 * len(traces), 7.5), squeeze=False)
-        for c, tr in enumerate(traces):
-            gain_ax, phase_ax, err_ax = axes[0][c], axes[1][c], axes[2][c]
-            for m in MODELS:
-                r = tr.response[m]
-                if r is not None:
-                    gain_ax.semilogx(r.freq, 20 * np.log10(r.gain), label=m, **style[m])
-                    phase_ax.semilogx(r.freq, r.phase, label=m, **style[m])
-            gain_ax.set_title(f"{tr.actuator}: command to angle", fontsize=9)
-            gain_ax.set_ylabel("gain (dB)", fontsize=8)
-            phase_ax.set_ylabel("phase (deg)", fontsize=8)
-            phase_ax.set_xlabel("frequency (Hz)", fontsize=8)
-            gain_ax.legend(fontsize=7)
-            for m in ("nominal", "calibrated"):
-                err_ax.plot(tr.t, (tr.q["log"] - tr.q[m]) * 1e3, lw=0.7, label=m,
-                            **{k: x for k, x in style[m].items() if k in ("color", "ls")})
-            err_ax.set_ylabel("log - model (mrad)", fontsize=8)
-            err_ax.set_xlabel("time (s)", fontsize=8)
-            err_ax.legend(fontsize=7)
-            for ax in (gain_ax, phase_ax, err_ax):
-                ax.tick_params(labelsize=7)
-                ax.grid(alpha=0.3)
-        fig.suptitle(f"{log} (not fitted):\nthe log, the nominal and the calibrated model", fontsize=10)
-        fig.tight_layout()
-        path = out / "plots" / f"validate_{Path(log).stem}.png"
-        atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=90))
-        plt.close(fig)
+    write_validation(out, v)

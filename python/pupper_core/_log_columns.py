@@ -85,20 +85,24 @@ def parse_map(text: str, where: str) -> ColumnMap:
     return out
 
 
-def read_map(value: str) -> ColumnMap:
-    """``--columns``' value: a map, or the path of a file holding one."""
+def read_map(value: str, base: Path | None = None, flag: str = "--columns") -> ColumnMap:
+    """``--columns``' value (or a log's own ``columns=``: ``flag`` names
+    it): a map, or the path of a file holding one (relative to ``base``
+    where given: a list of logs' folder)."""
     from pupper_core._joint_log import LogError
 
     p = Path(value)
+    if base is not None and not p.is_absolute():
+        p = base / p
     if "=" not in value and value.strip():
         try:
             text = p.read_text()
         except (OSError, UnicodeDecodeError) as e:
             why = getattr(e, "strerror", None) or "not a text file"
-            raise LogError(f"--columns {value}: neither a map (KEY=COLUMN[:UNIT],...) nor a readable "
-                           f"map file ({why}): give e.g. --columns time=stamp,leg_front_r_3.q=fr_knee_pos") from None
-        return parse_map(text, f"--columns {value}")
-    return parse_map(value, "--columns")
+            raise LogError(f"{flag} {value}: neither a map (KEY=COLUMN[:UNIT],...) nor a readable "
+                           f"map file ({why}): give e.g. {flag} time=stamp,leg_front_r_3.q=fr_knee_pos") from None
+        return parse_map(text, f"{flag} {value}")
+    return parse_map(value, flag)
 
 
 def resolve(header: list[str], cmap: ColumnMap, actuators: set[str], name: str) -> list[str | None]:

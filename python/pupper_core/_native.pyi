@@ -35,6 +35,8 @@ METRICS: list[str]
 VARIANTS: list[str]
 #: The metric a standing run ranks by unless told.
 DEFAULT_METRIC: str
+#: Seconds after a push's end within which its dip (the lowest base height) is sought.
+DIP_AFTER: float
 
 ErrorCode = Literal[
     "grid", "config", "model", "model_not_found", "mujoco", "output", "run_not_found",

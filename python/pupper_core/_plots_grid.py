@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from typing import TYPE_CHECKING, Any, Mapping, Sequence, cast
 
 import numpy as np
@@ -24,6 +25,7 @@ from pupper_core._plots_style import (
     _style,
     _wrap_parts,
     label_of,
+    plain_log_axis,
 )
 from pupper_core._plots_tables import (
     RunLike,
@@ -275,19 +277,28 @@ def heatmap(
                 a.set_title(f"{by} = {_fmt(pv)}" if by in SHORT or by in LABELS else str(pv))
         if im is not None:
             cb = fig.colorbar(im, ax=axs, shrink=0.9 if len(yv) > 3 else 1.0)
-            # a long label (a statistic over replicates) wrapped to the bar's
-            # height (about half the figure's; 10 pt glyphs about 6 pt wide)
+            from matplotlib.colors import LogNorm
+
+            if isinstance(norm, LogNorm):
+                plain_log_axis(cb.long_axis)
+            # wrapped to the bar's height (about half the figure's; 10 pt
+            # glyphs about 6 pt wide); a label longer than two such lines (a
+            # statistic over replicates) would stick out past the bar into
+            # the title: the bar says the statistic and unit, the title the rest
             import textwrap
 
-            cb.set_label(textwrap.fill(label_of(metric), max(14, int(fig.get_figheight() * 0.45 * 72 / 6)),
-                                       break_long_words=False))
+            label = textwrap.wrap(label_of(metric), max(14, int(fig.get_figheight() * 0.45 * 72 / 6)),
+                                  break_long_words=False)
+            cb.set_label("\n".join(label) if len(label) <= 2 else _bar_label(metric))
         best_word = "lowest" if minimize else "highest"
         sub = _key_line(best_word, status, metric, _has_dip(table, metric))
         head = title if title is not None else label_of(metric)
         if ax is None:
             # both wrapped to the figure, a little inside it (wide glyphs)
             width = 0.9 * fig.get_figwidth()
-            fig.suptitle(f"{_wrap_parts(head, width, 12)}\n{_wrap_parts(sub, width, 12)}", fontsize=12)
+            heading = f"{_wrap_parts(head, width, 12)}\n{_wrap_parts(sub, width, 12)}"
+            _room_for_title(fig, heading)
+            fig.suptitle(heading, fontsize=12)
         else:
             ax.set_title(f"{head}\n{sub}", fontsize=11)
         fig.pupper_best = best_marks  # type: ignore[attr-defined]
@@ -340,6 +351,21 @@ def _colour_scale(grids: Sequence[_Grid], log: bool | None) -> "Normalize":
         return LogNorm(max(finite.min(), 1e-12), max(finite.max(), finite.min() * 1.0001))
     lo, hi = float(finite.min()), float(finite.max())
     return Normalize(lo, hi if hi > lo else lo + 1e-9)
+
+
+def _bar_label(metric: str) -> str:
+    """A colour bar's short label: the statistic and the unit (the
+    figure's title names the metric whole)."""
+    stat, sep, name = metric.partition(":")
+    unit = re.search(r"\(([^)]*)\)", LABELS.get(name if sep else metric, ""))
+    word = {"p95": "worst-side p95", "mean": "mean"}.get(stat, "") if sep else ""
+    return " ".join(w for w in (word, f"({unit.group(1)})" if unit else "") if w) or metric
+
+
+def _room_for_title(fig: "Figure", title: str) -> None:
+    """A figure sized for a two-line title made taller by each line more
+    (12 pt, 1.2 lines apart): the panels keep their height."""
+    fig.set_figheight(fig.get_figheight() + max(0, title.count("\n") - 1) * 12 * 1.2 / 72)
 
 
 def _heatmap_axes(ax: "Axes | None", npan: int, nx: int, ny: int, title: str | None) -> tuple["Figure", list[Any]]:
@@ -462,6 +488,7 @@ def metric_vs_axis(
         pos = xs[np.isfinite(xs)]
         if pos.size and pos.min() > 0 and pos.max() / pos.min() > 30:
             ax.set_xscale("log")
+            plain_log_axis(ax.xaxis)
         ax.set_xlabel(label_of(axis))
         ax.set_ylabel(label_of(metric))
         ax.grid(True, alpha=0.3)

@@ -12,7 +12,17 @@ import numpy as np
 
 from pupper_core._plots_grid import base_z, heatmap
 from pupper_core._plots_replicates import replicate_spread
-from pupper_core._plots_style import _BAD_GREY, LABELS, _cell_text, _fmt, _ink, _new_figure, _save, _style
+from pupper_core._plots_style import (
+    _BAD_GREY,
+    LABELS,
+    _cell_text,
+    _fmt,
+    _ink,
+    _new_figure,
+    _save,
+    _style,
+    plain_log_axis,
+)
 from pupper_core._plots_tables import RunLike, describe, read_run, run_dir_of
 from pupper_core._public import exported_from
 from pupper_core._spec import DEFAULT_METRIC, ROBUST_METRIC
@@ -81,7 +91,7 @@ def lab_heatmaps(
                     edges.append(f"{body}: {', '.join(side)}")
         axes[0].set_ylabel("Kd (N·m·s/rad)")
         if image is not None:
-            fig.colorbar(image, ax=list(axes), label=f"{LABELS.get(metric, metric)} (log)")
+            plain_log_axis(fig.colorbar(image, ax=list(axes), label=f"{LABELS.get(metric, metric)} (log)").long_axis)
         if edges:
             fig.supxlabel("★ on the grid's edge, the steadiest gains may lie beyond it: widen the grid ("
                           + "; ".join(edges) + ")", fontsize=9, color="#9a6700")

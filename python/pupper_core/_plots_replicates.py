@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from pupper_core._plots_style import _new_figure, _style, label_of
+from pupper_core._plots_style import _new_figure, _style, label_of, plain_log_axis
 from pupper_core._plots_tables import FIRST_METRIC, RunLike, read_replicates, run_dir_of
 from pupper_core._public import exported_from
 from pupper_core._spec import DEFAULT_METRIC
@@ -147,6 +147,7 @@ def replicate_spread(run_dir: RunLike, metric: str = DEFAULT_METRIC,
         ax.set_ylabel(label_of(metric))
         if log:
             ax.set_yscale("log")
+            plain_log_axis(ax.yaxis)
         if scatter is not None and colour_by is not None:
             bar = fig.colorbar(scatter, ax=ax, pad=0.02)
             bar.set_label(f"drawn {colour_by}", fontsize=9)

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from pupper_core._plots_grid import heatmap
-from pupper_core._plots_style import _new_figure, _save, _say_setting, _style
+from pupper_core._plots_style import _new_figure, _save, _say_setting, _style, plain_log_axis
 from pupper_core._plots_tables import (
     _col,
     _distinct,
@@ -191,6 +191,7 @@ def response_bode(run: RunLike, cells: Sequence[str] | None = None) -> "Figure |
             axes[1, k].set_xlabel("frequency (Hz)")
             for a in axes[:, k]:
                 a.set_xscale("log")
+                plain_log_axis(a.xaxis)
                 a.grid(True, which="both", alpha=0.3)
         axes[0, 0].set_ylabel("gain (dB)")
         axes[1, 0].set_ylabel("phase (deg)")

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from pupper_core._plots_grid import bars, base_z, heatmap, metric_vs_axis
+from pupper_core._plots_grid import _room_for_title, bars, base_z, heatmap, metric_vs_axis
 from pupper_core._plots_replicates import replicate_spread
 from pupper_core._plots_style import SHORT, _fmt, _has_dip, _key_line, _save, _say_setting, _wrap_parts, label_of
 from pupper_core._plots_tables import (
@@ -148,5 +148,10 @@ def _run_heatmap(table: Mapping[str, Any], metric: str, varying: list[str], repl
         key = key.replace("pink = fell", "pink = some replicates fell or diverged")
     if metric == "failure_fraction":
         key = "0 = every replicate stayed up"
-    fig.suptitle(f"{label_of(metric)}\n{_wrap_parts(key, fig.get_figwidth(), 12)}", fontsize=12)
+    # both lines wrapped to the figure, a little inside it (wide glyphs): a
+    # statistic over replicates names itself at length
+    width = 0.9 * fig.get_figwidth()
+    heading = f"{_wrap_parts(label_of(metric), width, 12)}\n{_wrap_parts(key, width, 12)}"
+    _room_for_title(fig, heading)
+    fig.suptitle(heading, fontsize=12)
     return fig

@@ -254,3 +254,49 @@ def _say_setting(fig: "Figure", what: str) -> None:
 def _save(fig: "Figure", path: Path) -> Path:
     atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=DPI))
     return path
+
+
+def _plain_log_ticks(lo: float, hi: float) -> list[float]:
+    """Where a log axis from ``lo`` to ``hi`` is numbered: at 1, 2, 5 per
+    decade (1, 2, 3, 5, or 1 to 9 on a short axis; every decade, or every
+    few, on a long one), 3 to 8 numbers; on an axis too short for any of
+    these, a linear axis's ticks."""
+    from matplotlib.ticker import MaxNLocator
+
+    lo, hi = sorted((lo, hi))
+    if not (hi > 0 and math.isfinite(hi)):
+        return []
+    lo = max(lo, hi * 1e-30)
+    e0, e1 = math.floor(math.log10(lo)), math.ceil(math.log10(hi))
+
+    def at(subs: Sequence[int]) -> list[float]:
+        return [s * 10.0**e for e in range(e0, e1 + 1) for s in subs
+                if lo * (1 - 1e-9) <= s * 10.0**e <= hi * (1 + 1e-9)]
+
+    ticks = at((1, 2, 5))
+    if len(ticks) > 8:
+        decades = at((1,))
+        return decades[:: math.ceil(len(decades) / 8)]
+    for subs in ((1, 2, 5), (1, 2, 3, 5), range(1, 10)):
+        ticks = at(subs)
+        if len(ticks) >= 3:
+            return ticks
+    return [float(v) for v in MaxNLocator(4).tick_values(lo, hi) if lo <= v <= hi]
+
+
+def plain_log_axis(axis: Any) -> None:
+    """Numbers a log-scaled axis (an Axes' xaxis or yaxis, or a colour
+    bar's) plainly, 2 and 5 rather than 2×10⁰ and 5×10⁰, and few enough
+    that no two meet; the minor ticks unnumbered."""
+    from matplotlib.ticker import FuncFormatter, Locator, NullFormatter
+
+    class PlainLog(Locator):
+        def __call__(self) -> list[float]:
+            return self.tick_values(*self.axis.get_view_interval()) if self.axis is not None else []
+
+        def tick_values(self, vmin: float, vmax: float) -> list[float]:
+            return _plain_log_ticks(vmin, vmax)
+
+    axis.set_major_locator(PlainLog())
+    axis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:.3g}"))
+    axis.set_minor_formatter(NullFormatter())

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 import tempfile
 import time
 from collections.abc import Callable, Sequence
@@ -21,7 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pupper_core._recommend_card import Card, card_of, print_card, write_outputs, write_trials
+from pupper_core._files import printing
+from pupper_core._recommend_card import Card, card_of, in_use, print_card, write_outputs, write_trials
 from pupper_core._recommend_plan import Plan, RecommendError, plan as make_plan
 from pupper_core._recommend_search import Candidate, best_of, robot_model_files, search, windows
 from pupper_core._recommend_search import polish as polish_pick
@@ -48,6 +48,11 @@ class Recommendation:
     #: the pick as the search measured it (on the model it read; the card's
     #: numbers are the exported MJCF's)
     searched: Candidate | None = None
+    #: the gains the robot runs today (`Plan.current`) on the same robots
+    current: Candidate | None = None
+    #: the groups whose loop margins hold nowhere in their searched ranges
+    #: (then no candidate is asked at all)
+    no_window: list[str] = field(default_factory=list)
 
     @property
     def gains(self) -> dict[str, tuple[float, float]]:
@@ -79,7 +84,8 @@ def recommend(
     command_delay: float = 0.0, spread: Sequence[str] | None = None, from_fit: str | os.PathLike[str] | None = None,
     # the constraints and the motors' limits
     min_phase_margin: float = 30.0, min_gain_margin: float = 6.0, max_saturation: float = 0.05, max_sag: float = 0.1,
-    kp_max: float | None = None, kd_max: float | None = None,
+    kp_max: float | None = None, kd_max: float | None = None, current: Sequence[float] | str | None = None,
+    robot_config: str | os.PathLike[str] | None = None,
     # the exports and the run directory
     joint_order: Sequence[str] | str | None = None, controller: str = "neural_controller",
     out: str | os.PathLike[str] | None = None, force: bool = False, progress: bool | Callable[[str], None] = True,
@@ -113,6 +119,16 @@ def recommend(
     group's own gains /10 to x20 (x50 for kd), capped by the model's
     ``pupper:kp_max:ACT``/``pupper:kd_max:ACT`` numerics or ``kp_max``/``kd_max``.
 
+    The gains are what to command. On a calibrated model (its gain scales,
+    a fit's ``pupper:kp_scale:ACT``) the motors deliver other gains, and
+    every margin is of those. ``current``: the gains the robot runs today
+    (``(kp, kd)`` for every group; default the model's own servo gains),
+    run on the same robots and set beside the pick on the card.
+    ``robot_config``: the robot's controller configuration (a ROS 2
+    parameter file): the ``controller`` node's ``joint_names`` are the
+    default ``joint_order`` and its ``kps``/``kds`` (or ``init_kps``/
+    ``init_kds``) the default ``current``.
+
     ``out``: the run directory (recommend.csv: a card per group;
     trials.csv; tradeoffs.csv: the candidates no other beats at once on push
     dip, tracking speed and stand height; recommended.yaml: a ROS 2 parameter file with ``kps`` and
@@ -144,7 +160,9 @@ def recommend(
         # Ctrl-C and SIGTERM stop it between sweeps too; the candidates run so
         # far stay in trials.csv (written after every generation)
         kept = f"the candidates run so far, if any, are in {out_dir / 'trials.csv'}"
-        with _locked(out_dir), _stop_on_signals("recommend", kept):
+        with _locked(out_dir, RecommendError), _stop_on_signals("recommend", kept):
+            if not made:
+                _clear(out_dir)
             try:
                 return _run(p, out_dir, say, keep=True)
             except KeyboardInterrupt as e:
@@ -161,6 +179,25 @@ def recommend(
         raise
 
 
+#: What a recommend run writes in its directory (robots/ too, with --from-fit).
+OUTPUTS = ("recommend.csv", "trials.csv", "tradeoffs.csv", "recommended.yaml", "recommended.xml", "manifest.json",
+           "report.html")
+
+
+def _clear(d: Path) -> None:
+    """An existing run directory (--force), before anything runs: every
+    file a run writes there refused if it is not a regular file, then the
+    older run's removed, so none of its answer (its candidates, its report)
+    outlives it whatever the new run finds."""
+    from pupper_core._files import refuse_non_regular
+
+    robots = sorted((d / "robots").glob("robot_*.xml")) if (d / "robots").is_dir() else []
+    for f in [d / n for n in OUTPUTS] + robots:
+        refuse_non_regular(f)
+    for f in [d / n for n in OUTPUTS] + robots:
+        f.unlink(missing_ok=True)
+
+
 def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommendation:
     """The search, the polish, the card and the files."""
     started = time.time()
@@ -169,9 +206,11 @@ def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommenda
     every = search(p, models, say, lambda cands: write_trials(d, p, cands) if keep else None, wins)
     best = best_of(p, every)
     rec = Recommendation(None, [], every, p, d if keep else None)
+    rec.no_window = [g.name for g in p.groups if wins[g.name].kp_span() is None]
     if best is not None:
         pick, near = polish_pick(p, best, models, say, every, wins)
         rec.searched = pick
+        rec.current = in_use(p, models, say)
         rec.cards, rec.neighbours, rec.warnings, rec.pick = card_of(p, pick, near, d, say)
     if keep:
         write_trials(d, p, every)
@@ -184,8 +223,10 @@ def _cli(args_json: str) -> list[str]:
     a = json.loads(args_json)
     model = a.pop("model")
     rec = recommend(model, **a)
-    print_card(rec)
-    sys.stdout.flush()
+    # printed after every file is written: a stdout that cannot take the
+    # card (a full disk) leaves the run whole, and says so in one line
+    with printing():
+        print_card(rec)
     if rec.out is None:
         return []
     return [str(rec.out / f) for f in ("recommend.csv", "trials.csv", "tradeoffs.csv", "recommended.yaml",

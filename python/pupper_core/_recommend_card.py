@@ -47,6 +47,10 @@ class Card:
     p95_peak_torque: float
     torque_limit: float
     torque_headroom_pct: float
+    #: what the motors deliver of kp and kd (the model's gain scales, a
+    #: fit's; None where they are 1): the margins are of these
+    motor_kp: float | None = None
+    motor_kd: float | None = None
 
 
 def _step_response(plan: Plan, xml: Path) -> dict[str, dict[str, float]]:
@@ -100,6 +104,31 @@ def _on_margin(plan: Plan, pick: Candidate) -> list[str]:
             "--min-phase-margin for room"]
 
 
+#: Torque headroom (%) under which the card warns: the motors reach their
+#: limit under the push on the worst-side robots.
+LOW_HEADROOM_PCT = 1.0
+
+
+def _headroom(plan: Plan, pick: Candidate) -> list[str]:
+    lim = min(g.torque_limit for g in plan.groups)
+    if not (math.isfinite(lim) and pick.p95_peak_torque >= lim * (1 - LOW_HEADROOM_PCT / 100)):
+        return []
+    return [f"the p95 peak torque {pick.p95_peak_torque:.3g} N·m reaches the {lim:.3g} N·m limit (0 % headroom): "
+            "under the push the motors saturate on the worst-side robots, so a harder push or a heavier robot finds "
+            "no torque left; lower --max-saturation, or check the motors' limit in the model"]
+
+
+def _caps(plan: Plan) -> list[str]:
+    """Searched ranges no motor cap bounded, said: a robot's firmware may
+    refuse gains past what its own configuration allows."""
+    if plan.caps:
+        return []
+    tops = ", ".join(f"{g.name} kp {g.kp_range[1]:.3g} kd {g.kd_range[1]:.3g}" for g in plan.groups)
+    return [f"no motor caps given (--kp-max/--kd-max, or pupper:kp_max/kd_max numerics in the model): the search "
+            f"reached {tops}, 20x and 50x the model's own gains; give the largest gains the robot's firmware and "
+            "configuration accept"]
+
+
 def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], d: Path,
             say: Callable[[str], None]) -> tuple[list[Card], list[str], list[str], Candidate]:
     """The cards, why each neighbour lost, the warnings that qualify the
@@ -107,7 +136,7 @@ def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], 
     d.mkdir(parents=True, exist_ok=True)
     xml = d / "recommended.xml"
     atomic_write_text(xml, mjcf(plan, pick))
-    warnings = _edges(plan, pick) + _on_margin(plan, pick)
+    warnings = _edges(plan, pick) + _on_margin(plan, pick) + _caps(plan)
     reasons = [why_lost(plan, label, c, pick) for label, c in near]
     winners = [label for label, c in near if c.feasible and better(plan, c, pick)]
     if winners:
@@ -118,15 +147,36 @@ def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], 
         # six digits, which moves a chaotic push dip in its fourth
         pick = _on_export(plan, pick, xml, say, warnings)
     step = _step_response(plan, xml)
+    warnings += _headroom(plan, pick)
     cards = []
     for g in plan.groups:
         kp, kd = pick.gains[g.name]
         lim = g.torque_limit
+        # the nominal motor: the middle of its scales (one value where the fit found one)
+        mkp, mkd = (kp * math.sqrt(g.kp_scale[0] * g.kp_scale[1]), kd * math.sqrt(g.kd_scale[0] * g.kd_scale[1])
+                    ) if g.scaled else (None, None)
         cards.append(Card(g.name, kp, kd, pick.phase_deg[g.name], pick.gain_db[g.name],
                           step[g.name]["rise_time_s"], step[g.name]["overshoot_pct"],
                           step[g.name]["settling_time_s"], pick.p95_dip_mm,
-                          pick.p95_peak_torque, lim, 100 * (1 - pick.p95_peak_torque / lim)))
+                          pick.p95_peak_torque, lim, 100 * (1 - pick.p95_peak_torque / lim), mkp, mkd))
     return cards, reasons, warnings, pick
+
+
+def in_use(plan: Plan, models: Sequence[str], say: Callable[[str], None]) -> Candidate | None:
+    """The gains the robot runs today (`Plan.current`), checked and run on
+    the same robots as every candidate: what the card sets the pick beside."""
+    from pupper_core._recommend_search import check_margins
+
+    if not plan.current:
+        return None
+    c = Candidate(dict(plan.current), stage="current")
+    check_margins(plan, c)
+    # run even when its margins fail: the owner runs these today
+    failed = c.failed
+    c.failed = ""
+    simulate(plan, [c], models, say)
+    c.failed = failed or c.failed
+    return c
 
 
 def _on_export(plan: Plan, pick: Candidate, xml: Path, say: Callable[[str], None],
@@ -162,14 +212,44 @@ def mjcf(plan: Plan, pick: Candidate) -> str:
     # assets stay where the original's are
     spec.meshdir = str((base / spec.meshdir).resolve()) if spec.meshdir else str(base.resolve())
     spec.texturedir = str((base / spec.texturedir).resolve()) if spec.texturedir else str(base.resolve())
+    limits = _torque_limits(spec)
     for name, (kp, kd) in zip(plan.actuators, gains_per_actuator(plan, pick.gains)):
         act = spec.actuator(name)
+        if name in limits:
+            # a torque motor becomes a PD servo: its control is now the target
+            # angle, and its torque limit (the control range) the force range
+            act.forcerange = limits[name]
+            act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
         act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
         act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
         act.gainprm[0] = kp
         act.biasprm[0], act.biasprm[1], act.biasprm[2] = 0.0, -kp, -kd
     spec.modelname = f"{spec.modelname}_recommended" if spec.modelname else "recommended"
     return str(spec.to_xml())
+
+
+def _torque_limits(spec: Any) -> dict[str, list[float]]:
+    """The torque motors (no bias: the control is the torque) whose limit is
+    their control range alone, by name: the force range (gain x control
+    range) the exported PD servo must keep, or plain MuJoCo would apply any
+    torque and clamp the target angle instead."""
+    import mujoco
+
+    m = spec.compile()
+    out = {}
+    for a in range(m.nu):
+        if (m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE and not m.actuator_forcelimited[a]
+                and m.actuator_ctrllimited[a]):
+            lo, hi = sorted(float(m.actuator_gainprm[a, 0] * c) for c in m.actuator_ctrlrange[a])
+            out[m.actuator(a).name] = [lo, hi]
+    return out
+
+
+def _comment(text: str) -> str:
+    """`text` safe on one comment line: a character YAML reads as a line
+    break (a newline in a path), or any other unprintable one, escaped."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 def ros2_yaml(plan: Plan, pick: Candidate) -> str:
@@ -183,9 +263,24 @@ def ros2_yaml(plan: Plan, pick: Candidate) -> str:
         "kps": [per[n][0] for n in plan.joint_order],
         "kds": [per[n][1] for n in plan.joint_order],
     }}}
-    head = (f"# pupper recommend: {plan.model}, {plan.robots} drawn robots, firmware {plan.motor or 'ideal'}, "
-            f"sensing delay {plan.sensing_delay:g} s\n")
+    head = ("# " + _comment(f"pupper recommend: {plan.model}, {plan.robots} drawn robots, firmware "
+                            f"{plan.motor or 'ideal'}, sensing delay {plan.sensing_delay:g} s")
+            + f"\n# kps, kds: the gains to command{_delivered_note(plan)}\n")
     return head + str(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=100))
+
+
+def _delivered_note(plan: Plan) -> str:
+    """What the motors deliver of the commanded gains, where the model's
+    gain scales say they differ."""
+    scaled = [g for g in plan.groups if g.scaled]
+    if not scaled:
+        return ""
+
+    def span(lo: float, hi: float) -> str:
+        return f"{lo:.3g}x" if f"{lo:.3g}" == f"{hi:.3g}" else f"{lo:.3g}-{hi:.3g}x"
+
+    return ("; the motors deliver " + ", ".join(f"{g.name} {span(*g.kp_scale)} the kp and {span(*g.kd_scale)} "
+                                                 "the kd" for g in scaled) + " (the model's fitted gain scales)")
 
 
 def reproduce(plan: Plan, d: Path) -> str:
@@ -252,11 +347,15 @@ def write_outputs(rec: Recommendation, d: Path, keep: bool, wall: float) -> tupl
     if pick:
         atomic_write_text(d / "recommended.yaml", yaml_text)
 
+        rows = [asdict(c) for c in rec.cards]
+        # the motors' delivered gains only where the model scales them
+        names = [k for k in rows[0] if any(r[k] is not None for r in rows)]
+
         def cards(tmp: Path) -> None:
             with open(tmp, "w", newline="") as f:
-                w = csv.DictWriter(f, fieldnames=list(asdict(rec.cards[0])), lineterminator="\n")
+                w = csv.DictWriter(f, fieldnames=names, lineterminator="\n", extrasaction="ignore")
                 w.writeheader()
-                w.writerows(asdict(c) for c in rec.cards)
+                w.writerows(rows)
 
         atomic_write(d / "recommend.csv", cards)
     atomic_write_text(d / "manifest.json", json.dumps(_manifest(rec, wall), indent=1) + "\n")
@@ -280,6 +379,11 @@ def _manifest(rec: Recommendation, wall: float) -> dict[str, Any]:
         "neighbours": rec.neighbours,
         "warnings": rec.warnings,
         "reproduce": reproduce(rec.plan, rec.out) if pick and rec.out else "",
+        "current": None if rec.current is None else {
+            "gains": {g: {"kp": kp, "kd": kd} for g, (kp, kd) in rec.current.gains.items()},
+            OBJECTIVE: rec.current.p95_dip_mm, "fell": rec.current.fell, "failed": rec.current.failed,
+            "p95_peak_torque": rec.current.p95_peak_torque, "phase_margin_deg": rec.current.phase_deg,
+            "gain_margin_db": rec.current.gain_db},
         "candidates": len(rec.candidates),
         "cell_steps": sum(c.cell_steps for c in rec.candidates),
         "complete": True,
@@ -303,18 +407,20 @@ def print_card(rec: Recommendation) -> None:
     ran = [c for c in rec.candidates if c.cell_steps]
     steps = sum(c.cell_steps for c in rec.candidates)
     if pick is None:
-        print(f"no gains held every constraint on all {plan.robots} robots ({constraints_line(plan)}): "
-              f"{len(rec.candidates)} candidates asked, {len(ran)} ran on the robots; most common reason: "
-              f"{_commonest(rec.candidates)}. Try a faster firmware (--motor rate=), less sensing delay, "
-              "a lower --min-phase-margin, or (for a robot that sags) a larger --max-sag")
+        print(_no_pick(rec, len(ran)))
         return
     print(f"recommended gains, holding on each of {plan.robots} drawn robots: {constraints_line(plan)}")
-    head = ("group", "kp", "kd", "phase °", "gain dB", "rise s", "overshoot %", "settle s")
+    scaled = any(c.motor_kp is not None for c in rec.cards)
+    head = ("group", "kp", "kd", *(("motor kp", "motor kd") if scaled else ()), "phase °", "gain dB", "rise s",
+            "overshoot %", "settle s")
     print("".join(f"{h:>12}" for h in head))
     for c in rec.cards:
-        vals = (c.group, f"{c.kp:.4g}", f"{c.kd:.4g}", f"{c.phase_margin_deg:.1f}", f"{c.gain_margin_db:.1f}",
-                f"{c.rise_time_s:.3g}", f"{c.overshoot_pct:.3g}", f"{c.settling_time_s:.3g}")
+        motor = (f"{c.motor_kp:.4g}", f"{c.motor_kd:.4g}") if c.motor_kp is not None and c.motor_kd is not None else ()
+        vals = (c.group, f"{c.kp:.4g}", f"{c.kd:.4g}", *motor, f"{c.phase_margin_deg:.1f}",
+                f"{c.gain_margin_db:.1f}", f"{c.rise_time_s:.3g}", f"{c.overshoot_pct:.3g}", f"{c.settling_time_s:.3g}")
         print("".join(f"{v:>12}" for v in vals))
+    print(f"kp, kd: the gains to command (recommended.yaml's kps, kds){_delivered_note(plan)}"
+          + ("; the margins are of the delivered gains (motor kp, motor kd)" if scaled else ""))
     c0 = rec.cards[0]
     searched = rec.searched
     also = (f" (on the exported MJCF, whose numbers MjSpec writes to six digits; {searched.p95_dip_mm:.4g} mm in "
@@ -322,6 +428,8 @@ def print_card(rec: Recommendation) -> None:
     print(f"p95 push dip {pick.p95_dip_mm:.4g} mm{also}; peak torque p95 {pick.p95_peak_torque:.3g} N·m of "
           f"{min(c.torque_limit for c in rec.cards):.3g} ({c0.torque_headroom_pct:.0f} % headroom); "
           "step response: the nominal robot hung in the air")
+    if rec.current is not None:
+        print(in_use_line(plan, rec.current))
     if rec.neighbours:
         print("why the neighbours lost:")
         for r in rec.neighbours:
@@ -337,10 +445,58 @@ def print_card(rec: Recommendation) -> None:
           f"in the polish), {steps} cell-steps")
 
 
+def in_use_line(plan: Plan, c: Candidate) -> str:
+    """The gains the robot runs today, on the same robots, in a line."""
+    gains = sorted(set(c.gains.values()))
+    which = (f"kp {gains[0][0]:.4g} kd {gains[0][1]:.4g} on every group" if len(gains) == 1 else
+             ", ".join(f"{g} kp {kp:.4g} kd {kd:.4g}" for g, (kp, kd) in c.gains.items()))
+    worst = min(plan.groups, key=lambda g: c.phase_deg[g.name])
+    loop = (f"worst loop {worst.name} phase {c.phase_deg[worst.name]:.1f}°, gain "
+            f"{min(c.gain_db.values()):.1f} dB")
+    lim = min(g.torque_limit for g in plan.groups)
+    if c.fell:
+        ran = f"{c.fell} of {c.robots} robots fell, diverged or lay past the stability bound"
+    else:
+        head = f" ({100 * (1 - c.p95_peak_torque / lim):.0f} % headroom)" if math.isfinite(lim) else ""
+        ran = f"p95 push dip {c.p95_dip_mm:.4g} mm, peak torque p95 {c.p95_peak_torque:.3g} N·m{head}"
+    held = "holds every constraint" if not c.failed else f"breaks one: {c.failed}"
+    return f"in use ({plan.current_from}: {which}): {ran}; {loop}; {held}"
+
+
+def _no_pick(rec: Recommendation, ran: int) -> str:
+    """Why no candidate held, with what to try."""
+    plan = rec.plan
+    head = f"no gains held every constraint on all {plan.robots} robots ({constraints_line(plan)})"
+    if not rec.candidates:
+        # the margin map found no gains at all: nothing was asked or run
+        where = "; ".join(f"{g.name} (kp {g.kp_range[0]:.3g} to {g.kp_range[1]:.3g}, kd {g.kd_range[0]:.3g} to "
+                          f"{g.kd_range[1]:.3g})" for g in plan.groups if g.name in rec.no_window)
+        return (f"{head}: no gains keep the loop margins, so no candidate was asked: they hold nowhere in the "
+                f"searched range of {where or 'the groups'}. Try a lower --min-phase-margin or --min-gain-margin, "
+                "less sensing delay, a faster firmware (--motor rate=), or a wider range (--kp-max, --kd-max)")
+    said = (f"{head}: {len(rec.candidates)} candidates asked, {ran} ran on the robots; most common reason "
+            f"{_commonest(rec.candidates)}.")
+    tried = [c for c in rec.candidates if c.robots]
+    if tried and all(c.fell == c.robots for c in tried):
+        top = max(g.kp_range[1] for g in plan.groups)
+        return (f"{said} Every robot fell with every candidate: gains up to kp {top:.3g} may be too soft to hold the "
+                "robot up; raise --kp-max if the motors allow it, or check that the robot stands "
+                f"(pupper stand --model {plan.model})")
+    return (f"{said} Try a faster firmware (--motor rate=), less sensing delay, a lower --min-phase-margin, or "
+            "(for a robot that sags) a larger --max-sag")
+
+
 def _commonest(cands: Sequence[Candidate]) -> str:
+    """The reason most candidates failed on, as one of them says it (its
+    numbers are that candidate's), and how many share it."""
     import re
     from collections import Counter
 
     # the reason without its numbers: "kfe phase margin N° < N°"
-    kinds = Counter(re.sub(r"\d+(\.\d+)?", "N", c.failed) for c in cands if c.failed)
-    return kinds.most_common(1)[0][0] if kinds else "none"
+    failed = [c for c in cands if c.failed]
+    kinds = Counter(re.sub(r"\d+(\.\d+)?", "N", c.failed) for c in failed)
+    if not kinds:
+        return "(none said)"
+    kind, n = kinds.most_common(1)[0]
+    first = next(c.failed for c in failed if re.sub(r"\d+(\.\d+)?", "N", c.failed) == kind)
+    return f"({n} of {len(failed)} candidates, e.g. trial {next(c.number for c in failed if c.failed == first)}): {first}"

@@ -56,6 +56,30 @@ class Group:
     #: the smallest torque limit of its actuators (N·m): the force range,
     #: else (a motor) the control range, as the runs take it
     torque_limit: float
+    #: its loops by what their motors deliver of a commanded kp and kd:
+    #: (kp scale, kd scale, least inertia, most inertia), each distinct pair
+    #: of scales once with the inertia of its joints (the model's gain
+    #: scales, `pupper:kp_scale:ACT`: a fit's; (1, 1) on an uncalibrated
+    #: model). The loop is closed on the delivered gains.
+    loops: tuple[tuple[float, float, float, float], ...] = ()
+
+    @property
+    def scales(self) -> tuple[tuple[float, float], ...]:
+        return tuple((sp, sd) for sp, sd, _, _ in self.loops) or ((1.0, 1.0),)
+
+    @property
+    def scaled(self) -> bool:
+        """Whether its motors deliver other gains than they are told."""
+        return self.scales != ((1.0, 1.0),)
+
+    @property
+    def kp_scale(self) -> tuple[float, float]:
+        """The least and most of a commanded kp its motors deliver."""
+        return min(s[0] for s in self.scales), max(s[0] for s in self.scales)
+
+    @property
+    def kd_scale(self) -> tuple[float, float]:
+        return min(s[1] for s in self.scales), max(s[1] for s in self.scales)
 
 
 @dataclass
@@ -68,7 +92,9 @@ class Plan:
     sensing_delay: float
     command_delay: float
     spread: list[str]
-    #: the least and most of a commanded kp and kd the motors deliver
+    #: the least and most of a commanded kp and kd the motors deliver,
+    #: relative to the model's own gain scales (the spread's motor_gain, or
+    #: a fit's intervals about its fitted scales); `Group.kp_scale` are those
     kp_factors: tuple[float, float]
     kd_factors: tuple[float, float]
     robots: int
@@ -94,6 +120,13 @@ class Plan:
     fit_rows: list[dict[str, str]] = field(default_factory=list)
     #: with a fit: each drawn joint model's values, (parameter, actuators, value)
     fit_draws: list[list[tuple[str, list[str], float]]] = field(default_factory=list)
+    #: the gains the robot runs today, per group, set beside the pick on the
+    #: card (empty: none known), and where they came from
+    current: dict[str, tuple[float, float]] = field(default_factory=dict)
+    current_from: str = ""
+    #: whether motor caps (--kp-max and --kd-max, or the model's numerics)
+    #: bound every group's search, rather than the defaults' x20 and x50
+    caps: bool = False
 
     def sags(self, height: float) -> bool:
         """Whether a robot whose lowest final base height is `height` (m)
@@ -129,6 +162,11 @@ class Plan:
             "joint_order": self.joint_order, "controller": self.controller, "polish": self.polish,
             "from_fit": None if self.from_fit is None else os.fspath(self.from_fit),
             "fit_draws": [[[p, a, v] for p, a, v in d] for d in self.fit_draws],
+            # what the motors deliver of a commanded gain, per group: the loop is closed on it
+            "delivered": {g.name: {"kp": [self.kp_factors[0] * g.kp_scale[0], self.kp_factors[1] * g.kp_scale[1]],
+                                   "kd": [self.kd_factors[0] * g.kd_scale[0], self.kd_factors[1] * g.kd_scale[1]]}
+                          for g in self.groups},
+            "current": {g: list(v) for g, v in self.current.items()}, "current_from": self.current_from,
         }
 
 
@@ -166,10 +204,18 @@ def _limit(actuator: Mapping[str, Any]) -> float:
     return float(r[1]) if r else math.inf
 
 
+def _gain_scale(actuator: Mapping[str, Any]) -> tuple[float, float]:
+    """What the motor delivers of a commanded kp and kd (its `info`'s
+    gain_scale, absent when both are 1)."""
+    kp, kd = actuator.get("gain_scale") or (1.0, 1.0)
+    return float(kp), float(kd)
+
+
 def _groups(model: str, inf: Mapping[str, Any], kp_max: float | None, kd_max: float | None, leg: float,
-            armature_low: Mapping[str, float]) -> tuple[list[str], list[Group], float]:
+            armature_low: Mapping[str, float]) -> tuple[list[str], list[Group], float, bool]:
     """The model's actuators (from its `info`), its joint groups with their
-    searched ranges, and its timestep."""
+    searched ranges, its timestep, and whether motor caps bound every
+    group's kp and kd."""
     from pupper_core._api import gains
 
     names = [str(a["name"]) for a in inf["actuators"]]
@@ -180,24 +226,32 @@ def _groups(model: str, inf: Mapping[str, Any], kp_max: float | None, kd_max: fl
     members: dict[str, list[int]] = {}
     lo_i: dict[str, float] = {}
     hi_i: dict[str, float] = {}
+    # a group's inertia extremes by the pair of gain scales its joints' motors have
+    loops: dict[str, dict[tuple[float, float], tuple[float, float]]] = {}
     for j in rep["joints"]:
         a, g, inertia = names.index(j["actuator"]), str(j["group"]), float(j["inertia"])
         members.setdefault(g, []).append(a)
         # the links' part scales with leg mass; a fit's armature may be as
         # low as its interval allows (armature_low: how much lower)
-        light = (inertia - armature_low.get(names[a], 0.0)) * (1 - leg)
-        lo_i[g] = min(lo_i.get(g, math.inf), max(light, 1e-9))
-        hi_i[g] = max(hi_i.get(g, 0.0), inertia * (1 + leg))
+        light = max((inertia - armature_low.get(names[a], 0.0)) * (1 - leg), 1e-9)
+        heavy = inertia * (1 + leg)
+        lo_i[g] = min(lo_i.get(g, math.inf), light)
+        hi_i[g] = max(hi_i.get(g, 0.0), heavy)
+        pair = _gain_scale(inf["actuators"][a])
+        lo, hi = loops.setdefault(g, {}).get(pair, (math.inf, 0.0))
+        loops[g][pair] = (min(lo, light), max(hi, heavy))
     # a position servo's own gains (kp, and kv as -biasprm[2]); a <motor>
     # has none (gain 1, no bias): its range comes from the caps alone
     servo = [float(a["gainprm"][0]) > 0 and float(a["biasprm"][1]) == -float(a["gainprm"][0])
              for a in inf["actuators"]]
     groups = []
+    capped = True
     for name, acts in members.items():
         caps_p = [numerics[f"pupper:kp_max:{names[a]}"] for a in acts if f"pupper:kp_max:{names[a]}" in numerics]
         caps_d = [numerics[f"pupper:kd_max:{names[a]}"] for a in acts if f"pupper:kd_max:{names[a]}" in numerics]
         caps_p += [kp_max] if kp_max else []
         caps_d += [kd_max] if kd_max else []
+        capped = capped and bool(caps_p) and bool(caps_d)
         if all(servo[a] for a in acts) and max(own_kd[a] for a in acts) > 0:
             kp0 = max(own_kp[a] for a in acts)
             kd0 = max(own_kd[a] for a in acts)
@@ -214,8 +268,9 @@ def _groups(model: str, inf: Mapping[str, Any], kp_max: float | None, kd_max: fl
                                  "(kp_max= and kd_max= in Python), or pupper:kp_max:ACT and pupper:kd_max:ACT "
                                  "numerics in the model")
         groups.append(Group(name, tuple(acts), (lo_p, hi_p), (lo_d, hi_d), (lo_i[name], hi_i[name]),
-                            min(_limit(inf["actuators"][a]) for a in acts)))
-    return names, groups, float(rep["timestep"])
+                            min(_limit(inf["actuators"][a]) for a in acts),
+                            tuple((sp, sd, lo, hi) for (sp, sd), (lo, hi) in sorted(loops[name].items()))))
+    return names, groups, float(rep["timestep"]), capped
 
 
 def _motor(motor: str | None, command_delay: float) -> str:
@@ -301,16 +356,24 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
          from_fit: str | os.PathLike[str] | None = None, min_phase_margin: float = 30.0,
          min_gain_margin: float = 6.0, max_saturation: float = 0.05, kp_max: float | None = None,
          kd_max: float | None = None, joint_order: Sequence[str] | str | None = None,
-         controller: str = "neural_controller", polish: int = 4, max_sag: float = 0.1) -> Plan:
+         controller: str = "neural_controller", polish: int = 4, max_sag: float = 0.1,
+         current: Sequence[float] | str | None = None, robot_config: str | os.PathLike[str] | None = None) -> Plan:
     """Every input checked, the model read; one line per mistake."""
+    _check_types(dict(locals()))
+    if isinstance(spread, str):
+        spread = [spread]  # one spec (a spec may hold a comma: N(0,0.001))
     if robots < 1 or trials < 1 or batch < 1:
         raise RecommendError(f"robots {robots}, trials {trials}, batch {batch}: each must be a whole number >= 1")
     if polish < 0:
         raise RecommendError(f"--polish {polish} must be a whole number >= 0 (0: the search's pick, unmoved)")
     _positive("the simulated seconds per robot, e.g. 4", seconds, "--seconds")
+    _reaches_the_push(seconds)
     _positive("seconds of feedback latency, e.g. 0.002", sensing_delay, "--sensing-delay", zero=True)
     _positive("seconds of command delay, e.g. 0.01", command_delay, "--command-delay", zero=True)
     _positive("degrees, e.g. 30", min_phase_margin, "--min-phase-margin", zero=True)
+    if min_phase_margin >= 180:
+        raise RecommendError(f"--min-phase-margin {min_phase_margin:g} must be below 180: a loop's phase margin is "
+                             "under 180 degrees (a PD's under 90), so no gains could keep it; give e.g. 30")
     _positive("decibels, e.g. 6", min_gain_margin, "--min-gain-margin", zero=True)
     if not (0 < max_sag < 1):
         raise RecommendError(f"--max-sag {max_sag} must lie in (0, 1): a share of the stance height, e.g. 0.1")
@@ -342,9 +405,11 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
     from pupper_core._api import info
 
     inf = info(model)
+    _standing_robot(model, inf)
     low = _armature_low(rows, [str(a["name"]) for a in inf["actuators"]])
-    names, groups, dt = _groups(model, inf, kp_max, kd_max, leg, low)
+    names, groups, dt, capped = _groups(model, inf, kp_max, kd_max, leg, low)
     motor_spec = _motor(motor, command_delay)
+    _servo_delay(motor_spec)
     from pupper_core._native import loop_margins, stance
 
     loop_margins(1.0, 1.0, 0.1, motor=motor_spec, sensing_delay=sensing_delay, timestep=dt)  # checks the spec
@@ -358,13 +423,204 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
     if robots % max(1, FIT_MODELS if rows else 1):
         raise RecommendError(f"--robots {robots}: with --from-fit the robots are {FIT_MODELS} drawn joint models "
                              f"with an equal share each: give a multiple of {FIT_MODELS}")
+    config = None if robot_config is None else _robot_config(Path(robot_config), controller, names)
+    if config is not None and joint_order is None:
+        joint_order = config[0]
     order = _joint_order(joint_order, names)
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_/]*", controller):
         raise RecommendError(f"--controller '{controller}' is not a ROS 2 node name: letters, digits, _ and /")
+    if config is not None and current is None:
+        now, now_from = _config_gains(config, names, groups, Path(robot_config or ""))
+    else:
+        now, now_from = _current(current, inf, groups)
     return Plan(model, names, groups, dt, motor_spec, sensing_delay, command_delay, drawn, kp_factors,
                 kd_factors, robots, trials, batch, seed, seconds, push_force, min_phase_margin, min_gain_margin,
                 max_saturation, order, controller, polish, max_sag, stance(model=model), fit_dir, rows,
-                _fit_draws(rows, names, seed) if rows else [])
+                _fit_draws(rows, names, seed) if rows else [], now, now_from, capped)
+
+
+def _current(current: Sequence[float] | str | None, inf: Mapping[str, Any],
+             groups: Sequence[Group]) -> tuple[dict[str, tuple[float, float]], str]:
+    """The gains the robot runs today per group, and where they came from:
+    `current` (KP,KD for every group), else the model's own servo gains
+    (none for a model of motors)."""
+    if current is None:
+        acts = inf["actuators"]
+        own = {}
+        for g in groups:
+            kp, kd = float(acts[g.actuators[0]]["gainprm"][0]), -float(acts[g.actuators[0]]["biasprm"][2])
+            servo = kp > 0 and float(acts[g.actuators[0]]["biasprm"][1]) == -kp
+            if not servo:
+                return {}, ""
+            own[g.name] = (kp, kd)
+        return own, "the model's own"
+    parts = current.split(",") if isinstance(current, str) else list(current)
+    try:
+        kp, kd = (float(v) for v in parts)
+    except (TypeError, ValueError):
+        raise RecommendError(f"--current {current!r} is not KP,KD: give the gains the robot runs today, "
+                             "e.g. --current 5,0.25") from None
+    if not (math.isfinite(kp) and kp > 0 and math.isfinite(kd) and kd >= 0):
+        raise RecommendError(f"--current {kp:g},{kd:g}: give kp > 0 and kd >= 0, the gains the robot runs today")
+    return {g.name: (kp, kd) for g in groups}, "--current"
+
+
+def _robot_config(path: Path, controller: str, names: Sequence[str]) -> tuple[list[str], list[float], list[float]]:
+    """A robot's controller configuration (a ROS 2 parameter file, as the
+    robot runs it): the `controller` node's joint_names and the gains it
+    commands (kps/kds, else init_kps/init_kds)."""
+    import yaml  # type: ignore[import-untyped]  # (PyYAML, with Optuna)
+
+    where = f"--robot-config {path}"
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except OSError as e:
+        raise RecommendError(f"{where}: cannot read it ({e.strerror}): give the robot's controller "
+                             "configuration, a ROS 2 parameter YAML") from None
+    except (yaml.YAMLError, UnicodeDecodeError) as e:
+        first = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise RecommendError(f"{where} is not YAML ({first}): give the robot's controller configuration, a ROS 2 "
+                             "parameter file") from None
+    node = doc.get(controller) if isinstance(doc, dict) else None
+    params = node.get("ros__parameters") if isinstance(node, dict) else None
+    if not isinstance(params, dict):
+        nodes = ", ".join(k for k, v in doc.items() if isinstance(v, dict) and "ros__parameters" in v) \
+            if isinstance(doc, dict) else ""
+        raise RecommendError(f"{where} has no '{controller}: ros__parameters:' section: name the controller node "
+                             f"with --controller{f' (its nodes: {nodes})' if nodes else ''}")
+    joints = params.get("joint_names")
+    kps = params.get("kps", params.get("init_kps"))
+    kds = params.get("kds", params.get("init_kds"))
+    for key, v in (("joint_names", joints), ("kps (or init_kps)", kps), ("kds (or init_kds)", kds)):
+        if not isinstance(v, list) or not v:
+            raise RecommendError(f"{where}: {controller}'s {key} is missing or not a list: give the controller's "
+                                 "configuration as the robot runs it")
+    assert isinstance(joints, list) and isinstance(kps, list) and isinstance(kds, list)
+    if not len(joints) == len(kps) == len(kds):
+        raise RecommendError(f"{where}: {controller} has {len(joints)} joint_names, {len(kps)} kps and {len(kds)} "
+                             "kds: give one gain per joint")
+    unknown = [str(j) for j in joints if j not in names]
+    if unknown:
+        raise RecommendError(f"{where} names joint '{unknown[0]}', which is not an actuator of the model: its "
+                             f"actuators are {', '.join(names)}")
+    try:
+        return [str(j) for j in joints], [float(v) for v in kps], [float(v) for v in kds]
+    except (TypeError, ValueError):
+        raise RecommendError(f"{where}: {controller}'s kps and kds must be numbers") from None
+
+
+def _config_gains(config: tuple[list[str], list[float], list[float]], names: Sequence[str], groups: Sequence[Group],
+                  path: Path) -> tuple[dict[str, tuple[float, float]], str]:
+    """The gains a robot's configuration commands, per group (one kp and kd
+    per group, as recommend answers)."""
+    joints, kps, kds = config
+    given = {n: (kp, kd) for n, kp, kd in zip(joints, kps, kds)}
+    out = {}
+    for g in groups:
+        pairs = {given[names[a]] for a in g.actuators if names[a] in given}
+        if len(pairs) > 1:
+            raise RecommendError(f"--robot-config {path}: the {g.name} joints run different gains ({sorted(pairs)}): "
+                                 "recommend compares one kp and kd per group; give --current KP,KD")
+        if not pairs:
+            return {}, ""
+        kp, kd = pairs.pop()
+        if not (math.isfinite(kp) and kp > 0 and math.isfinite(kd) and kd >= 0):
+            raise RecommendError(f"--robot-config {path}: {g.name} runs kp {kp:g}, kd {kd:g}: give kp > 0 and kd >= 0")
+        out[g.name] = (kp, kd)
+    return out, f"{path.name}'s kps and kds"
+
+
+#: The longest command delay (s) the card's predicted step response can
+#: show: it is measured over the 2.5 s after its step (_recommend_card), and
+#: a delayed step needs room to rise and settle there.
+MAX_COMMAND_DELAY = 1.0
+
+
+def _check_types(kw: Mapping[str, Any]) -> None:
+    """The keywords' types, as Python gives them (the CLI's are right by
+    construction): one line naming the keyword, before any work."""
+    import numbers
+
+    def bad(name: str, what: str) -> RecommendError:
+        return RecommendError(f"recommend({name}={kw[name]!r}): give {what}")
+
+    for n in ("robots", "trials", "batch", "polish", "seed"):
+        v = kw[n]
+        if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+            raise bad(n, "a whole number")
+    if not 0 <= kw["seed"] < 2**64:
+        raise bad("seed", "a whole number from 0 to 2**64 - 1")
+    for n in ("seconds", "sensing_delay", "command_delay", "min_phase_margin", "min_gain_margin", "max_saturation",
+              "max_sag", "push_force", "kp_max", "kd_max"):
+        v = kw[n]
+        if v is None and n in ("push_force", "kp_max", "kd_max"):
+            continue
+        if isinstance(v, bool) or not isinstance(v, numbers.Real):
+            raise bad(n, "a number")
+    if kw["push_force"] is not None and not math.isfinite(kw["push_force"]):
+        raise bad("push_force", "a finite number of newtons")
+    for n in ("motor", "controller"):
+        if not (isinstance(kw[n], str) or (n == "motor" and kw[n] is None)):
+            raise bad(n, "a string")
+    for n in ("model", "from_fit"):
+        if not (isinstance(kw[n], (str, os.PathLike)) or (n == "from_fit" and kw[n] is None)):
+            raise bad(n, "a path")
+    for n in ("spread", "joint_order"):
+        v = kw[n]
+        if v is None or isinstance(v, str):
+            continue
+        if not isinstance(v, Sequence) or not all(isinstance(x, str) for x in v):
+            raise bad(n, "a string or a list of strings")
+
+
+def _reaches_the_push(seconds: float) -> None:
+    """A run that ends before the push's dip is known measures no push dip,
+    so no candidate could hold: said before anything runs."""
+    from pupper_core._native import DIP_AFTER, sweep_defaults
+
+    d = sweep_defaults()
+    need = float(d["push_at"]) + float(d["push_duration"]) + DIP_AFTER
+    if seconds < need - 1e-9:
+        raise RecommendError(f"--seconds {seconds:g} ends before the push (at {d['push_at']:g} s, for "
+                             f"{d['push_duration']:g} s) and the {DIP_AFTER:g} s after it, where its dip is measured, "
+                             f"are over: give --seconds {need:g} or more")
+
+
+def _servo_delay(spec: str) -> None:
+    """A command delay (--command-delay, or delay= in --motor) the card's
+    step response can show."""
+    m = re.search(r"(?:^|,)\s*delay\s*=\s*([^,\s]+)", spec)
+    try:
+        delay = float(m.group(1)) if m else 0.0
+    except ValueError:
+        return  # the spec's own check says it
+    if delay > MAX_COMMAND_DELAY:
+        raise RecommendError(f"a command delay of {delay:g} s is longer than the {MAX_COMMAND_DELAY:g} s the card's "
+                             "step response (2.5 s after its step) can show: give the firmware's delay in seconds, "
+                             "e.g. --command-delay 0.01")
+
+
+def _standing_robot(model: str, inf: Mapping[str, Any]) -> None:
+    """A robot recommend can judge: legs it stands on, ground under them,
+    and a torque limit on every motor (saturation and headroom are judged
+    against it)."""
+    if not inf.get("legs"):
+        raise RecommendError(f"model '{model}' has no legs pupper can pose (a chain of abduction, hip and knee "
+                             "hinges under the base ending in a colliding foot): recommend tunes the gains of a "
+                             "robot standing on its legs; give a legged model")
+    # (a welded base has no ground to stand on and is refused by the runs themselves)
+    floating = any(j.get("kind") == "free" for j in inf["joints"])
+    if floating and inf.get("ground", True) is False:
+        raise RecommendError(f"model '{model}' has no ground the feet can touch (no geom fixed in the world that "
+                             "collides with them): every robot would fall at once; add a floor, e.g. "
+                             "<geom type=\"plane\" size=\"0 0 0.05\"/> in the worldbody, or include the model in a "
+                             "scene that has one")
+    free = [str(a["name"]) for a in inf["actuators"] if not math.isfinite(_limit(a))]
+    if free:
+        shown = ", ".join(free[:3]) + (f" and {len(free) - 3} more" if len(free) > 3 else "")
+        raise RecommendError(f"the model's actuators {shown} have no force or control range: recommend holds every "
+                             "robot to its motors' torque limit (saturation, headroom); give each actuator its "
+                             "limit in the model, e.g. forcerange=\"-3 3\" (N·m)")
 
 
 def _joint_order(order: Sequence[str] | str | None, names: list[str]) -> list[str]:
@@ -377,4 +633,14 @@ def _joint_order(order: Sequence[str] | str | None, names: list[str]) -> list[st
                              f"its actuators are {', '.join(names)}")
     if len(set(got)) != len(got):
         raise RecommendError("--joint-order names an actuator twice: name each once")
+    # the controller's kps and kds are one per joint: a joint left out would
+    # be dropped from the file, silently
+    if not got:
+        raise RecommendError(f"--joint-order names no actuator: give the controller's order of all {len(names)} "
+                             "actuators, comma-separated, or leave it out for the model's order")
+    missing = [n for n in names if n not in got]
+    if missing:
+        shown = ", ".join(missing[:3]) + (", ..." if len(missing) > 3 else "")
+        raise RecommendError(f"--joint-order names {len(got)} of the model's {len(names)} actuators: the YAML's kps "
+                             f"and kds are one per joint of the controller; add {shown}")
     return got

@@ -72,18 +72,21 @@ class Candidate:
 
 def margins(plan: Plan, g: Group, kp: float, kd: float) -> tuple[float, float]:
     """The worst phase (deg) and gain (dB) margin of a group's loop over the
-    spread's corners: what the motors deliver of kp and kd, the joints'
-    least and most inertia, the firmware's feedback path with the full
-    sensing delay. The loop sees kp/J and kd/J, so these corners bound it."""
+    spread's corners: what the motors deliver of kp and kd (the model's gain
+    scales, a fit's, times the spread about them), the joints' least and
+    most inertia, the firmware's feedback path with the full sensing delay.
+    The loop sees kp/J and kd/J, so these corners bound it."""
     from pupper_core._native import loop_margins
 
     worst_p, worst_g = math.inf, math.inf
-    for fp in plan.kp_factors:
-        for fd in plan.kd_factors:
-            for inertia in g.inertia:
-                p, d = loop_margins(inertia, kp * fp, kd * fd, motor=plan.motor,
-                                    sensing_delay=plan.sensing_delay, timestep=plan.timestep)
-                worst_p, worst_g = min(worst_p, p), min(worst_g, d)
+    # each kind of motor's own pair of scales, on its own joints' inertia
+    for sp, sd, *inertias in g.loops:
+        for fp in plan.kp_factors:
+            for fd in plan.kd_factors:
+                for inertia in inertias:
+                    p, d = loop_margins(inertia, kp * fp * sp, kd * fd * sd, motor=plan.motor,
+                                        sensing_delay=plan.sensing_delay, timestep=plan.timestep)
+                    worst_p, worst_g = min(worst_p, p), min(worst_g, d)
     return worst_p, worst_g
 
 
@@ -394,8 +397,9 @@ def search(plan: Plan, robot_models: Sequence[str], say: Callable[[str], None],
 
 
 def slowest_hz(plan: Plan, c: Candidate) -> float:
-    """The lowest natural frequency (Hz) of the candidate's groups."""
-    return min(math.sqrt(c.gains[g.name][0] / g.inertia[1]) / (2 * math.pi) for g in plan.groups)
+    """The lowest natural frequency (Hz) of the candidate's groups, on the
+    kp their motors deliver (the least of it)."""
+    return min(math.sqrt(c.gains[g.name][0] * g.kp_scale[0] / g.inertia[1]) / (2 * math.pi) for g in plan.groups)
 
 
 def better(plan: Plan, a: Candidate, b: Candidate) -> bool:

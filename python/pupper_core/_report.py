@@ -10,7 +10,6 @@ experiment kind's own tables), never by stepping physics.
 
 from __future__ import annotations
 
-import base64
 import csv
 import html
 import json
@@ -53,11 +52,21 @@ h1 { font-size: 1.4em; } h2 { font-size: 1.15em; margin-top: 1.6em; border-botto
 table { border-collapse: collapse; font-size: 0.85em; }
 td, th { border: 1px solid #ccc; padding: 2px 6px; text-align: right; }
 th { background: #eee; cursor: pointer; } td.text, th.text { text-align: left; }
+td.text { max-width: 24em; overflow-wrap: break-word; }
+td.worse { background: #fde4e0; }
+th.group { text-align: center; cursor: default; }
+.scroll { overflow-x: auto; max-width: 100%; margin: 4px 0; }
+svg, img { max-width: 100%; height: auto; }
 .best { font-weight: bold; outline: 2px solid #333; }
 .warn { background: #fff4d0; border-left: 4px solid #e0a000; padding: 4px 8px; margin: 4px 0; }
+.verdict { font-size: 1.05em; padding: 6px 10px; margin: 6px 0; border-left: 4px solid; }
+.verdict.good { background: #e6f4e6; border-color: #3a9a3a; }
+.verdict.bad { background: #fde4e0; border-color: #c0392b; }
+.verdict.unjudged { background: #fff4d0; border-color: #e0a000; }
 .note { color: #555; font-size: 0.9em; }
 dl { display: grid; grid-template-columns: max-content auto; gap: 2px 12px; font-size: 0.9em; }
-dt { font-weight: bold; } dd { margin: 0; }
+dt { font-weight: bold; } dd { margin: 0; overflow-wrap: anywhere; }
+pre { overflow-x: auto; }
 svg text { font-family: system-ui, sans-serif; }
 """
 
@@ -71,13 +80,23 @@ def _read(path: Path) -> tuple[list[str], list[dict[str, str]]]:
         return list(r.fieldnames or []), list(r)
 
 
-def _table(header: list[str], rows: list[dict[str, str]], picks: str | set[str] | None, key: str = "id") -> str:
-    """A sortable table; the rows of ``picks`` (one key, a set, or None; by ``key``) in bold."""
+def _breakable(name: str) -> str:
+    """A name that may wrap after its underscores, dots and dashes (a
+    table of long names narrows to the page instead of running off it)."""
+    return "".join(html.escape(c) + ("<wbr>" if c in "_.-/" else "") for c in name)
+
+
+def _table(header: list[str], rows: list[dict[str, str]], picks: str | set[str] | None, key: str = "id",
+           shown: Callable[[str, dict[str, str]], str] | None = None) -> str:
+    """A sortable table; the rows of ``picks`` (one key, a set, or None; by
+    ``key``) in bold; ``shown(column, row)``, where given, the HTML of a
+    text cell. In a box of its own that scrolls sideways where the page is
+    too narrow for it: no column is ever cut off."""
     picks = {picks} if isinstance(picks, str) else picks or set()
-    out = ['<table class="sortable"><thead><tr>']
+    out = ['<div class="scroll"><table class="sortable"><thead><tr>']
     for h in header:
         out.append(f'<th class="{"text" if h in ("id", "name", "status", "parameter", "actuators") else ""}">'
-                   f'{html.escape(h)}</th>')
+                   f'{_breakable(h)}</th>')
     out.append("</tr></thead><tbody>")
     for r in rows:
         cls = ' class="best"' if r.get(key) in picks else ""
@@ -87,12 +106,12 @@ def _table(header: list[str], rows: list[dict[str, str]], picks: str | set[str] 
             if h == "status" or h.startswith("status."):
                 out.append(f'<td class="text" style="background:{STATUS_COLOUR.get(v, "#fff")}">{html.escape(v)}</td>')
             elif h in ("id", "name", "parameter", "actuators", "unit", "log", "actuator"):
-                out.append(f'<td class="text">{html.escape(v)}</td>')
+                out.append(f'<td class="text">{shown(h, r) if shown else _breakable(v)}</td>')
             else:
                 # every digit in the title, four significant ones shown
                 out.append(f'<td title="{html.escape(v)}">{fmt(v, h)}</td>')
         out.append("</tr>")
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
     return "".join(out)
 
 
@@ -422,7 +441,8 @@ def _tune_sections(page: Page) -> list[str]:
         for r in trials:
             acc += num(r["cell_steps"])
             v = num(r[objs[0]])
-            if not math.isnan(v) and r.get("status", "ok") not in ("fell", "diverged", "pruned"):
+            # a trial that fell, diverged, saturated or lay past the bound was told a penalty: never a best
+            if not math.isnan(v) and r.get("status", "ok") == "ok":
                 cur = min(cur, v)
             spent.append(acc)
             best_so_far.append(cur if math.isfinite(cur) else math.nan)
@@ -454,25 +474,11 @@ def _best_trials(best: Any) -> tuple[list[str], list[dict[str, str]]]:
 
 
 def _fit_sections(page: Page) -> list[str]:
-    """A fit: the fitted parameters, the error before and after on one scale, its warnings."""
-    parts: list[str] = []
-    fh, frows = _read(page.dir / "fit.csv")
-    rh, rrows = _read(page.dir / "residuals.csv")
-    if rrows:
-        before = [num(r["rms_before_rad"]) * 1e3 for r in rrows]
-        after = [num(r["rms_after_rad"]) * 1e3 for r in rrows]
-        page.answer.append(f"<p class='pick'>RMS angle error over {len(rrows)} (log, actuator) pairs: "
-                           f"before {rounded(repr(max(before)))} mrad at worst, after "
-                           f"{rounded(repr(max(after)))} mrad at worst</p>")
-        labels = [f"{r['log']} {r['actuator']}" for r in rrows]
-        parts.append("<h2>Figures</h2>" + bars(labels, {"before (nominal model)": before,
-                                                         "after (fitted model)": after},
-                                               "RMS angle error before and after the fit (mrad, both on one scale)",
-                                               unit=" mrad"))
-    page.answer.append("<h3>Fitted parameters (fit.csv)</h3>" + _table(fh, frows, set(), key="parameter"))
-    parts += _validation_sections(page.dir)
-    page.warnings.extend(page.manifest.get("warnings", []))
-    return parts
+    """A fit: its verdict on the logs it did not see, then the rest
+    (``pupper_core._report_fit``)."""
+    from pupper_core._report_fit import fit_sections
+
+    return fit_sections(page)
 
 
 def _recommend_sections(page: Page) -> list[str]:
@@ -496,7 +502,8 @@ def _recommend_sections(page: Page) -> list[str]:
         dip = num(cards[0].get("p95_push_dip_mm", "nan"))
         page.answer.append(f"<p class='pick'>Put these gains on the robot: every constraint held on each drawn "
                            f"robot, p95 push dip {dip:.4g} mm over them.</p><p>Rule: {html.escape(rule)}.</p>"
-                           + _table(ch, cards, None, key="group"))
+                           + _table(ch, cards, None, key="group") + _commanded(cards)
+                           + _in_use(manifest.get("current"), dip))
         parts.append("<h2>Figures</h2>" + bars([c["group"] for c in cards],
                                                {"phase margin": [num(c["phase_margin_deg"]) for c in cards]},
                                                "phase margin at the spread's worst corner (deg)", unit="°"))
@@ -521,6 +528,27 @@ def _recommend_sections(page: Page) -> list[str]:
     return parts
 
 
+def _commanded(cards: list[dict[str, str]]) -> str:
+    """What the card's gains are: to command; and, on a calibrated model,
+    what the motors deliver of them (the margins are of those)."""
+    line = "kp, kd: the gains to command (recommended.yaml's kps, kds)"
+    if cards and cards[0].get("motor_kp"):
+        line += ("; motor kp, motor kd: what the motors deliver of them by the model's fitted gain scales; the "
+                 "margins are of the delivered gains")
+    return f"<p>{html.escape(line)}.</p>"
+
+
+def _in_use(current: dict[str, Any] | None, dip: float) -> str:
+    """The gains the robot runs today, on the same robots, beside the pick."""
+    if not current:
+        return ""
+    gains = ", ".join(f"{g} kp {v['kp']:.4g} kd {v['kd']:.4g}" for g, v in current["gains"].items())
+    ran = (f"{current['fell']} robot(s) fell" if current.get("fell") else
+           f"p95 push dip {num(str(current.get('p95_push_dip_mm'))):.4g} mm (the pick's {dip:.4g} mm)")
+    held = "holds every constraint" if not current.get("failed") else f"breaks one: {current['failed']}"
+    return f"<p>In use today ({html.escape(gains)}): {html.escape(ran)}; {html.escape(held)}.</p>"
+
+
 def _tradeoff_figure(inputs: dict[str, Any], trials: list[dict[str, str]], front: list[dict[str, str]],
                      picked: dict[str, dict[str, float]]) -> str:
     """Every candidate that held, by its slowest group's natural frequency
@@ -539,24 +567,6 @@ def _tradeoff_figure(inputs: dict[str, Any], trials: list[dict[str, str]], front
     return scatter(pts, "candidates that held every constraint: the trade-off set filled, the pick ★",
                    "slowest group's natural frequency sqrt(kp/J) (Hz): faster tracking →",
                    "p95 push dip (mm)", [f"trial {r['trial']}" for r in front], pick)
-
-
-def _validation_sections(d: Path) -> list[str]:
-    """A fit's validation (fit --validate): its table, the RMS angle error
-    of both models, and each log's Bode plot and residual (the PNG, inline)."""
-    vh, vrows = _read(d / "validation.csv")
-    if not vrows:
-        return []
-    labels = [f"{r['log']} {r['actuator']}" for r in vrows]
-    parts = ["<h2>Validation on logs not fitted (validation.csv)</h2>" + _table(vh, vrows, None, key="log"),
-             bars(labels, {"nominal model": [num(r["rms_nominal_rad"]) * 1e3 for r in vrows],
-                           "calibrated model": [num(r["rms_calibrated_rad"]) * 1e3 for r in vrows]},
-                  "RMS angle error on the validation logs (mrad, both on one scale)", unit=" mrad")]
-    for png in sorted((d / "plots").glob("validate_*.png")):
-        data = base64.b64encode(png.read_bytes()).decode("ascii")
-        parts.append(f'<figure><img alt="{html.escape(png.name)}: Bode plot and residual" '
-                     f'src="data:image/png;base64,{data}"><figcaption>{html.escape(png.name)}</figcaption></figure>')
-    return parts
 
 
 #: The registry: each kind's sections of the page, between its warnings and

@@ -29,15 +29,15 @@ import csv
 import json
 import math
 import os
-import sys
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pupper_core._files import atomic_write_text
+from pupper_core._files import atomic_write_text, printing, say
 from pupper_core._native import PupperError
+from pupper_core._signals import _stop_on_signals
 from pupper_core._tune_figures import progress_figure as progress_figure
 from pupper_core._tune_figures import trials_figure as trials_figure
 from pupper_core._tune_figures import write_plots
@@ -172,7 +172,7 @@ def _sayer(progress: bool | Callable[[str], None]) -> Callable[[str], None]:
     if callable(progress):
         return progress
     if progress:
-        return lambda line: print(line, file=sys.stderr, flush=True)
+        return say
     return lambda line: None
 
 
@@ -229,16 +229,22 @@ def _cli(args_json: str) -> list[str]:
     if a.get("resume") and not a.get("space"):
         a = _resume_args(a)
     space = a.pop("space")
-    res = tune(space, **a)
+    # SIGINT and SIGTERM stop the study as Ctrl-C stops Python (the CLI's own
+    # handler only sets a flag that Rust's loops read, and a study is Python's)
+    kept = (f"the trials finished so far are kept; continue with: pupper tune --resume {a['out']}" if a.get("out")
+            else "nothing written")
+    with _stop_on_signals("tune", kept):
+        res = tune(space, **a)
+    lines = []
     for b in res.best:
         params = "  ".join(f"{k} {v:.6g}" if isinstance(v, float) else f"{k} {v}" for k, v in b["params"].items())
         values = "  ".join(f"{o} {v:.6g}" for o, v in zip(b["objectives"], b["values"]))
-        print(f"best (generation {b['generation']}, slot {b['slot']}): {params}  ->  {values}")
+        lines.append(f"best (generation {b['generation']}, slot {b['slot']}): {params}  ->  {values}")
     if len(res.best) == 1 and (edge := edge_line(parse_space(space), res.best[0]["params"])):
-        print(edge)
+        lines.append(edge)
     if not res.best:
-        print(_unranked(res))
-    print(f"{len(res.trials)} trials, {res.cell_steps} cell-steps")
+        lines.append(_unranked(res))
+    lines.append(f"{len(res.trials)} trials, {res.cell_steps} cell-steps")
     wrote = [str(res.out / "trials.csv")] if res.out else []
     if plot and res.out:
         wrote += [str(p) for p in write_plots(res.out, compare)]
@@ -247,9 +253,10 @@ def _cli(args_json: str) -> list[str]:
         _report.report(res.out)  # again, now with the plots beside it
     if res.out:
         wrote.append(str(res.out / "report.html"))
-    # the embedding pupper binary exits without finalizing Python: a pipe's
-    # buffered lines must leave now
-    sys.stdout.flush()
+    # printed last: a stdout that cannot take it (a full disk) leaves the run whole
+    with printing():
+        for line in lines:
+            print(line)
     return wrote
 
 
@@ -297,14 +304,15 @@ def lab_tune(
 def _lab_cli(args_json: str) -> list[str]:
     """`pupper lab --tune`: the CLI's parsed flags as JSON; a line per body."""
     a = json.loads(args_json)
-    res = lab_tune(a.pop("variants"), **a)
-    for body, r in res.items():
-        b = r.best[0] if r.best else None
-        if b is None:
-            print(f"{body:<10} no trial stood")
-            continue
-        params = "  ".join(f"{k} {v:.4g}" for k, v in b["params"].items())
-        print(f"{body:<10} {params}  ->  {r.objectives[0]} {b['values'][0]:.6g}  "
-              f"({len(r.trials)} trials, {r.cell_steps} cell-steps)")
-    sys.stdout.flush()  # see _cli
+    with _stop_on_signals("lab --tune", "each body's trials finished so far are kept in its own directory"):
+        res = lab_tune(a.pop("variants"), **a)
+    with printing():
+        for body, r in res.items():
+            b = r.best[0] if r.best else None
+            if b is None:
+                print(f"{body:<10} no trial stood")
+                continue
+            params = "  ".join(f"{k} {v:.4g}" for k, v in b["params"].items())
+            print(f"{body:<10} {params}  ->  {r.objectives[0]} {b['values'][0]:.6g}  "
+                  f"({len(r.trials)} trials, {r.cell_steps} cell-steps)")
     return [str(Path(a["out"]) / "best.csv")] if a.get("out") else []

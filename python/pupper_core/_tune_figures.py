@@ -10,7 +10,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from pupper_core._plots_style import _new_figure, _save, _style, label_of
+from pupper_core._plots_style import _new_figure, _save, _style, label_of, plain_log_axis
 from pupper_core._tune_plan import PENALTY, TuneError, parse_space
 
 
@@ -66,8 +66,10 @@ def progress_figure(out: str | os.PathLike[str], grid: str | os.PathLike[str] | 
             ax.step(steps * np.arange(1, len(gv) + 1), gbest, where="post", color="tab:orange", lw=1.4,
                     label=f"grid's best so far ({len(gv)} cells)")
             ax.set_xscale("log")
+            plain_log_axis(ax.xaxis)
         if np.all(values[~bad] > 0):
             ax.set_yscale("log")
+            plain_log_axis(ax.yaxis)
         ax.set_xlabel("cell-steps spent")
         ax.set_ylabel(label_of(objective))
         ax.grid(True, alpha=0.3)
@@ -121,11 +123,16 @@ def trials_figure(out: str | os.PathLike[str], grid: str | os.PathLike[str] | No
             good = np.where(bad, np.nan, values)
             k = int(np.nanargmax(good) if maximize else np.nanargmin(good))
             ax.plot([xs[k]], [ys[k]], "*", color="black", ms=16, mfc="none", mew=1.5, label="best")
-        ax.set_xscale("log" if x.log else "linear")
-        ax.set_yscale("log" if y.log else "linear")
+        for axis, dim, scale in ((ax.xaxis, x, ax.set_xscale), (ax.yaxis, y, ax.set_yscale)):
+            scale("log" if dim.log else "linear")
+            if dim.log:
+                plain_log_axis(axis)
         ax.set_xlabel(label_of(x.axis))
         ax.set_ylabel(label_of(y.axis))
-        fig.colorbar(sc, ax=ax).set_label(label_of(objective))
+        bar = fig.colorbar(sc, ax=ax)
+        bar.set_label(label_of(objective))
+        if isinstance(norm, LogNorm):
+            plain_log_axis(bar.long_axis)
         ax.legend(loc="best", fontsize=9)
         fig.suptitle("The trials over the searched plane", fontsize=12)
         return fig

@@ -4,18 +4,19 @@ generations that a resume rebuilds study.db from."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
 import socket
 import tempfile
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
-from pupper_core._files import atomic_write_text
+from pupper_core._files import atomic_write_text, refuse_non_regular
 from pupper_core._tune_plan import INPUT_KEYS, STUDY, TuneError, _compared, _Plan
 from pupper_core._tune_tables import _spent, _write, _write_manifest
 
@@ -101,18 +102,25 @@ def _check_resume(out_dir: Path, plan: _Plan) -> None:
 
 
 @contextmanager
-def _locked(out_dir: Path) -> Iterator[None]:
+def _locked(out_dir: Path, error: Callable[[str], Exception] = TuneError) -> Iterator[None]:
     """The run directory's lock for the study's whole life: an flock on
     .pupper.lock, the file pupper's Rust commands lock, so a second tune or
     a sweep there is refused; the OS drops it when this process dies, kill
-    -9 included, so a resume after a kill finds it free."""
+    -9 included, so a resume after a kill finds it free. At the end the
+    file names nobody, as a sweep leaves it. A directory that cannot be
+    written (read-only, a full disk) is `error`, one line."""
     import fcntl
+
+    def unwritable(e: OSError) -> Exception:
+        return error(f"cannot write the run directory '{out_dir}' ({e.strerror or e}): "
+                     + ("free some space, or choose another -o" if e.errno == 28 else "choose another -o"))
 
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
+        refuse_non_regular(out_dir / LOCK)
         f = open(out_dir / LOCK, "a+")
     except OSError as e:
-        raise TuneError(f"cannot write the run directory '{out_dir}' ({e.strerror}): choose another -o") from None
+        raise unwritable(e) from None
     with f:
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -122,14 +130,22 @@ def _locked(out_dir: Path) -> Iterator[None]:
             raise TuneError(f"run directory '{out_dir}' is being written by another pupper ({holder}): "
                             "wait for it to end, or choose another -o",
                             kind=cast("ErrorCode", "run_busy")) from None  # (the stub's ErrorCode lacks it)
-        f.truncate(0)
-        f.write(f"pid {os.getpid()} on {socket.gethostname()}, since unix time {int(time.time())}")
-        f.flush()
+        try:
+            f.truncate(0)
+            f.write(f"pid {os.getpid()} on {socket.gethostname()}, since unix time {int(time.time())}")
+            f.flush()
+        except OSError as e:
+            raise unwritable(e) from None
         # a killed writer's temporary files (we hold the lock: no live writer owns them)
         for p in out_dir.iterdir():
             if p.name != LOCK and _is_ours_to_ignore(p.name):
                 p.unlink(missing_ok=True)
-        yield
+        try:
+            yield
+        finally:
+            # the file stays (a second writer must lock this one, not a new one)
+            with contextlib.suppress(OSError):
+                f.truncate(0)
 
 
 def _discard(out_dir: Path, made: bool) -> None:

@@ -34,8 +34,21 @@ pub fn main(args: impl IntoIterator<Item = OsString>, host: Host) -> u8 {
         Ok(c) => c,
         Err(e) => {
             // --help and --version print and succeed; usage errors exit 2
-            let _ = e.print();
-            return if e.use_stderr() { 2 } else { 0 };
+            let printed = e.print();
+            if e.use_stderr() {
+                return 2;
+            }
+            // help that could not be written is no success (a full disk)
+            return match printed {
+                Err(io) if io.kind() != std::io::ErrorKind::BrokenPipe => {
+                    say(&format!(
+                        "error: {}",
+                        Error::io("write to", pupper_core::error::STDOUT, io)
+                    ));
+                    2
+                }
+                _ => 0,
+            };
         }
     };
     if let Host::Embedded { built_with } = host {
@@ -47,6 +60,7 @@ pub fn main(args: impl IntoIterator<Item = OsString>, host: Host) -> u8 {
     let _ = ctrlc::set_handler(|| {
         if STOP.swap(true, Ordering::SeqCst) {
             // a second Ctrl-C: the user really wants out
+            say("error: interrupted again: stopped at once, without finishing the current step");
             std::process::exit(130);
         }
     });
@@ -54,7 +68,7 @@ pub fn main(args: impl IntoIterator<Item = OsString>, host: Host) -> u8 {
     match cli::run(cli, &STOP) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e}");
+            say(&format!("error: {e}"));
             match e {
                 Error::Interrupted(_) => 130,
                 e if e.is_user_error() => 2,
@@ -62,4 +76,15 @@ pub fn main(args: impl IntoIterator<Item = OsString>, host: Host) -> u8 {
             }
         }
     }
+}
+
+/// A line on standard error. One that cannot be written (a full disk, a
+/// closed stream) is dropped: there is nowhere left to say it, and the exit
+/// status still tells what happened; `eprintln!` would panic instead.
+pub(crate) fn say(line: &str) {
+    use std::io::Write;
+    let mut e = std::io::stderr().lock();
+    let _ = e
+        .write_all(line.as_bytes())
+        .and_then(|()| e.write_all(b"\n"));
 }

@@ -13,18 +13,22 @@ use crate::pyargs::PyArgs;
 use pupper_mujoco::bridge::calls;
 
 #[derive(Args, Debug)]
-#[command(after_help = "The log (CSV): `# key: value` lines, then a header
+#[command(
+    after_help = "The log (CSV, plain or gzip/bzip2/xz-compressed): `# key: value` lines, then a header
 time,ACTUATOR.target,ACTUATOR.q[,ACTUATOR.qd][,ACTUATOR.tau],... in s, rad, rad/s, N·m, for any
 subset of the actuators, time stamps as recorded. Keys: kp and kd (the gains in use: one value, or
-one per actuator in column order; required, or --kp/--kd in fit), mode (servo or torque), base
-(suspended), held (what the others hold), columns (a map of the log's own names: fit --columns). Play the file's targets on the robot, hung in the air, at
+one per actuator in column order; required, or given to fit: --kp/--kd, LOG::kp=K,kd=D,
+--gains-from-name), mode (servo or torque), base (suspended), held (what the others hold), columns
+(a map of the log's own names, e.g. `# columns: time=stamp,leg_front_r_3.q=fr_knee_pos:deg`; fit
+--columns). Play the file's targets on the robot, hung in the air, at
 its gains; log the measured angles (and velocities, torques where the servos report them) into the
 same columns. The format, the fit and the motor model: docs/fit.md.
 
 Examples:
   pupper excite -o excite.csv                      8 s per joint group at the model's own gains
   pupper excite --kd 0.3 --signal chirp -o excite_kd03.csv   a second log at another kd
-  pupper excite --joints leg_front_r_3 --rate 250 -o stand.csv   one motor on a test stand")]
+  pupper excite --joints leg_front_r_3 --rate 250 -o stand.csv   one motor on a test stand"
+)]
 pub(super) struct ExciteArgs {
     #[command(flatten)]
     model: ModelArg,
@@ -59,15 +63,16 @@ pub(super) struct ExciteArgs {
     /// Fastest commanded joint speed (rad/s).
     #[arg(long, default_value_t = 8.0, value_name = "RAD_S", allow_negative_numbers = true)]
     max_velocity: f64,
-    /// Seed of the multisine's phases.
+    /// Seed of the multisine's phases (a whole number >= 0).
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// The actuators excited and logged, comma-separated (names, or joint groups haa, hfe, kfe);
     /// the others hold their rest angle and are not in the log (a test stand) [default: all]
     #[arg(long, value_name = "NAMES")]
     joints: Option<String>,
-    /// The log's sample rate (Hz): the physics rate divided by a whole number; the targets are
-    /// held between samples, as the servo holds them [default: the physics rate]
+    /// The log's sample rate (Hz): the physics rate divided by a whole number, and fast enough for
+    /// fit (twice the fastest joint's natural frequency at the gains, and the band's top); the
+    /// targets are held between samples, as the servo holds them [default: the physics rate]
     #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
     rate: Option<f64>,
 }
@@ -143,10 +148,16 @@ Examples:
   pupper fit robot1.csv robot2.csv -o runs/fit --plot
   pupper fit robot1.csv --params armature,frictionloss,kp_scale,delay --per group
   pupper fit stand_kd01.csv stand_kd03.csv --columns stand.map --validate stand_kp25.csv stand_kp75.csv
+  pupper fit a_kp_5_kd_0.25.csv.gz b_kp_5_kd_0.5.csv.gz --gains-from-name 'kp_{kp}_kd_{kd}'
+  pupper fit 'knee.csv.gz::kp=5,kd=0.25' 'hip.csv.gz::kp=5,kd=0.25,columns=hip.map' --held 0
+  pupper fit @bench.logs --validate @check.logs     lists: one LOG[::kp=K,kd=D,...] per line
   pupper response --model runs/fit/calibrated.xml --grid kp=5,20 --grid kd=0.1,0.5"
 )]
 pub(super) struct FitArgs {
-    /// Joint logs (CSV; see below), fitted together.
+    /// Joint logs (CSV, plain or gzip/bzip2/xz-compressed: told by the bytes), fitted together.
+    /// LOG::kp=K,kd=D gives one log its own gains (also held=..., columns=MAP|FILE, in place of
+    /// --held and --columns for it); @FILE reads such logs from a file, one per line (# comments;
+    /// paths relative to the file's folder).
     #[arg(required = true, value_name = "LOG")]
     logs: Vec<PathBuf>,
     #[command(flatten)]
@@ -174,22 +185,31 @@ pub(super) struct FitArgs {
     #[arg(long)]
     plot: bool,
     /// The logs' own column names and units: KEY=COLUMN[:UNIT],... (KEY: time or ACTUATOR.FIELD),
-    /// or a file holding the map; over a log's own `# columns:` line.
+    /// or a file holding the map; over a log's own `# columns:` line (a log's own columns= in
+    /// place of it). Its columns name the actuators the log covers.
     #[arg(long, value_name = "MAP|FILE")]
     columns: Option<String>,
-    /// Kp in use, for a log that does not say it (one value, or one per logged actuator).
+    /// Kp in use in the fitted logs that do not say it (one value, or one per logged actuator); a
+    /// log that says another (a header line, columns, LOG::kp=, its name) is refused. A --validate
+    /// log states its own.
     #[arg(long, value_name = "KP", allow_hyphen_values = true)]
     kp: Option<String>,
-    /// Kd in use, for a log that does not say it (one value, or one per logged actuator).
+    /// Kd in use, as --kp.
     #[arg(long, value_name = "KD", allow_hyphen_values = true)]
     kd: Option<String>,
-    /// What the actuators a log does not cover hold (rad): one angle, or ACTUATOR=RAD,...
-    /// [default: the model's rest pose]
+    /// Read each log's gains from its file name: a pattern with {kp} and {kd} where the name holds
+    /// them, the rest as written, e.g. 'kp_{kp}_kd_{kd}' reads kp 5, kd 0.25 from
+    /// freq_sweep_motor_3_kp_5_kd_0.25.csv.gz (0p25 reads as 0.25).
+    #[arg(long, value_name = "PATTERN")]
+    gains_from_name: Option<String>,
+    /// What the actuators a log does not cover hold (rad, inside each joint's range): one angle,
+    /// or ACTUATOR=RAD,... [default: the model's rest pose]
     #[arg(long, value_name = "RAD|ACT=RAD,...", allow_hyphen_values = true)]
     held: Option<String>,
     /// Logs not fitted, replayed through the nominal and the calibrated model: RMS angle error and
     /// frequency response (stepped sines, chirps) beside the log's own; validation.csv,
-    /// validation_bode.csv and plots/validate_<log>.png.
+    /// validation_bode.csv and plots/validate_<log>.png. Each at its own gains (its header,
+    /// LOG::kp=K,kd=D, or --gains-from-name; not --kp/--kd); @FILE as for LOG.
     #[arg(long, value_name = "LOG", num_args = 1..)]
     validate: Vec<PathBuf>,
     /// Replay through the servo firmware, KEY=VALUE,...: rate (Hz), filter (Hz), counts (the
@@ -220,6 +240,7 @@ impl FitArgs {
             "columns": self.columns,
             "kp": self.kp,
             "kd": self.kd,
+            "gains_from_name": self.gains_from_name,
             "held": self.held,
             "validate": py.paths(&self.validate),
             "motor": self.motor,

@@ -27,6 +27,9 @@ period); no viscous damping (the conservative case). phase_margin_deg: 180 plus 
 the open loop where its gain is 1 (below 0: the real joint oscillates or runs away however the
 simulation looks); gain_margin_db: how much more loop gain makes it unstable. A command delay
 (delay=S) is not in the loop: it shifts the step response, not these margins.
+On a calibrated model (gain scales pupper:kp_scale:ACT, pupper:kd_scale:ACT: `pupper fit`'s)
+kp and kd are what to command; motor kp and motor kd are what each motor delivers of them, and
+every other figure is of the delivered gains. A --bandwidth's gains are divided by the scales.
 
 Examples:
   pupper gains --bandwidth 8 --damping 0.7

@@ -52,6 +52,12 @@ macro_rules! outln {
     ($($t:tt)*) => { $crate::cli::out(&format!("{}\n", format_args!($($t)*)))? };
 }
 
+/// `eprintln!` that never panics: a line stderr cannot take is dropped
+/// (see [`crate::say`]).
+macro_rules! errln {
+    ($($t:tt)*) => { $crate::say(&format!($($t)*)) };
+}
+
 // after the macros: textual scope, so every command's module has them
 mod args;
 mod fit;
@@ -186,7 +192,7 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
         Command::Excite(a) => a.run(),
         Command::Report { dir } => {
             python::write_report(&dir)?;
-            eprintln!("wrote {}", dir.join("report.html").display());
+            errln!("wrote {}", dir.join("report.html").display());
             Ok(0)
         }
         Command::Fit(a) => a.run(),

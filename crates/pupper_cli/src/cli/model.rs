@@ -80,7 +80,7 @@ pub(super) fn pose(a: &PoseArgs) -> Result<u8> {
 pub(super) fn stand(a: &StandArgs) -> Result<u8> {
     let r = api::stand(&a.sim.spec()?)?;
     for n in &r.notes {
-        eprintln!("note: {n}");
+        errln!("note: {n}");
     }
     if a.json {
         outln!("{}", print::json(&r)?);

@@ -16,7 +16,7 @@ pub(super) fn python_command(call: &PyCall, args_json: &str) -> Result<u8> {
 /// directory) and says each file it wrote on stderr.
 pub(super) fn write_files(call: &PyCall, arg: &str) -> Result<()> {
     for p in bridge::call_helper(call, &[arg.to_string()], &serde_json::json!({}))? {
-        eprintln!("wrote {p}");
+        errln!("wrote {p}");
     }
     Ok(())
 }

@@ -42,6 +42,11 @@ other beats at once on push dip, slowest group's tracking and stand height), rec
 parameter file: joint_names, kps, kds for --controller in --joint-order), recommended.xml (the
 model with the gains in its actuators), report.html, manifest.json. Needs the tune extra (Optuna).
 
+The gains are what to command. A calibrated model (`pupper fit`'s, with gain scales
+pupper:kp_scale:ACT) says its motors deliver other gains: the card shows those beside them (motor
+kp, motor kd), and every margin is of the delivered gains. The gains the robot runs today
+(--current, default the model's own) run on the same robots and are set beside the pick.
+
 Examples:
   pupper recommend -o runs/rec
   pupper recommend --motor rate=250,counts=16384 --sensing-delay 0.004 -o runs/rec_slow
@@ -107,6 +112,15 @@ pub(super) struct RecommendArgs {
     /// The motors' largest kd [default: the model's pupper:kd_max:ACT numerics, else 50x its own].
     #[arg(long, value_name = "KD", allow_negative_numbers = true)]
     kd_max: Option<f64>,
+    /// The gains the robot runs today, KP,KD for every group, run on the same robots and set beside
+    /// the pick on the card [default: the model's own servo gains].
+    #[arg(long, value_name = "KP,KD", allow_hyphen_values = true)]
+    current: Option<String>,
+    /// The robot's controller configuration, a ROS 2 parameter YAML: the --controller node's
+    /// joint_names are the default --joint-order, its kps/kds (or init_kps/init_kds) the default
+    /// --current.
+    #[arg(long, value_name = "YAML")]
+    robot_config: Option<PathBuf>,
     /// The controller's joint order for the YAML's kps/kds, comma-separated actuator names
     /// [default: the model's actuators].
     #[arg(long, value_name = "A,B,...")]
@@ -168,6 +182,8 @@ impl RecommendArgs {
             "max_sag": self.max_sag,
             "kp_max": self.kp_max,
             "kd_max": self.kd_max,
+            "current": self.current,
+            "robot_config": self.robot_config.as_ref().map(|p| py.path(p)),
             "joint_order": self.joint_order,
             "controller": self.controller,
             "out": py.path(&out),

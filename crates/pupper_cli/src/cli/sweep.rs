@@ -218,16 +218,21 @@ pub(super) fn run_job(mut a: Job, stop: &'static AtomicBool) -> Result<u8> {
     };
     let outcome = api::run_sweep(&req, &mut ui)?;
     for n in &outcome.notes {
-        eprintln!("note: {n}");
+        errln!("note: {n}");
     }
     let dir = outcome.out.clone().unwrap_or_default();
     if !outcome.complete {
         say_interrupted(&a, &outcome, &dir);
         return Ok(130);
     }
-    show(&a, &outcome, &dir)?;
+    let unprinted = show(&a, &outcome, &dir)?;
     write_after(&a, &dir)?;
-    Ok(0)
+    // said after the files: a stdout that cannot take the table (a full
+    // disk) leaves a whole run, its best.csv and report.html written
+    match unprinted {
+        Some(e) => Err(e),
+        None => Ok(0),
+    }
 }
 
 /// The job's sweep: the spec as given, continued from its run directory
@@ -307,7 +312,7 @@ fn refuse_other_inputs(
 
 /// What was kept of a stopped run, and the command that continues it.
 fn say_interrupted(a: &Job, outcome: &SweepOutcome, dir: &Path) {
-    eprintln!(
+    errln!(
         "interrupted: kept {} of {} cells in {}; continue with: pupper {} --resume {}{}",
         outcome.rows.len(),
         outcome.cells_total,
@@ -327,10 +332,17 @@ fn say_interrupted(a: &Job, outcome: &SweepOutcome, dir: &Path) {
 }
 
 /// Prints a finished run: its table (a lab's is a line per body), its
-/// best cells, or all of it as JSON.
-fn show(a: &Job, outcome: &SweepOutcome, dir: &Path) -> Result<()> {
+/// best cells, or all of it as JSON; writes best.csv. A failure to print is
+/// returned beside (`Ok(Some(..))`), not at once, so the files still follow.
+fn show(a: &Job, outcome: &SweepOutcome, dir: &Path) -> Result<Option<Error>> {
+    let mut printed: Result<()> = Ok(());
+    let mut put = |text: &str| {
+        if printed.is_ok() {
+            printed = super::out(text);
+        }
+    };
     if !a.json && !a.lab {
-        outp!("{}", print::run_table(outcome, &a.spec.experiment));
+        put(&print::run_table(outcome, &a.spec.experiment));
     }
     let mut best = None;
     if let Some(rule) = &a.rule {
@@ -338,20 +350,20 @@ fn show(a: &Job, outcome: &SweepOutcome, dir: &Path) -> Result<()> {
         if a.json {
             best = Some(print::best_json(outcome, rule, &groups));
         } else if a.lab {
-            outp!("{}", print::lab(outcome, rule, &groups));
+            put(&print::lab(outcome, rule, &groups));
         } else {
-            outp!("{}", print::best(outcome, rule, &groups));
+            put(&print::best(outcome, rule, &groups));
         }
-        eprintln!("wrote {}", dir.join(output::BEST).display());
+        errln!("wrote {}", dir.join(output::BEST).display());
     }
     if a.json {
         let mut doc = print::rows_json(outcome);
         if let (Some(b), Some(m)) = (best, doc.as_object_mut()) {
             m.insert("best".into(), b);
         }
-        outln!("{}", print::json(&doc)?);
+        put(&format!("{}\n", print::json(&doc)?));
     }
-    Ok(())
+    Ok(printed.err())
 }
 
 /// Writes what a finished run asked for beside its tables: plots,
@@ -370,10 +382,10 @@ fn write_after(a: &Job, dir: &Path) -> Result<()> {
             &serde_json::json!({ "gif": a.render }),
         ) {
             Ok(paths) if paths.is_empty() => {
-                eprintln!("note: no body has best gains (see best.csv): nothing to draw")
+                errln!("note: no body has best gains (see best.csv): nothing to draw")
             }
-            Ok(paths) => paths.iter().for_each(|p| eprintln!("wrote {p}")),
-            Err(Error::Display(why)) if !a.render => eprintln!("note: no rendering here ({why})"),
+            Ok(paths) => paths.iter().for_each(|p| errln!("wrote {p}")),
+            Err(Error::Display(why)) if !a.render => errln!("note: no rendering here ({why})"),
             Err(e) => return Err(e),
         }
     } else if a.render {
@@ -382,7 +394,7 @@ fn write_after(a: &Job, dir: &Path) -> Result<()> {
     // the page a person opens: its path last (-q: written, not said)
     write_report(dir)?;
     if !a.quiet {
-        eprintln!("wrote {}", dir.join("report.html").display());
+        errln!("wrote {}", dir.join("report.html").display());
     }
     Ok(())
 }

@@ -250,10 +250,16 @@ pub fn gains(r: &pupper_core::robot::gains::GainsReport) -> String {
         }
     }
     let looped = r.feedback.is_some();
-    let mut head = format!(
-        "{:<16} {:>12} {:>10} {:>10} {:>11} {:>9} {:>10}",
-        "", "inertia", "kp", "kd", "natural_hz", "damping", "stability"
-    );
+    // a calibrated model's motors deliver other gains than they are told
+    let scaled = r.joints.iter().any(|j| j.figures.delivered.is_some());
+    let mut head = format!("{:<16} {:>12} {:>10} {:>10}", "", "inertia", "kp", "kd");
+    if scaled {
+        head.push_str(&format!(" {:>10} {:>10}", "motor kp", "motor kd"));
+    }
+    head.push_str(&format!(
+        " {:>11} {:>9} {:>10}",
+        "natural_hz", "damping", "stability"
+    ));
     if looped {
         head.push_str(&format!(" {:>9} {:>9}", "PM deg", "GM dB"));
     }
@@ -267,12 +273,18 @@ pub fn gains(r: &pupper_core::robot::gains::GainsReport) -> String {
         }
     };
     let row = |label: String, f: &pupper_core::robot::gains::Figures| {
+        let [dkp, dkd] = f.delivered();
         format!(
-            "{:<16} {:>12} {:>10} {:>10} {:>11} {:>9} {:>10}{}",
+            "{:<16} {:>12} {:>10} {:>10}{} {:>11} {:>9} {:>10}{}",
             label,
             format!("{:.3e}", f.inertia),
             Sig(f.kp).to_string(),
             Sig(f.kd).to_string(),
+            if scaled {
+                format!(" {:>10} {:>10}", Sig(dkp).to_string(), Sig(dkd).to_string())
+            } else {
+                String::new()
+            },
             Sig(f.natural_hz).to_string(),
             Sig(f.damping_ratio).to_string(),
             flag(f.stability_margin),
@@ -298,6 +310,12 @@ pub fn gains(r: &pupper_core::robot::gains::GainsReport) -> String {
         s,
         "inertia: kg·m² (armature included); stability: 1 or more is past the explicit PD's bound (see --help)"
     );
+    if scaled {
+        let _ = writeln!(
+            s,
+            "kp, kd: what to command; motor kp, motor kd: what the motor delivers of them (the model's gain scales, pupper:kp_scale/kd_scale, a fit's); every other figure is of the delivered gains"
+        );
+    }
     if let Some(fb) = &r.feedback {
         let _ = writeln!(
             s,

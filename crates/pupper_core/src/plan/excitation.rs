@@ -8,6 +8,10 @@ use crate::error::{Error, Result};
 use crate::math::response::chirp;
 use crate::robot::model::ModelInfo;
 
+/// Seconds within which a time on the runner's clock counts as the signal's
+/// start: far below any timestep, far above the clock's rounding error.
+pub const STEP_TOLERANCE: f64 = 1e-9;
+
 /// What an excited joint's target does, added to its pose angle.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -165,10 +169,16 @@ impl Excitation {
 
     /// The target offset (rad) at time `t` of the schedule.
     pub fn offset(&self, t: f64, duration: f64) -> f64 {
+        // the runner's clock is a sum of timesteps, which may fall a rounding
+        // error short of the hold's end (and, less the command delay, of it
+        // on another step than without the delay): within STEP_TOLERANCE it
+        // is the signal's start, so a delay shifts the response by exactly
+        // its length
         let s = t - self.hold;
-        if s < 0.0 {
+        if s < -STEP_TOLERANCE {
             return 0.0;
         }
+        let s = s.max(0.0);
         match self.signal {
             Signal::Step { amplitude } => amplitude,
             Signal::Sine { amplitude, hz } => {
@@ -276,6 +286,36 @@ mod tests {
             groups: vec!["hfe".into()],
             inertia: vec![],
         }
+    }
+
+    #[test]
+    fn a_clock_summed_from_steps_starts_the_step_on_time_with_or_without_a_delay() {
+        // 1000 steps of 2 ms sum to a hair under 2 s: the step at hold 2 s
+        // starts on that step, and 20 ms of delay moves it by 10 steps exactly
+        let e = Excitation {
+            hold: 2.0,
+            ..ex(Signal::Step { amplitude: 0.2 })
+        };
+        let (dt, delay) = (0.002, 0.02);
+        let mut t = 0.0;
+        let (mut now, mut late) = (None, None);
+        for k in 0..3000 {
+            if now.is_none() && e.offset(t, 5.0) > 0.0 {
+                now = Some(k);
+            }
+            if late.is_none() && e.offset(t - delay, 5.0) > 0.0 {
+                late = Some(k);
+            }
+            t += dt;
+        }
+        assert_eq!((now, late), (Some(1000), Some(1010)));
+        // a sine starts at zero, as before
+        let s = ex(Signal::Sine {
+            amplitude: 0.1,
+            hz: 2.0,
+        });
+        assert_eq!(s.offset(0.5 - 1e-12, 2.0), 0.0);
+        assert_eq!(s.offset(0.5 - 1e-6, 2.0), 0.0);
     }
 
     #[test]

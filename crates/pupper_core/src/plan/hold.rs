@@ -196,10 +196,23 @@ impl KindPlan for Load {
                 self.loaded_at() + WINDOW
             ));
         }
+        // with a shove, its sway and recovery are measured until its dip is
+        // known (its end and 1.5 s): a run must reach that too
+        let need = s.dip_end().filter(|_| s.push.is_some()).unwrap_or(to);
         if s.duration < to - 1e-9 {
             return bad(format!(
-                "--seconds {} ends before the load has been steady for {WINDOW} s ({to} s): give --seconds {to} or more",
+                "--seconds {} ends before the load has been steady for {WINDOW} s ({to} s): give --seconds {need} or more",
                 s.duration
+            ));
+        }
+        if let Some(p) = &s.push
+            && s.duration < need - 1e-9
+        {
+            return bad(format!(
+                "--seconds {} ends before the shove at {} s and the {} s after it are over, which sway_mm and recovery_s are measured over: give --seconds {need} or more, or --shove 0 for none",
+                s.duration,
+                p.start,
+                p.duration + crate::math::stats::DIP_AFTER
             ));
         }
         if replicated {

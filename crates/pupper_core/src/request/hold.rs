@@ -61,3 +61,44 @@ pub fn spec(base: SweepSpec, h: &HoldInput) -> SweepSpec {
         ..base
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn built(seconds: f64, h: &HoldInput) -> crate::error::Result<crate::request::spec::Sweep> {
+        spec(
+            SweepSpec {
+                seconds,
+                ..SweepSpec::default()
+            },
+            h,
+        )
+        .build()
+    }
+
+    #[test]
+    fn a_run_must_reach_the_end_of_the_shoves_dip_window() {
+        let h = HoldInput::default();
+        // the shove at 3.5 s for 0.25 s, its dip known 1.5 s after: 5.25 s
+        let e = built(3.6, &h).err().unwrap().to_string();
+        assert!(e.contains("--seconds 3.6 ends before the shove"), "{e}");
+        assert!(e.contains("give --seconds 5.25 or more"), "{e}");
+        assert!(built(5.25, &h).is_ok());
+        // no shove: the loaded window is all it needs
+        let calm = HoldInput {
+            shove: 0.0,
+            ..HoldInput::default()
+        };
+        assert!(built(3.6, &calm).is_ok());
+        // a late shove asks for the seconds that reach its window's end
+        let late = HoldInput {
+            shove_at: Some(100.0),
+            ..HoldInput::default()
+        };
+        let e = built(7.0, &late).err().unwrap().to_string();
+        assert!(e.contains("give --seconds 101.75 or more"), "{e}");
+        assert_eq!(seconds(&late), 102.75);
+        assert!(built(seconds(&late), &late).is_ok());
+    }
+}

@@ -50,6 +50,7 @@ pub enum Existing {
 /// leaves a short file under the final name. The temporary file is removed
 /// on every error.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    refuse_non_regular(path)?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
     let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
@@ -65,6 +66,58 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     }
     written?;
     sync_dir(dir)
+}
+
+/// Refuses a `path` that exists and is not a regular file (a FIFO, a
+/// device, a socket, a directory): renaming over it would replace the node
+/// itself, and a device or a FIFO is no place for a table.
+pub fn refuse_non_regular(path: &Path) -> Result<()> {
+    match std::fs::metadata(path) {
+        Ok(m) if !m.is_file() => Err(Error::Output(format!(
+            "'{}' exists and is not a regular file ({}): pupper writes only regular files; move it away or choose another --out",
+            path.display(),
+            file_kind(&m)
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// What a file that is not a regular one is, in words.
+fn file_kind(m: &std::fs::Metadata) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    let t = m.file_type();
+    if t.is_dir() {
+        "a directory"
+    } else if t.is_fifo() {
+        "a FIFO"
+    } else if t.is_char_device() || t.is_block_device() {
+        "a device"
+    } else if t.is_socket() {
+        "a socket"
+    } else {
+        "not a file"
+    }
+}
+
+/// The files a run directory may hold that pupper writes (its Python side
+/// writes report.html and, on request, best.csv's neighbours): each must
+/// be a regular file or absent before a run starts, so that no write at
+/// its end is refused after the manifest has called it complete.
+fn refuse_non_regular_outputs(dir: &Path) -> Result<()> {
+    for name in [
+        SUMMARY,
+        MANIFEST,
+        TRACES,
+        REPLICATES,
+        RESPONSE,
+        BODE,
+        RESPONSE_TRACES,
+        crate::results::output::BEST,
+        "report.html",
+    ] {
+        refuse_non_regular(&dir.join(name))?;
+    }
+    Ok(())
 }
 
 fn sync_dir(dir: &Path) -> Result<()> {
@@ -262,6 +315,9 @@ impl RunWriter {
                 "--out '{}' is a file, not a directory: choose another path",
                 dir.display()
             )));
+        }
+        if dir.is_dir() && matches!(existing, Existing::Overwrite | Existing::Resume) {
+            refuse_non_regular_outputs(dir)?;
         }
         match existing {
             Existing::Refuse if dir.exists() => {
@@ -848,6 +904,50 @@ mod tests {
         assert!(e.to_string().contains("grid"), "{e}");
         let w = RunWriter::new(Some(&dir), Existing::Resume, manifest(c)).unwrap();
         assert_eq!(w.done().collect::<Vec<_>>(), vec![1]);
+    }
+
+    #[test]
+    fn a_target_that_is_not_a_regular_file_is_refused_and_kept() {
+        use std::os::unix::fs::FileTypeExt;
+        // a socket stands in for a FIFO or a device: a node a rename would replace
+        let tmp = tempfile::tempdir().unwrap();
+        let node = tmp.path().join("summary.csv");
+        let _listener = std::os::unix::net::UnixListener::bind(&node).unwrap();
+        let e = write_atomic(&node, b"x").unwrap_err();
+        assert_eq!(e.code(), "output");
+        assert!(
+            e.to_string().contains("not a regular file (a socket)"),
+            "{e}"
+        );
+        assert!(
+            std::fs::symlink_metadata(&node)
+                .unwrap()
+                .file_type()
+                .is_socket()
+        );
+        // nothing else left beside it
+        assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 1);
+        // a regular file, or none, is written as before
+        write_atomic(&tmp.path().join("new.csv"), b"a\n").unwrap();
+        write_atomic(&tmp.path().join("new.csv"), b"b\n").unwrap();
+        assert_eq!(std::fs::read(tmp.path().join("new.csv")).unwrap(), b"b\n");
+    }
+
+    #[test]
+    fn a_run_over_a_directory_holding_a_node_is_refused_before_it_starts() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("run");
+        std::fs::create_dir(&dir).unwrap();
+        let _listener = std::os::unix::net::UnixListener::bind(dir.join("report.html")).unwrap();
+        let c = cfg("kp=1,2", false);
+        for existing in [Existing::Overwrite, Existing::Resume] {
+            let e = RunWriter::new(Some(&dir), existing, manifest(c.clone()))
+                .err()
+                .unwrap();
+            assert!(e.to_string().contains("report.html"), "{e}");
+        }
+        // nothing was written there
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
     }
 
     #[test]

@@ -14,8 +14,15 @@ use crate::robot::model::ModelInfo;
 pub struct Figures {
     /// Joint-space inertia diagonal at the pose, armature included (kg·m²).
     pub inertia: f64,
+    /// The gains to command.
     pub kp: f64,
     pub kd: f64,
+    /// What the motor delivers of them, where the model's gain scales
+    /// (`pupper:kp_scale:ACT`, `pupper:kd_scale:ACT`: a fit's) are not 1.
+    /// Every figure below is of these: the loop is closed on what the motor
+    /// applies, not on what it is told.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub delivered: Option<[f64; 2]>,
     /// The natural frequency (Hz) and damping ratio these gains give.
     pub natural_hz: f64,
     pub damping_ratio: f64,
@@ -31,20 +38,36 @@ pub struct Figures {
 }
 
 impl Figures {
-    /// The figures of `kp`, `kd` on `inertia` with this stability margin
-    /// (no loop margins until a firmware is given).
-    fn new(inertia: f64, kp: f64, kd: f64, stability_margin: f64) -> Figures {
-        let (natural_hz, damping_ratio) = natural(inertia, kp, kd);
+    /// The figures of commanded `kp`, `kd` that the motor delivers times
+    /// `scale` (kp's, kd's), on `inertia`, with the stability margin of the
+    /// delivered gains at `timestep` (no loop margins until a firmware is
+    /// given).
+    fn new(
+        inertia: f64,
+        kp: f64,
+        kd: f64,
+        scale: [f64; 2],
+        bound: impl Fn(f64, f64) -> f64,
+    ) -> Figures {
+        let [dkp, dkd] = [kp * scale[0], kd * scale[1]];
+        let (natural_hz, damping_ratio) = natural(inertia, dkp, dkd);
         Figures {
             inertia,
             kp,
             kd,
+            delivered: (scale != [1.0, 1.0]).then_some([dkp, dkd]),
             natural_hz,
             damping_ratio,
-            stability_margin,
+            stability_margin: bound(dkp, dkd),
             phase_margin_deg: None,
             gain_margin_db: None,
         }
+    }
+
+    /// The kp and kd the motor applies: the commanded ones times the
+    /// model's gain scales.
+    pub fn delivered(&self) -> [f64; 2] {
+        self.delivered.unwrap_or([self.kp, self.kd])
     }
 }
 
@@ -96,7 +119,8 @@ impl GainsReport {
         };
         for j in &mut self.joints {
             let f = &mut j.figures;
-            let (pm, gm) = margins(f.inertia, f.kp, f.kd);
+            let [kp, kd] = f.delivered();
+            let (pm, gm) = margins(f.inertia, kp, kd);
             (f.phase_margin_deg, f.gain_margin_db) = (Some(pm), Some(gm));
         }
         for g in &mut self.groups {
@@ -123,7 +147,10 @@ pub enum Ask {
 }
 
 /// The report for `inertia` (one per actuator, in ctrl order) on `info`;
-/// `implicit` when the integrator takes the damping implicitly.
+/// `implicit` when the integrator takes the damping implicitly. Given
+/// gains are what to command; a bandwidth's are too, divided by what the
+/// motor delivers of them (the model's gain scales), so that the loop the
+/// motor closes has that bandwidth. Every figure is of the delivered gains.
 pub fn report(
     info: &ModelInfo,
     inertia: &[f64],
@@ -132,10 +159,8 @@ pub fn report(
     implicit: bool,
 ) -> GainsReport {
     let group = |a: usize| info.actuator_group(a).unwrap_or("other").to_string();
-    let gains_of = |i: f64| match ask {
-        Ask::Bandwidth { hz, zeta } => gains_for(i, hz, zeta),
-        Ask::Gains { kp, kd } => (kp, kd),
-    };
+    let scale = |a: usize| info.actuators.get(a).map_or([1.0, 1.0], |x| x.gain_scale);
+    let bound = |i: f64| move |kp: f64, kd: f64| pd_margin(i, kp, kd, timestep, implicit);
     let mut names: Vec<String> = Vec::new();
     for a in 0..info.nu {
         if !names.contains(&group(a)) {
@@ -152,22 +177,38 @@ pub fn report(
     let groups = names
         .iter()
         .map(|g| {
-            let members: Vec<f64> = (0..info.nu)
-                .filter(|&a| &group(a) == g)
-                .map(|a| inertia[a])
-                .collect();
-            let i = members.iter().sum::<f64>() / members.len().max(1) as f64;
-            let (kp, kd) = gains_of(i);
-            // the group's gains on its heaviest and lightest joint: the
-            // lightest is the first past the bound
-            let margin = members
+            let members: Vec<usize> = (0..info.nu).filter(|&a| &group(a) == g).collect();
+            let n = members.len().max(1) as f64;
+            let i = members.iter().map(|&a| inertia[a]).sum::<f64>() / n;
+            // the group's mean scale: its row is on its mean joint
+            let s = [0, 1].map(|k| members.iter().map(|&a| scale(a)[k]).sum::<f64>() / n);
+            let s = if members.is_empty() { [1.0, 1.0] } else { s };
+            let (kp, kd) = match ask {
+                Ask::Bandwidth { hz, zeta } => {
+                    let (kp, kd) = gains_for(i, hz, zeta);
+                    (kp / s[0], kd / s[1])
+                }
+                Ask::Gains { kp, kd } => (kp, kd),
+            };
+            let mut figures = Figures::new(i, kp, kd, s, bound(i));
+            // the group's gains on each of its joints as it delivers them:
+            // the lightest, or the most scaled, is the first past the bound
+            figures.stability_margin = members
                 .iter()
-                .map(|&m| pd_margin(m, kp, kd, timestep, implicit))
+                .map(|&a| {
+                    pd_margin(
+                        inertia[a],
+                        kp * scale(a)[0],
+                        kd * scale(a)[1],
+                        timestep,
+                        implicit,
+                    )
+                })
                 .fold(0.0, f64::max);
             GroupGains {
                 group: g.clone(),
                 joints: members.len(),
-                figures: Figures::new(i, kp, kd, margin),
+                figures,
             }
         })
         .collect::<Vec<_>>();
@@ -185,12 +226,7 @@ pub fn report(
             JointGains {
                 actuator: info.actuators[a].name.clone(),
                 group: g,
-                figures: Figures::new(
-                    inertia[a],
-                    kp,
-                    kd,
-                    pd_margin(inertia[a], kp, kd, timestep, implicit),
-                ),
+                figures: Figures::new(inertia[a], kp, kd, scale(a), bound(inertia[a])),
             }
         })
         .collect();

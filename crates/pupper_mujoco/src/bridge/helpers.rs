@@ -132,6 +132,10 @@ pub fn call_helper(
                 {
                     // bad input said by our Python package: one line, exit 2
                     Error::Config(msg)
+                } else if e.is_instance_of::<pyo3::exceptions::PyOSError>(py) {
+                    // a file or stream the helper could not use (a read-only
+                    // folder, a full disk): the user's to fix, not a bug
+                    Error::Output(os_error_line(py, &e))
                 } else {
                     Error::Internal(format!("{module}.{func}: {kind}: {msg}"))
                 }
@@ -149,6 +153,33 @@ pub fn call_helper(
             .internal()?;
         Ok(items.iter().map(shown).collect())
     })
+}
+
+/// An `OSError` in one line: the file it names, the system's words, and
+/// what to do where the cause says it (room on the disk, a place to write).
+fn os_error_line(py: Python<'_>, e: &PyErr) -> String {
+    let v = e.value(py);
+    let get = |a: &str| v.getattr(a).ok().filter(|x| !x.is_none());
+    let text = get("strerror")
+        .and_then(|x| x.extract::<String>().ok())
+        .unwrap_or_else(|| python_message(py, e));
+    let file = get("filename").map(|f| shown(&f));
+    let kind = get("errno")
+        .and_then(|x| x.extract::<i32>().ok())
+        .map(|n| std::io::Error::from_raw_os_error(n).kind());
+    let fix = match kind {
+        Some(std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded) => {
+            "; free some space, or write elsewhere"
+        }
+        Some(std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::ReadOnlyFilesystem) => {
+            "; choose a place you can write to"
+        }
+        _ => "",
+    };
+    match file {
+        Some(f) => format!("'{f}': {text}{fix}"),
+        None => format!("{text}{fix}"),
+    }
 }
 
 /// A helper's returned path as text: a path that is not UTF-8 (a str with

@@ -22,6 +22,14 @@ impl<'py> Mujoco<'py> {
                 return Ok(spec);
             }
             None => match source {
+                // MuJoCo picks a file's reader by its extension; one without
+                // prints a WARNING line (and writes MUJOCO_LOG.TXT) before it fails
+                ModelSource::Path(p) if p.extension().is_none_or(|x| x.is_empty()) => {
+                    return Err(Error::Model(format!(
+                        "model '{}' is not valid MJCF: its name has no extension, by which MuJoCo picks the reader; give an MJCF file ending in .xml",
+                        source.display()
+                    )));
+                }
                 ModelSource::Path(p) => {
                     spec_cls.call_method1("from_file", (p.to_string_lossy().into_owned(),))
                 }

@@ -1,0 +1,221 @@
+"""Margins on the gains the motor delivers (issue 47, item 1).
+
+A calibrated model says, through its gain scales (`pupper:kp_scale:ACT`,
+`pupper:kd_scale:ACT`, as `pupper fit` writes them), that its motors
+deliver other gains than they are commanded. Every loop margin pupper
+states must be of the delivered gains: `pupper gains`, and the card of
+`recommend --from-fit`. Here stand-in logs of a motor that delivers 2.5x
+its kp and 2x its kd are fitted, and the card's margins are checked
+against `pupper gains` on the calibrated model and against this file's own
+loop model on the delivered gains.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / "examples"))
+
+#: the stand-in's motor: 2.5x the kp and 2x the kd it is told
+SCALE_KP, SCALE_KD = 2.5, 2.0
+MOTOR = "rate=500,counts=16384"
+SENSING = 0.002
+
+
+def loop_phase_margin(inertia: float, kp: float, kd: float, latency: float, d_delay: float) -> float:
+    """180° + arg L at |L| = 1 for L = (kp + kd s e^{-s d}) e^{-s tau} / (J s^2):
+    an independent scan in frequency."""
+    w = np.logspace(-1, 5, 400001)
+    ctrl = kp + kd * 1j * w * np.exp(-1j * w * d_delay)
+    k = int(np.argmax(np.abs(ctrl) / (inertia * w**2) <= 1.0))
+    return float(np.degrees(np.angle(ctrl[k]) - w[k] * latency))
+
+
+def scaled_model(tmp: Path, kp: float, kd: float) -> Path:
+    """The built-in robot whose every motor delivers SCALE_KP x kp and
+    SCALE_KD x kd, written as `pupper fit` writes a calibrated model."""
+    import pupper_core as pc
+
+    spec = mujoco.MjSpec.from_file(str(Path(pc.__file__).parent / "models" / "pupper_v3" / "pupper_v3.xml"))
+    for a in spec.actuators:
+        spec.add_numeric(name=f"pupper:kp_scale:{a.name}", data=[kp])
+        spec.add_numeric(name=f"pupper:kd_scale:{a.name}", data=[kd])
+    path = tmp / "scaled.xml"
+    path.write_text(spec.to_xml())
+    return path
+
+
+def test_gains_states_the_margins_of_the_delivered_gains(run, tmp_path):
+    model = scaled_model(tmp_path, SCALE_KP, SCALE_KD)
+    args = ("--kp", "16.71", "--kd", "0.2646", "--motor", MOTOR, "--sensing-delay", str(SENSING), "--json")
+    scaled = json.loads(run("gains", "--model", model, *args, check=0).stdout)
+    plain = json.loads(run("gains", *args, check=0).stdout)
+    for js, jp in zip(scaled["joints"], plain["joints"]):
+        assert js["actuator"] == jp["actuator"] and js["inertia"] == pytest.approx(jp["inertia"])
+        # commanded as given, delivered scaled
+        assert (js["kp"], js["kd"]) == (16.71, 0.2646)
+        assert js["delivered"] == pytest.approx([16.71 * SCALE_KP, 0.2646 * SCALE_KD])
+        assert "delivered" not in jp
+        # latency: 2 ms sensing + half the 2 ms period; the derivative 1 ms more
+        want = loop_phase_margin(js["inertia"], 16.71 * SCALE_KP, 0.2646 * SCALE_KD, 0.003, 0.001)
+        assert js["phase_margin_deg"] == pytest.approx(want, abs=0.3)
+        assert jp["phase_margin_deg"] == pytest.approx(loop_phase_margin(jp["inertia"], 16.71, 0.2646, 0.003,
+                                                                         0.001), abs=0.3)
+    # the knee: comfortable on the commanded gains, nearly unstable on the delivered ones
+    knee_s = next(j for j in scaled["joints"] if j["actuator"] == "leg_front_r_3")
+    knee_p = next(j for j in plain["joints"] if j["actuator"] == "leg_front_r_3")
+    assert knee_p["phase_margin_deg"] > 30 > 10 > knee_s["phase_margin_deg"]
+    # the natural frequency is the delivered kp's
+    assert knee_s["natural_hz"] == pytest.approx(knee_p["natural_hz"] * SCALE_KP ** 0.5)
+    text = run("gains", "--model", model, *args[:-1], check=0).stdout
+    assert "motor kp" in text and "what the motor delivers" in text
+    assert "motor kp" not in run("gains", *args[:-1], check=0).stdout
+
+
+def test_a_bandwidth_asks_for_the_commanded_gains_that_deliver_it(run, tmp_path):
+    model = scaled_model(tmp_path, SCALE_KP, SCALE_KD)
+    scaled = json.loads(run("gains", "--model", model, "--bandwidth", "8", "--json", check=0).stdout)
+    plain = json.loads(run("gains", "--bandwidth", "8", "--json", check=0).stdout)
+    for gs, gp in zip(scaled["groups"], plain["groups"]):
+        assert gs["kp"] == pytest.approx(gp["kp"] / SCALE_KP)
+        assert gs["kd"] == pytest.approx(gp["kd"] / SCALE_KD)
+        assert gs["natural_hz"] == pytest.approx(gp["natural_hz"])
+
+
+@pytest.fixture(scope="module")
+def scaled_fit(pupper_bin, tmp_path_factory):
+    """A fit of two noise-free stand-in logs of a knee whose motor delivers
+    2.5x its kp and 2x its kd, then recommend --from-fit on it."""
+    pytest.importorskip("optuna")
+    pytest.importorskip("scipy")
+    import subprocess
+
+    from conftest import clean_env
+    from stand_log import COLUMNS, PLAIN, stand_log
+
+    d = tmp_path_factory.mktemp("delivered")
+    # the scales are this test's subject: the plain stand (a servo the default parameters follow)
+    truth = {**PLAIN["truth"], "kp_scale": SCALE_KP, "kd_scale": SCALE_KD}
+    logs = [stand_log(d / f"kd{kd}.csv", kp=2.0, kd=kd, seed=seed, noise=0.0, **{**PLAIN, "truth": truth})
+            for kd, seed in ((0.05, 0), (0.15, 1))]
+
+    def pupper(*args: object) -> subprocess.CompletedProcess[str]:
+        p = subprocess.run([str(pupper_bin), *map(str, args)], capture_output=True, text=True, cwd=d,
+                           env=clean_env(), timeout=900)
+        assert p.returncode == 0, p.stderr[-3000:]
+        return p
+
+    pupper("fit", *logs, "--columns", COLUMNS, "-o", d / "fit")
+    # no leg-mass spread: the group's inertia is the model's, so the card's
+    # worst corner is a joint `pupper gains` states
+    rec = pupper("recommend", "--from-fit", d / "fit", "--spread", "torso_mass=±15%", "--robots", "8",
+                 "--trials", "8", "--batch", "8", "--polish", "0", "-o", d / "rec")
+    return d, rec
+
+
+def test_recommend_from_a_fit_checks_its_margins_on_the_delivered_gains(scaled_fit, run):
+    d, rec = scaled_fit
+    with open(d / "fit" / "fit.csv", newline="") as f:
+        fitted = {r["parameter"]: float(r["fitted"]) for r in csv.DictReader(f)}
+    assert fitted["kp_scale"] == pytest.approx(SCALE_KP, rel=0.02)
+    assert fitted["kd_scale"] == pytest.approx(SCALE_KD, rel=0.05)
+    with open(d / "rec" / "recommend.csv", newline="") as f:
+        cards = {r["group"]: r for r in csv.DictReader(f)}
+    knee = cards["kfe"]
+    kp, kd = float(knee["kp"]), float(knee["kd"])
+    # the card says what the motor delivers of its gains
+    assert float(knee["motor_kp"]) == pytest.approx(kp * fitted["kp_scale"], rel=1e-3)
+    assert float(knee["motor_kd"]) == pytest.approx(kd * fitted["kd_scale"], rel=1e-3)
+    assert "motor kp" in rec.stdout and "the gains to command" in rec.stdout
+    yaml_text = (d / "rec" / "recommended.yaml").read_text()
+    assert "the gains to command" in yaml_text and "the motors deliver" in yaml_text
+    # the card's margins are what `pupper gains` states on the calibrated model
+    # (its scales applied) at the card's gains, at the worst corner of what the
+    # fit does not know: each motor's gains over the fit's interval of its
+    # scales, the joints' armature at its interval's low end
+    with open(d / "fit" / "fit.csv", newline="") as f:
+        low_armature = next(float(r["low95"]) for r in csv.DictReader(f) if r["parameter"] == "armature")
+    spec = mujoco.MjSpec.from_file(str(d / "fit" / "calibrated.xml"))
+    for j in spec.joints:
+        if j.type == mujoco.mjtJoint.mjJNT_HINGE:
+            j.armature = low_armature
+    light = d / "light.xml"
+    light.write_text(spec.to_xml())
+    m = json.loads((d / "rec" / "manifest.json").read_text())
+    factors = [(fp, fd) for fp in m["inputs"]["kp_factors"] for fd in m["inputs"]["kd_factors"]]
+    assert max(abs(f - 1) for f in m["inputs"]["kp_factors"]) < 0.1
+    for group, card in cards.items():
+        kp, kd = float(card["kp"]), float(card["kd"])
+        stated = []
+        for model in (d / "fit" / "calibrated.xml", light):
+            for fp, fd in factors:
+                g = json.loads(run("gains", "--model", model, "--kp", kp * fp, "--kd", kd * fd, "--motor", MOTOR,
+                                   "--sensing-delay", SENSING, "--json", check=0).stdout)
+                joints = [j for j in g["joints"] if j["group"] == group]
+                assert all(j["delivered"] == pytest.approx([kp * fp * fitted["kp_scale"], kd * fd * fitted["kd_scale"]],
+                                                           rel=1e-5) for j in joints)
+                stated += [(j["phase_margin_deg"], j["gain_margin_db"], j["inertia"], fp, fd) for j in joints]
+        worst_pm = min(stated)
+        assert float(card["phase_margin_deg"]) == pytest.approx(worst_pm[0], abs=0.05), (group, worst_pm)
+        assert float(card["gain_margin_db"]) == pytest.approx(min(s[1] for s in stated), abs=0.02), group
+        # both hold the stated margin there, and this file's own loop model agrees
+        assert worst_pm[0] >= 30 - 0.05
+        _, _, inertia, fp, fd = worst_pm
+        own = loop_phase_margin(inertia, kp * fp * fitted["kp_scale"], kd * fd * fitted["kd_scale"], 0.003, 0.001)
+        assert own == pytest.approx(worst_pm[0], abs=0.3) and own >= 30 - 0.3
+        # the commanded gains alone would have claimed far more: the test can fail
+        assert loop_phase_margin(inertia, kp, kd, 0.003, 0.001) > float(card["phase_margin_deg"]) + 5
+
+
+#: a robot's controller configuration as Pupper v3's ROS 2 launch files hold
+#: it: the node's joint names and the gains it commands
+ROBOT_CONFIG = """\
+controller_manager:
+  ros__parameters:
+    update_rate: 500
+neural_controller:
+  ros__parameters:
+    joint_names: [leg_front_r_1, leg_front_r_2, leg_front_r_3, leg_front_l_1, leg_front_l_2, leg_front_l_3,
+                  leg_back_r_1, leg_back_r_2, leg_back_r_3, leg_back_l_1, leg_back_l_2, leg_back_l_3]
+    init_kps: [7.5, 7.5, 7.5, 7.5, 7.5, 7.5, 7.5, 7.5, 7.5, 7.5, 7.5, 7.5]
+    init_kds: [0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25]
+"""
+
+
+def test_the_card_sets_the_gains_in_use_beside_the_pick(run, tmp_path):
+    pytest.importorskip("optuna")
+    cfg = tmp_path / "config.yaml"
+    # the robot's own joint order: the left legs first
+    cfg.write_text(ROBOT_CONFIG.replace("leg_front_r_1, leg_front_r_2, leg_front_r_3, leg_front_l_1, leg_front_l_2, "
+                                        "leg_front_l_3", "leg_front_l_1, leg_front_l_2, leg_front_l_3, leg_front_r_1, "
+                                        "leg_front_r_2, leg_front_r_3"))
+    p = run("recommend", "--robot-config", cfg, "--robots", "8", "--trials", "4", "--batch", "4", "--polish", "0",
+            "--kp-max", "40", "--kd-max", "1", "-o", tmp_path / "rec", check=0)
+    line = next(x for x in p.stdout.splitlines() if x.startswith("in use"))
+    assert "config.yaml's kps and kds: kp 7.5 kd 0.25 on every group" in line
+    m = json.loads((tmp_path / "rec" / "manifest.json").read_text())
+    now = m["current"]
+    assert now["gains"] == {g: {"kp": 7.5, "kd": 0.25} for g in ("hfe", "haa", "kfe")}
+    # the gains in use were checked as every candidate is: the same loop model
+    knee = json.loads(run("gains", "--kp", "7.5", "--kd", "0.25", "--motor", MOTOR, "--sensing-delay", "0",
+                          "--json", check=0).stdout)
+    assert now["phase_margin_deg"]["kfe"] <= min(j["phase_margin_deg"] for j in knee["joints"]
+                                                  if j["group"] == "kfe")
+    assert np.isfinite(now["p95_push_dip_mm"]) and now["fell"] == 0
+    # the YAML follows the robot's joint order; caps were given: no caps warning
+    yml = (tmp_path / "rec" / "recommended.yaml").read_text()
+    assert "joint_names: [leg_front_l_1, leg_front_l_2, leg_front_l_3, leg_front_r_1" in yml
+    assert "no motor caps given" not in p.stdout
+    # a config that is not one is refused in one line, nothing written
+    cfg.write_text("neural_controller: [1, 2]\n")
+    bad = run("recommend", "--robot-config", cfg, "-o", tmp_path / "bad", check=2)
+    assert "no 'neural_controller: ros__parameters:' section" in bad.stderr and len(bad.stderr.splitlines()) == 1
+    assert not (tmp_path / "bad").exists()
