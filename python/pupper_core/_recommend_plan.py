@@ -127,6 +127,8 @@ class Plan:
     #: whether motor caps (--kp-max and --kd-max, or the model's numerics)
     #: bound every group's search, rather than the defaults' x20 and x50
     caps: bool = False
+    #: with a fit: which latencies the margins and robots assumed, and where each came from
+    latency_from: str = ""
 
     def sags(self, height: float) -> bool:
         """Whether a robot whose lowest final base height is `height` (m)
@@ -167,6 +169,7 @@ class Plan:
                                    "kd": [self.kd_factors[0] * g.kd_scale[0], self.kd_factors[1] * g.kd_scale[1]]}
                           for g in self.groups},
             "current": {g: list(v) for g, v in self.current.items()}, "current_from": self.current_from,
+            **({"latency_from": self.latency_from} if self.latency_from else {}),
         }
 
 
@@ -273,6 +276,10 @@ def _groups(model: str, inf: Mapping[str, Any], kp_max: float | None, kd_max: fl
     return names, groups, float(rep["timestep"]), capped
 
 
+#: The feedback latency assumed where neither --sensing-delay nor a fit says one (s).
+SENSING_DELAY = 0.002
+
+
 def _motor(motor: str | None, command_delay: float) -> str:
     """The firmware spec with the command delay in it."""
     spec = DEFAULT_MOTOR if motor is None else motor
@@ -281,6 +288,37 @@ def _motor(motor: str | None, command_delay: float) -> str:
             raise RecommendError("--command-delay and --motor delay= both set the command delay: keep one")
         spec = f"{spec},delay={command_delay:g}" if spec else f"delay={command_delay:g}"
     return spec
+
+
+def _latency(rows: Sequence[Mapping[str, str]], given: float | None) -> tuple[float, str]:
+    """The feedback latency the margins assume (s), and with a fit where
+    it and the command delay come from: a fitted latency's upper end (the
+    oldest measurements the logs allow) unless --sensing-delay is given."""
+    if not rows:
+        return (SENSING_DELAY if given is None else given), ""
+    lat = [(float(r["fitted"]), *_interval(r)) for r in rows if r.get("parameter") == "latency"]
+    # an interval the logs could not bound places no latency
+    unplaced = [r for r in rows if r.get("parameter") == "latency"
+                and not all(math.isfinite(float(r[k] or "nan")) for k in ("low95", "high95"))]
+    if given is not None:
+        said = f"{given:g} s, given by --sensing-delay"
+        if lat:
+            said += f" (the fit measured {max(v for v, _, _ in lat):.3g} s)"
+        sensing = given
+    elif lat and not unplaced:
+        sensing = max(0.0, max(b for _, _, b in lat))
+        said = (f"{sensing:.3g} s, the upper end of the fit's feedback latency (fit.csv: latency "
+                + ", ".join(f"{v:.3g} s [{a:.3g}, {b:.3g}]" for v, a, b in lat) + ")")
+    else:
+        sensing = SENSING_DELAY
+        said = (f"{sensing:g} s, the default: the fit could not bound its feedback latency (add a log at "
+                "another kp)" if unplaced else
+                f"{sensing:g} s, the default: the fit measured no feedback latency (fit it: --params ...,latency)")
+    delays = [(float(r["fitted"]), *_interval(r)) for r in rows if r.get("parameter") == "delay"]
+    command = ("command delay " + ", ".join(f"{a:.3g} to {b:.3g} s" for _, a, b in delays)
+               + " drawn per robot, the fit's delay interval (fit.csv: delay)" if delays and
+               max(b for _, _, b in delays) > 1e-9 else "no command delay (the fit found none)")
+    return sensing, f"latency assumed: sensing (feedback) {said}; {command}"
 
 
 def _fit_rows(d: Path) -> list[dict[str, str]]:
@@ -352,7 +390,7 @@ def _armature_low(rows: Sequence[Mapping[str, str]], names: Sequence[str]) -> di
 
 def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trials: int = 48, batch: int = 16,
          seed: int = 0, seconds: float = 4.0, push_force: float | None = None, motor: str | None = None,
-         sensing_delay: float = 0.002, command_delay: float = 0.0, spread: Sequence[str] | None = None,
+         sensing_delay: float | None = None, command_delay: float = 0.0, spread: Sequence[str] | None = None,
          from_fit: str | os.PathLike[str] | None = None, min_phase_margin: float = 30.0,
          min_gain_margin: float = 6.0, max_saturation: float = 0.05, kp_max: float | None = None,
          kd_max: float | None = None, joint_order: Sequence[str] | str | None = None,
@@ -368,7 +406,8 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
         raise RecommendError(f"--polish {polish} must be a whole number >= 0 (0: the search's pick, unmoved)")
     _positive("the simulated seconds per robot, e.g. 4", seconds, "--seconds")
     _reaches_the_push(seconds)
-    _positive("seconds of feedback latency, e.g. 0.002", sensing_delay, "--sensing-delay", zero=True)
+    if sensing_delay is not None:
+        _positive("seconds of feedback latency, e.g. 0.002", sensing_delay, "--sensing-delay", zero=True)
     _positive("seconds of command delay, e.g. 0.01", command_delay, "--command-delay", zero=True)
     _positive("degrees, e.g. 30", min_phase_margin, "--min-phase-margin", zero=True)
     if min_phase_margin >= 180:
@@ -402,6 +441,7 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
         # a delay interval of round-off around 0 (a noise-free fit) is no delay
         if delays and max(b for _, b in delays) > 1e-9:
             base.append(f"motor_delay={min(a for a, _ in delays):.6g}:{max(b for _, b in delays):.6g}")
+    sensing_delay, latency_from = _latency(rows, sensing_delay)
     from pupper_core._api import info
 
     inf = info(model)
@@ -436,7 +476,7 @@ def plan(model: str | os.PathLike[str] = "pupper_v3", *, robots: int = 32, trial
     return Plan(model, names, groups, dt, motor_spec, sensing_delay, command_delay, drawn, kp_factors,
                 kd_factors, robots, trials, batch, seed, seconds, push_force, min_phase_margin, min_gain_margin,
                 max_saturation, order, controller, polish, max_sag, stance(model=model), fit_dir, rows,
-                _fit_draws(rows, names, seed) if rows else [], now, now_from, capped)
+                _fit_draws(rows, names, seed) if rows else [], now, now_from, capped, latency_from)
 
 
 def _current(current: Sequence[float] | str | None, inf: Mapping[str, Any],
@@ -553,7 +593,7 @@ def _check_types(kw: Mapping[str, Any]) -> None:
     for n in ("seconds", "sensing_delay", "command_delay", "min_phase_margin", "min_gain_margin", "max_saturation",
               "max_sag", "push_force", "kp_max", "kd_max"):
         v = kw[n]
-        if v is None and n in ("push_force", "kp_max", "kd_max"):
+        if v is None and n in ("push_force", "kp_max", "kd_max", "sensing_delay"):
             continue
         if isinstance(v, bool) or not isinstance(v, numbers.Real):
             raise bad(n, "a number")
