@@ -42,7 +42,8 @@ import mujoco.rollout as mj_rollout
 import numpy as np
 
 import pupper_core as pc
-from pupper_core import _fit, _joint_log
+from pupper_core import _fit
+from pupper_core._fit import log as joint_log
 
 TRUE = dict(armature=0.0016 * 1.3, damping=0.02, frictionloss=0.05, kp_scale=0.9, delay=0.010)
 
@@ -51,7 +52,7 @@ def hardware_log(directory: Path, seconds: float = 9.0, rate: float | None = Non
                  name: str = "robot") -> Path:
     ex = pc.excite(out=directory / f"excite_{name}.csv", seconds=seconds, hold=0.75, rate=rate, kd=kd)
     robot = _fit.load_robot("pupper_v3")
-    lg = _joint_log.read_log(ex, robot.ranges)
+    lg = joint_log.read_log(ex, robot.ranges)
     spec = _fit.suspended_spec(robot, lg.kp * TRUE["kp_scale"], lg.kd)
     for j in robot.joints:
         spec.joint(j).armature = TRUE["armature"]
@@ -63,7 +64,7 @@ def hardware_log(directory: Path, seconds: float = 9.0, rate: float | None = Non
     nu = len(robot.actuators)
     q = sens[:, :nu] + 1e-3 * np.random.default_rng(0).standard_normal((len(lg.times), nu))
     out = directory / f"{name}.csv"
-    _joint_log.write_log(out, lg.times, robot.actuators, target=lg.target, q=q, kp=lg.kp, kd=lg.kd)
+    joint_log.write_log(out, lg.times, robot.actuators, target=lg.target, q=q, kp=lg.kp, kd=lg.kd)
     return out
 
 
@@ -100,7 +101,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         log = hardware_log(Path(tmp))
         robot = _fit.load_robot("pupper_v3")
-        lg = _joint_log.read_log(log, robot.ranges)
+        lg = joint_log.read_log(log, robot.ranges)
         # one serial rollout of the log on the nominal model
         m = _fit.suspended_spec(robot, lg.kp, lg.kd).compile()
         x0 = _fit.initial_state(m, robot, lg.q[0], np.zeros(m.nu), lg.target[0])

@@ -6,17 +6,26 @@ bench log, for docs/fit.md and the tests.
     python examples/stand_log.py stand.csv.gz --kp 5 --kd 0.1 --seed 0 --gzip
 
 The "hardware" is the built-in robot hung in the air with heavier rotors,
-more damping and friction than the nominal model, its gains a little off
-what the log says and a command delay; it steps at 0.5 ms (finer than the
-model's 2 ms: continuous time, as far as the fit can tell). One motor
-plays a stepped sine (1 to 20 Hz); the other eleven hold 0 at the log's
-gains. The loop writes a row per cycle at about 250 Hz, its time stamps
-jittered by up to 2 ms around 4 ms and starting at an arbitrary time, in
-its own column names: ``fr_knee_cmd,fr_knee_kp,fr_knee_kd,fr_knee_pos,
-fr_knee_vel,...,stamp`` (the command message's gains, and a column nobody
-maps), the angle with encoder noise and a 14-bit
-encoder's quantisation. With ``gzip`` (``--gzip``) the file is gzipped as
-the Pupper team's bench logs are (``gzip -n -9``: no name, no time stamp)."""
+more damping and friction than the nominal model; it steps at 0.5 ms
+(finer than the model's 2 ms: continuous time, as far as the fit can
+tell). One motor plays a stepped sine (1 to 20 Hz, 0.5 rad); the other
+eleven hold 0 at the log's gains. Its servo is written out here, as a
+real Pupper's behaves on a bench (issue 48's logs): the PD, at gains a
+little off what the log says, acts on the command ``delay`` ago (outside
+the loop); its torque, clamped to the torque limit, reaches the joint
+through a first-order ``lag`` (a current loop's, inside the loop: the lag
+that made pupper's fit stall its delay at 0 on the real logs); and it may read its
+angle and velocity ``latency`` late (a feedback latency, inside the loop
+too). The loop runs every 4 ms on time, but stamps each row with a clock
+read late by up to 3.3 ms (the jitter of a ROS clock read in a callback),
+from an arbitrary start, in its own column names:
+``fr_knee_cmd,fr_knee_kp,fr_knee_kd,fr_knee_pos,fr_knee_vel,...,stamp``
+(the command message's gains, and a column nobody maps). The command is
+the sine at the stamp's time (what the loop believes); the angle carries
+encoder noise and a 14-bit encoder's quantisation; the velocity is the
+servo's estimate from the angles, ``VELOCITY_LAG`` behind the joint. With
+``gzip`` (``--gzip``) the file is gzipped as the Pupper team's bench logs
+are (``gzip -n -9``: no name, no time stamp)."""
 
 from __future__ import annotations
 
@@ -32,13 +41,24 @@ import pupper_core as pc
 
 SCENE = Path(pc.__file__).parent / "models" / "pupper_v3" / "scene.xml"
 MOTOR = "leg_front_r_3"
-#: the stand's truth, against the nominal armature 0.0016, damping 0.01, friction loss 0.01
-TRUTH = dict(armature=0.0016 * 1.5, damping=0.03, frictionloss=0.04, kp_scale=0.95, kd_scale=1.0, delay=0.015)
+#: the stand's truth, against the nominal armature 0.0016, damping 0.01, friction loss 0.01, no delay or lag
+TRUTH = dict(armature=0.0016 * 1.5, damping=0.03, frictionloss=0.04, kp_scale=0.95, kd_scale=1.0, delay=0.020,
+             lag=0.007, latency=0.0)
 FREQS = (1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 14.0, 20.0)
+AMPLITUDE = 0.5
 #: the ROS export's column names for the motor, and the map that reads them
 COLUMNS = (f"time=stamp,{MOTOR}.target=fr_knee_cmd,{MOTOR}.q=fr_knee_pos,{MOTOR}.qd=fr_knee_vel,"
            f"{MOTOR}.kp=fr_knee_kp,{MOTOR}.kd=fr_knee_kd")
 HW_DT = 0.0005
+#: the loop's period (s), and how late its clock may be read (its stamps' gaps: 4 ms give or take 1.9 ms RMS)
+PERIOD, JITTER = 0.004, 0.0033
+#: how far the servo's velocity estimate runs behind the joint's (s)
+VELOCITY_LAG = 0.005
+#: the motor's torque limit (the model's forcerange)
+TORQUE_LIMIT = 3.0
+#: the plain stand (stand_log's keywords): no torque lag, a 15 ms delay, rows at their stamps, a velocity on
+#: time, 0.2 rad; a servo the default parameters can follow, for tests whose subject is not the servo's lag
+PLAIN: dict = dict(truth={**TRUTH, "lag": 0.0, "delay": 0.015}, clock=False, velocity_lag=0.0, amplitude=0.2)
 
 
 def segments(freqs: tuple[float, ...] = FREQS, hold: float = 0.3) -> list[tuple[float, float, float]]:
@@ -52,7 +72,7 @@ def segments(freqs: tuple[float, ...] = FREQS, hold: float = 0.3) -> list[tuple[
     return out
 
 
-def command(t: np.ndarray, amplitude: float = 0.2) -> np.ndarray:
+def command(t: np.ndarray, amplitude: float = AMPLITUDE) -> np.ndarray:
     out = np.zeros_like(t)
     for a, b, f in segments():
         on = (t >= a) & (t < b)
@@ -61,6 +81,8 @@ def command(t: np.ndarray, amplitude: float = 0.2) -> np.ndarray:
 
 
 def hardware(kp: float, kd: float, truth: dict[str, float]) -> mujoco.MjModel:
+    """The stand: every motor a servo at the log's gains (times the truth's
+    scales), the logged one a plain torque motor its loop drives."""
     spec = mujoco.MjSpec.from_file(str(SCENE))
     for j in [j for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]:
         spec.delete(j)
@@ -74,39 +96,68 @@ def hardware(kp: float, kd: float, truth: dict[str, float]) -> mujoco.MjModel:
     for a in spec.actuators:
         g, d = kp * truth["kp_scale"], kd * truth["kd_scale"]
         a.gainprm[0], a.biasprm[1], a.biasprm[2] = g, -g, -d
+    motor = spec.actuator(MOTOR)
+    motor.biastype = mujoco.mjtBias.mjBIAS_NONE
+    motor.gainprm[0] = 1.0
+    motor.biasprm[:] = 0.0
+    motor.forcerange[0], motor.forcerange[1] = -TORQUE_LIMIT, TORQUE_LIMIT
     return spec.compile()
 
 
-def stamps(seconds: float, seed: int, start: float) -> np.ndarray:
-    """A control loop's time stamps: 4 ms apart, give or take up to 2 ms."""
+def stamps(seconds: float, seed: int, start: float, clock: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """When each row happens, and the time stamp it carries: with ``clock``
+    every PERIOD on time, stamped up to JITTER late (a ROS clock read in a
+    callback); else at the stamps themselves, PERIOD give or take JITTER / 2."""
     rng = np.random.default_rng(seed)
-    gaps = 0.004 + rng.uniform(-0.0019, 0.0019, int(seconds / 0.004) + 1)
-    return start + np.concatenate([[0.0], np.cumsum(gaps)])
+    n = int(seconds / PERIOD) + 1
+    if clock:
+        true = np.arange(n + 1) * PERIOD
+        return true, start + true + rng.uniform(0.0, JITTER, n + 1)
+    gaps = PERIOD + rng.uniform(-JITTER / 2, JITTER / 2, n)
+    rel = np.concatenate([[0.0], np.cumsum(gaps)])
+    return rel, start + rel
 
 
-def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, float] = TRUTH, start: float = 1732600000.25,
-              noise: float = 1e-3, held_columns: bool = False, gzip: bool = False) -> Path:
+def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, float] = TRUTH,
+              start: float = 1732600000.25, noise: float = 1e-3, held_columns: bool = False,
+              clock: bool = True, velocity_lag: float = VELOCITY_LAG, amplitude: float = AMPLITUDE,
+              gzip: bool = False) -> Path:
     """Plays the stepped sine on the stand and writes the loop's log (no
-    header lines: the gains are the command line's to give); ``gzip``:
-    compressed as the bench's tool does (``gzip -n -9``)."""
+    header lines: the gains are the command line's to give). ``truth``:
+    the stand's values (TRUTH's keys; ``lag`` and ``latency`` default 0);
+    ``clock``: rows on time, stamps late (else each row at its stamp);
+    ``amplitude``: the sine's (rad); ``gzip``: compressed as the bench's tool does (``gzip -n -9``)."""
+    truth = {"lag": 0.0, "latency": 0.0, **truth}
     m = hardware(kp, kd, truth)
     d = mujoco.MjData(m)
     motor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, MOTOR)
     qadr = m.jnt_qposadr[m.actuator_trnid[motor, 0]]
     vadr = m.jnt_dofadr[m.actuator_trnid[motor, 0]]
     seconds = segments()[-1][1] + 0.3
-    ts = stamps(seconds, seed, start)
-    rel = ts - ts[0]
-    cmd = command(rel)
+    when, ts = stamps(seconds, seed, start, clock)
+    # the loop computes its command from the time it reads
+    cmd = command(ts - ts[0], amplitude)
     rng = np.random.default_rng(seed + 100)
     q, qd = np.empty(len(ts)), np.empty(len(ts))
-    # the command in force at each instant: the last one sent at least `delay` ago
-    for i, t in enumerate(rel):
+    g, dg = kp * truth["kp_scale"], kd * truth["kd_scale"]
+    follow = -math.expm1(-HW_DT / truth["lag"]) if truth["lag"] > 0 else 1.0
+    keep = int(math.ceil(max(truth["latency"], velocity_lag) / HW_DT)) + 2
+    past: list[tuple[float, float, float]] = []
+    torque = 0.0
+    for i, t in enumerate(when):
         while d.time < t - 1e-12:
-            sent = np.searchsorted(rel, d.time - truth["delay"] + 1e-12, side="right") - 1
-            d.ctrl[motor] = cmd[sent] if sent >= 0 else 0.0
+            past = (past + [(d.time, float(d.qpos[qadr]), float(d.qvel[vadr]))])[-keep:]
+            # the command in force: the last one sent at least `delay` ago
+            sent = np.searchsorted(when, d.time - truth["delay"] + 1e-12, side="right") - 1
+            target = cmd[sent] if sent >= 0 else 0.0
+            seen = _ago(past, truth["latency"])
+            # the firmware clamps the torque it asks for; the current loop follows it
+            pd = min(max(g * (target - seen[0]) - dg * seen[1], -TORQUE_LIMIT), TORQUE_LIMIT)
+            torque += follow * (pd - torque)
+            d.ctrl[motor] = torque
             mujoco.mj_step(m, d)
-        q[i], qd[i] = d.qpos[qadr], d.qvel[vadr]
+        q[i] = d.qpos[qadr]
+        qd[i] = _ago(past + [(d.time, float(d.qpos[qadr]), float(d.qvel[vadr]))], velocity_lag)[1]
     step = 2 * math.pi / 2**14
     q = np.round((q + noise * rng.standard_normal(len(q))) / step) * step
     qd = qd + 0.05 * rng.standard_normal(len(qd))
@@ -127,6 +178,20 @@ def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, f
         data = bytes(packed)
     path.write_bytes(data)
     return path
+
+
+def _ago(past: list[tuple[float, float, float]], lag: float) -> tuple[float, float]:
+    """The angle and velocity ``lag`` before the last sample, linearly
+    between samples (the first one before the start)."""
+    t = past[-1][0] - lag
+    if lag <= 0 or t <= past[0][0]:
+        k = -1 if lag <= 0 else 0
+        return past[k][1], past[k][2]
+    for (t0, q0, v0), (t1, q1, v1) in zip(past[:-1], past[1:]):
+        if t0 <= t <= t1:
+            w = (t - t0) / (t1 - t0) if t1 > t0 else 0.0
+            return q0 + w * (q1 - q0), v0 + w * (v1 - v0)
+    return past[-1][1], past[-1][2]
 
 
 def main() -> None:

@@ -99,11 +99,12 @@ def scaled_fit(pupper_bin, tmp_path_factory):
     import subprocess
 
     from conftest import clean_env
-    from stand_log import COLUMNS, TRUTH, stand_log
+    from stand_log import COLUMNS, PLAIN, stand_log
 
     d = tmp_path_factory.mktemp("delivered")
-    truth = {**TRUTH, "kp_scale": SCALE_KP, "kd_scale": SCALE_KD}
-    logs = [stand_log(d / f"kd{kd}.csv", kp=2.0, kd=kd, seed=seed, truth=truth, noise=0.0)
+    # the scales are this test's subject: the plain stand (a servo the default parameters follow)
+    truth = {**PLAIN["truth"], "kp_scale": SCALE_KP, "kd_scale": SCALE_KD}
+    logs = [stand_log(d / f"kd{kd}.csv", kp=2.0, kd=kd, seed=seed, noise=0.0, **{**PLAIN, "truth": truth})
             for kd, seed in ((0.05, 0), (0.15, 1))]
 
     def pupper(*args: object) -> subprocess.CompletedProcess[str]:
@@ -218,3 +219,33 @@ def test_the_card_sets_the_gains_in_use_beside_the_pick(run, tmp_path):
     bad = run("recommend", "--robot-config", cfg, "-o", tmp_path / "bad", check=2)
     assert "no 'neural_controller: ros__parameters:' section" in bad.stderr and len(bad.stderr.splitlines()) == 1
     assert not (tmp_path / "bad").exists()
+
+
+def test_recommend_from_a_fit_assumes_its_fitted_latency_and_says_so(tmp_path):
+    """Issue 48: recommend --from-fit closes its loops on the feedback
+    latency the fit measured (the upper end of its interval: the oldest
+    measurements the logs allow), not the 2 ms default, and says which
+    latency it assumed and where each came from; --sensing-delay still wins."""
+    pytest.importorskip("scipy")
+    import pupper_core as pc
+    from pupper_core._recommend.plan import plan
+    from stand_log import COLUMNS, PLAIN, stand_log
+
+    # two kps: the latency (inside the loop) is told from the delay (outside it)
+    logs = [stand_log(tmp_path / f"kp{kp}.csv", kp=kp, kd=0.1, seed=0, noise=0.0,
+                      **{**PLAIN, "truth": {**PLAIN["truth"], "latency": 0.004}}) for kp in (5.0, 10.0)]
+    pc.fit(logs, columns=COLUMNS, params="kp_scale,delay,latency", max_iters=4, progress=False,
+           out=tmp_path / "fit")
+    with open(tmp_path / "fit" / "fit.csv", newline="") as f:
+        lat = next(r for r in csv.DictReader(f) if r["parameter"] == "latency")
+    p = plan(from_fit=tmp_path / "fit", robots=8)
+    assert p.sensing_delay == pytest.approx(max(0.0, float(lat["high95"])))
+    assert p.sensing_delay > 0.002
+    assert p.latency_from.startswith("latency assumed: sensing (feedback) ")
+    assert "the upper end of the fit's feedback latency (fit.csv: latency" in p.latency_from, p.latency_from
+    assert "drawn per robot, the fit's delay interval (fit.csv: delay)" in p.latency_from, p.latency_from
+    assert p.inputs()["latency_from"] == p.latency_from
+    given = plan(from_fit=tmp_path / "fit", robots=8, sensing_delay=0.001)
+    assert given.sensing_delay == 0.001 and "0.001 s, given by --sensing-delay (the fit measured" in given.latency_from
+    # no fit: the default, and nothing said (earlier cards unchanged)
+    assert plan(robots=8).sensing_delay == 0.002 and plan(robots=8).latency_from == ""

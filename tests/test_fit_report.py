@@ -43,7 +43,7 @@ def stepped_sine_log(path: Path, kp: float, seed: int) -> Path:
 
     stand_log.segments = segments
     try:
-        return stand_log.stand_log(path, kp=kp, kd=0.1, seed=seed)
+        return stand_log.stand_log(path, kp=kp, kd=0.1, seed=seed, **stand_log.PLAIN)
     finally:
         stand_log.segments = steps
 

@@ -188,19 +188,22 @@ def test_before_is_the_nominal_models_error_with_delay_fitted(nominal):
     assert max(with_delay.rms_before["nominal.csv"]) < 1e-9
 
 
-def test_a_fit_worse_than_the_nominal_values_restarts_from_them(nominal):
-    """The delay from its start (2.5 ms) stalls below one timestep, where
-    MuJoCo's delay is one whole step: worse than the nominal 0. The fit
-    restarts from the nominal values and says so; no numpy warning leaks."""
+def test_a_delay_of_none_is_found_though_no_start_below_a_step_can_move(nominal):
+    """The delay starts where its Jacobian is not zero (at least 1.5
+    timesteps), so it cannot creep to 0 (MuJoCo applies a delay up to one
+    step as a whole step): a delay that ends within a step is compared
+    with none, which the nominal log's truth is, and is 0 at the end; no
+    numpy warning leaks."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = pc.fit(nominal, params="delay", progress=False)
     assert not [w for w in caught if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in caught]
     assert res.value("delay") == 0.0
-    assert np.mean(res.rms_after["nominal.csv"]) <= np.mean(res.rms_before["nominal.csv"])
-    assert any("worse than the nominal values" in w and "restarted" in w for w in res.warnings), res.warnings
+    assert np.mean(res.rms_after["nominal.csv"]) <= np.mean(res.rms_before["nominal.csv"]) + 1e-12
     # 0 is the delay's bound: the interval there means nothing, and it says so
     assert any(w.startswith("delay ends on its lower bound") for w in res.warnings), res.warnings
+    # the scan found no delay best: the fit started one and a half steps in
+    assert res.delay_scan["starts_s"] == [pytest.approx(0.003)]
 
 
 def test_a_fit_that_cannot_beat_the_nominal_values_keeps_them(nominal, tmp_path, monkeypatch, capsys):
@@ -214,8 +217,8 @@ def test_a_fit_that_cannot_beat_the_nominal_values_keeps_them(nominal, tmp_path,
 
     optimize = _fit._optimize
 
-    def stalled(sysid, pb, start, residual_fn, max_iters, sink):
-        opt, res = optimize(sysid, pb, start, residual_fn, 1, sink)
+    def stalled(sysid, pb, start, residual_fn, max_iters, sink, say=None):
+        opt, res = optimize(sysid, pb, start, residual_fn, 1, sink, say)
         opt.update_from_vector(np.array([3.0]))
         return opt, res
 
@@ -391,3 +394,31 @@ print("still here")
 """)
     p = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0 and "still here" in p.stdout, (p.returncode, p.stderr)
+
+
+def test_a_log_slower_than_the_physics_holds_the_truth_as_at_its_rate(tmp_path):
+    """Issue 49, item 8: `excite --rate 250` on two knees of a stand-in
+    robot (heavier rotors, more damping and friction, a 10 ms delay), no
+    noise, then `fit`: the 95 % intervals excluded the truth for five of
+    six parameters, where the same excitation at the physics rate held it.
+    The joints a log does not cover started at their targets and sagged
+    under gravity during the log, moving the knees 5 µrad off a replay of
+    their own model; they now start where they rest."""
+    spec = mujoco.MjSpec.from_file(str(SCENE.parent / "pupper_v3.xml"))
+    for j in spec.joints:
+        if j.type == mujoco.mjtJoint.mjJNT_HINGE:
+            j.armature *= 1.3
+            j.damping[0] = 0.02
+            j.frictionloss = 0.05
+    for a in spec.actuators:
+        a.nsample, a.interp, a.delay = 8, 1, 0.01
+    spec.meshdir = str(SCENE.parent)
+    robot = tmp_path / "robot.xml"
+    robot.write_text(spec.to_xml())
+    truth = dict(armature=0.0016 * 1.3, damping=0.02, frictionloss=0.05, kp_scale=1.0, kd_scale=1.0, delay=0.01)
+    logs = [Path(pc.excite(model=robot, out=tmp_path / f"knees_kd{kd}.csv", joints="leg_front_r_3,leg_front_l_3",
+                           kd=kd, seed=seed, seconds=2, hold=0.3, rate=250)) for kd, seed in ((0.1, 0), (0.3, 1))]
+    res = pc.fit(logs, progress=False)
+    for name, value in truth.items():
+        lo, hi = res.interval(name)
+        assert lo <= value <= hi, (name, lo, res.value(name), hi)

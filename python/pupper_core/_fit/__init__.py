@@ -25,11 +25,12 @@ there are warnings) and, with ``plot``, ``plots/fit_<log>.png`` (measured
 against simulated angle per joint, before and after, each joint's residual
 beneath).
 
-The code is split by concern: the terms and the error in ``_fit_terms``,
-the robot in ``_fit_robot``, excite in ``_fit_excite``, the logs and the
-problem they set in ``_fit_problem``, `mujoco.sysid`'s side in
-``_fit_sysid``, the run directory in ``_fit_output``; this module solves a
-fit, judges it and is the CLI's entry.
+The code is split by concern: the terms and the error in ``terms``, the
+robot in ``robot``, excite in ``excitation``, the logs in ``log``,
+``columns`` and ``specs``, the problem they set in ``problem``, where a
+fit starts in ``start``, `mujoco.sysid`'s side in ``sysid``, the
+intervals in ``intervals``, the run directory in ``output``; this module
+solves a fit, judges it and is the CLI's entry.
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ import math
 import os
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -48,14 +49,15 @@ import numpy as np
 
 from pupper_core._rundir import flush_stdout, printing, say
 from pupper_core._fit.excitation import _excite, excite
-from pupper_core._fit.firmware import parse_motor
+from pupper_core._fit.firmware import Firmware, parse_motor
 from pupper_core._fit.jacobian import jacobian_fn, rollouts_per_jacobian
 from pupper_core._fit.output import _write_run
-from pupper_core._fit.problem import FitResult, _Problem, _problem, _read_logs, _Solution
+from pupper_core._fit.problem import FitResult, _Problem, _problem, _read_logs, _Solution, as_replayed, narrowed
 from pupper_core._fit.robot import BUILTINS as BUILTINS
 from pupper_core._fit.robot import initial_state as initial_state
 from pupper_core._fit.robot import simulate as simulate
 from pupper_core._fit.robot import Robot, load_robot, suspended_spec
+from pupper_core._fit.start import GRID, parse_start, starts
 from pupper_core._fit.sysid import (
     Predictions,
     _correlation_time,
@@ -81,6 +83,7 @@ from pupper_core._fit.terms import (
     MEMORY_COPIES,
     MEMORY_FRACTION,
     PARAMS,
+    FIRMWARE_ONLY,
     PER,
     FitError,
 )
@@ -110,11 +113,11 @@ def _parse_params(params: str | Sequence[str]) -> list[str]:
 def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Mapping[str, Any]]], *,
         model: str | os.PathLike[str] = "pupper_v3",
         params: str | Sequence[str] = DEFAULT_PARAMS, per: str = "all", out: str | os.PathLike[str] | None = None,
-        force: bool = False, max_iters: int = 50, plot: bool = False, progress: bool = True,
+        force: bool = False, max_iters: int = 50, plot: bool = False, progress: bool | Callable[[str], None] = True,
         columns: str | os.PathLike[str] | None = None, kp: float | str | Sequence[float] | None = None,
         kd: float | str | Sequence[float] | None = None, held: float | str | Mapping[str, float] | None = None,
         validate: Sequence[str | os.PathLike[str]] | str | os.PathLike[str] = (), motor: str | None = None,
-        gains_from_name: str | None = None) -> FitResult:
+        gains_from_name: str | None = None, start: str | Mapping[str, float] | None = None) -> FitResult:
     """Fits ``params`` (per ``all`` actuators, joint ``group`` or ``joint``)
     to the joint ``logs`` and, with ``out``, writes the run directory.
     A log is a path (plain or gzip/bzip2/xz-compressed), ``"LOG::kp=5,kd=0.25"``
@@ -129,9 +132,14 @@ def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Ma
     its own gains), replayed through the
     nominal and the calibrated model (``FitResult.validation``). ``motor``:
     the servo firmware to replay through (rate, filter, counts, noload, as
-    --motor takes them; default MuJoCo's ideal servo). SIGINT and
+    --motor takes them; default MuJoCo's ideal servo). ``start``: where
+    the fit starts a kind of parameter (KIND=VALUE,... or a mapping; the
+    delay is also estimated from the logs, and the lowest cost of every
+    start is kept). ``progress``: True says what the fit does on stderr
+    where it is a terminal; or a callable given each line. SIGINT and
     SIGTERM stop it (KeyboardInterrupt) with nothing written."""
     names = _parse_params(params)
+    begin = parse_start(start, names)
     try:
         logs, validate = path_list(logs, "logs"), path_list(validate, "validate")
     except LogError as e:
@@ -150,10 +158,18 @@ def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Ma
     with stop_on_signals("fit"):
         robot = load_robot(model)
         firmware = parse_motor(motor, robot.timestep)
+        if firmware is None and any(n in FIRMWARE_ONLY for n in names):
+            # the torque's lag and the PD's latency live in the firmware's loop: its replay, ideal otherwise
+            firmware = Firmware()
         options = _log_options(columns, kp, kd, held)
         read = _read_logs(logs, robot, *options, pattern=gains_from_name)
         held_out = _read_logs(validate, robot, *options, pattern=gains_from_name, role="validate") if validate else []
         check_apart(read, held_out)
+        # only the legs the logs move are stepped (the others, hung from a welded base, do nothing)
+        read, robot = narrowed(read, robot)
+        read, notes = as_replayed(read, robot.timestep)
+        held_out, held_notes = as_replayed(held_out, robot.timestep)
+        notes += [f"--validate: {n}" for n in held_notes]
         _check_memory(read, robot, rollouts_per_jacobian(robot, per, len(names)))
         sysid = _sysid()
         started = time.perf_counter()
@@ -161,9 +177,11 @@ def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Ma
         # outcome is checked and said below, numpy's warnings would only leak
         with np.errstate(all="ignore"):
             pb = _problem(sysid, robot, read, names, per, firmware)
-            sol = _solve(sysid, pb, max_iters)
+            sol = _solve(sysid, pb, max_iters, begin, _Progress(progress))
             val = validate_logs(sysid, pb, sol, held_out, names, per) if held_out else None
-        result = _result(pb, sol, out_dir, time.perf_counter() - started, val)
+        result = _result(pb, sol, out_dir, time.perf_counter() - started, val, per)
+        result.notes = notes
+        result.delay_scan = sol.scan
         if out_dir is not None:
             _write_run(out_dir, result, pb, sol, model, names, per, force, plot, val)
     return result
@@ -213,43 +231,222 @@ def _size(n: float) -> str:
     return f"{n / 2**30:.1f} GiB" if n >= 2**30 else f"{n / 2**20:.0f} MiB"
 
 
-def _solve(sysid: Any, pb: _Problem, max_iters: int) -> _Solution:
+def _solve(sysid: Any, pb: _Problem, max_iters: int, start: dict[str, float] | None = None,
+           say: _Progress | None = None) -> _Solution:
     nu = len(pb.robot.actuators)
+    say = say or _Progress(False)
     enabled = pb.enabled(sysid)
-    residual_fn = _residual_fn(sysid, pb.sequences, enabled, None, pb.firmware)
+    residual_fn = say.counting(_residual_fn(sysid, pb.sequences, enabled, None, pb.firmware), len(pb.logs))
+    clock = time.perf_counter()
     _check_finite(residual_fn, pb)
+    say.expect(time.perf_counter() - clock, pb, max_iters)
     before = _rms(_predictions(residual_fn, pb.pdict, pb.x_nominal), pb.sensors, nu)
     sink = io.StringIO()
-    opt, res = _optimize(sysid, pb, pb.pdict, residual_fn, max_iters, sink)
+    xs, scan = starts(residual_fn, pb, pb.pdict.as_vector(), start or {})
+    if "starts_s" in scan:
+        say(f"delay scan: {len(scan['grid_s'])} delays, starts at " +
+            ", ".join(f"{d * 1e3:.1f} ms" for d in scan["starts_s"]))
+    opt, res = _multistart(sysid, pb, xs, residual_fn, max_iters, sink, say)
     weights = None
     if any(s >= nu for s in pb.sensors):
         # whiten: each kind of signal by its own noise, so the pooled
         # variance of the intervals means something
         weights = _whitening(residual_fn, opt, nu, pb.sensors)
-        residual_fn = _residual_fn(sysid, pb.sequences, enabled, weights, pb.firmware)
-        opt, res = _optimize(sysid, pb, opt, residual_fn, max_iters, sink)
+        residual_fn = say.counting(_residual_fn(sysid, pb.sequences, enabled, weights, pb.firmware), len(pb.logs))
+        say("whitened by each signal's noise: fitting on from there")
+        opt, res = _optimize(sysid, pb, opt, residual_fn, max_iters, sink, say)
+    opt, res = _no_delay_if_lower(sysid, pb, residual_fn, opt, res)
     warnings: list[str] = []
     opt, res = _no_worse_than_nominal(sysid, pb, residual_fn, opt, res, max_iters, sink, warnings)
     x = opt.as_vector()
     # the replay where the fit ended, once: its intervals' residual and the error after
     ended = None if res is None else _predictions(residual_fn, opt, x)
-    half, corr, floored, tau = _intervals(sysid, pb, residual_fn, opt, res, weights, ended)
+    half, corr, source, tau = _intervals(sysid, pb, residual_fn, opt, res, weights, ended)
     after = before if ended is None else _rms(ended, pb.sensors, nu)
-    return _Solution(x, half, corr, residual_fn, opt, before, after, floored, warnings, tau)
+    return _Solution(x, half, corr, residual_fn, opt, before, after, source == "floored", warnings, tau, scan,
+                     source)
+
+
+#: Each start runs this many iterations; the best then runs on to the end.
+PROBE_ITERS = 4
+
+
+def _multistart(sysid: Any, pb: _Problem, xs: list[np.ndarray], residual_fn: Any, max_iters: int,
+                sink: io.StringIO, say: _Progress) -> tuple[Any, Any]:
+    """Levenberg–Marquardt from each start (``_fit_start.starts``): a few
+    iterations each, then the lowest cost on to the end."""
+    if len(xs) == 1 or max_iters <= PROBE_ITERS:
+        best = None
+        for k, x in enumerate(xs):
+            p = pb.pdict.copy()
+            p.update_from_vector(x)
+            say.stage = f"start {k + 1} of {len(xs)}" if len(xs) > 1 else ""
+            opt, res = _optimize(sysid, pb, p, residual_fn, max_iters, sink, say)
+            c = _cost(residual_fn, opt, opt.as_vector())
+            if best is None or c < best[0]:
+                best = (c, opt, res)
+        assert best is not None
+        say.stage = ""
+        return best[1], best[2]
+    probes = []
+    for k, x in enumerate(xs):
+        p = pb.pdict.copy()
+        p.update_from_vector(x)
+        say.stage = f"start {k + 1} of {len(xs)}"
+        opt, _ = _optimize(sysid, pb, p, residual_fn, PROBE_ITERS, sink, say)
+        probes.append((_cost(residual_fn, opt, opt.as_vector()), k, opt))
+    c, k, opt = min(probes, key=lambda t: (t[0], t[1]))
+    say.stage = f"on from start {k + 1}"
+    out = _optimize(sysid, pb, opt, residual_fn, max_iters - PROBE_ITERS, sink, say)
+    say.stage = ""
+    return out
+
+
+def _no_delay_if_lower(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any, res: Any) -> tuple[Any, Any]:
+    """A delay that ends within one timestep: MuJoCo applies it as a whole
+    step, and no start below a step can move (``_fit_start``); no delay at
+    all is another replay, which the fit cannot reach by steps. Where every
+    such delay at 0 costs less, it is 0 (the Jacobian there is the one at
+    the end: the other parameters do not move)."""
+    x = opt.as_vector().copy()
+    flat = [i for i, label in enumerate(pb.labels)
+            if label[1] == "delay" and x[i] <= pb.robot.timestep * (1 + 1e-9)]
+    if not flat:
+        return opt, res
+    x0 = x.copy()
+    x0[flat] = 0.0
+    if _cost(residual_fn, opt, x0) < _cost(residual_fn, opt, x):
+        p = opt.copy()
+        p.update_from_vector(x0)
+        return p, res
+    return opt, res
 
 
 def _optimize(sysid: Any, pb: _Problem, start: Any, residual_fn: Any, max_iters: int,
-              sink: io.StringIO) -> tuple[Any, Any]:
+              sink: io.StringIO, say: _Progress | None = None) -> tuple[Any, Any]:
     # legs do not interact: one rollout perturbs a parameter on each (a per-joint fit costs a per-group one)
     jac = jacobian_fn(residual_fn, start, pb)
+
+    def callback(trace: list[Any]) -> None:
+        if say is not None:
+            say.iteration(trace)
+        else:
+            _lean(trace)
+        _stop_when_flat(trace)
+
     try:
         opt, res = sysid.optimize(start, residual_fn, optimizer="mujoco", verbose=False, max_iters=max_iters,
-                                  x_scale="jac", output=sink, iter_callback=_lean,
+                                  x_scale="jac", output=sink, iter_callback=callback,
                                   **({"jacobian": jac} if jac is not None else {}))
         return opt, res
+    except _Flat as flat:
+        return _ended_at(start, residual_fn, flat.x, jac)
     except np.linalg.LinAlgError as e:
         raise FitError(f"the fit's linear algebra failed ({e}): the logs do not determine the parameters; "
                        "fit fewer (--params) or give logs where every joint moves") from None
+
+
+#: The optimizer stops when FLAT_ITERS iterations in a row each lower the cost by less than this fraction of it.
+FTOL = 1e-5
+FLAT_ITERS = 2
+
+
+class _Flat(Exception):
+    """The cost stopped falling (``_stop_when_flat``): the fit ends at ``x``."""
+
+    def __init__(self, x: np.ndarray) -> None:
+        super().__init__()
+        self.x = x
+
+
+def _stop_when_flat(trace: list[Any]) -> None:
+    """mujoco.minimize stops on a small step or gradient only: along a
+    valley the logs do not determine (damping against kd scale, which
+    angles show only as a sum) it went on for 20 more iterations of
+    steps that moved the cost in its seventh digit (a real log: twice the
+    fit's time). Stops once the cost falls by less than FTOL of itself
+    FLAT_ITERS iterations in a row."""
+    steps = [t for t in trace if t.step is not None]
+    if len(steps) < FLAT_ITERS:
+        return
+    last = steps[-FLAT_ITERS:]
+    if all(0 <= float(t.reduction) <= FTOL * float(t.objective) for t in last):
+        x = np.asarray(last[-1].candidate + last[-1].step).ravel()
+        raise _Flat(x)
+
+
+def _ended_at(start: Any, residual_fn: Any, x: np.ndarray, jac: Any) -> tuple[Any, Any]:
+    """The optimizer's outcome at ``x`` where the fit stopped it: the
+    parameters and the Jacobian there (the intervals' own)."""
+    from mujoco import minimize
+    from scipy.optimize import OptimizeResult
+
+    opt = start.copy()
+    opt.update_from_vector(x)
+    lo, hi = (np.asarray(b, dtype=float).reshape(-1, 1) for b in opt.get_bounds())
+
+    def residual(xv: np.ndarray) -> np.ndarray:
+        r, _, _ = residual_fn(xv if xv.ndim == 1 or xv.shape[1] > 1 else xv[:, 0], opt.copy())
+        return np.concatenate(r).reshape(-1, 1) if xv.ndim == 2 and xv.shape[1] == 1 else np.concatenate(r)
+
+    xc = x.reshape(-1, 1)
+    r = residual(xc)
+    if jac is not None:
+        J = jac(xc, r)
+    else:
+        J, _ = minimize.jacobian_fd(residual, xc, r, np.float64(np.finfo(np.float64).eps ** 0.5), 0, [lo, hi])
+    return opt, OptimizeResult(x=x, jac=J, grad=None, extras={})
+
+
+class _Progress:
+    """What a fit says while it runs (on stderr where it is a terminal, or
+    to a callable): its expected time, the delay scan, each iteration's
+    cost, the rollouts so far."""
+
+    def __init__(self, progress: bool | Callable[[str], None]) -> None:
+        if callable(progress):
+            self.say: Callable[[str], None] | None = progress
+        elif progress and sys.stderr.isatty():
+            self.say = say
+        else:
+            self.say = None
+        self.rollouts = 0
+        self.started = time.perf_counter()
+        self.stage = ""
+
+    def __call__(self, line: str) -> None:
+        if self.say is not None:
+            self.say(f"fit: {line}")
+
+    def counting(self, residual_fn: Any, logs: int) -> Any:
+        """``residual_fn``, counting its rollouts (a column of x per log)."""
+        def counted(x: np.ndarray, params: Any, **kw: Any) -> Any:
+            self.rollouts += logs * (1 if np.ndim(x) == 1 else int(np.shape(x)[1]))
+            return residual_fn(x, params, **kw)
+        return counted
+
+    def expect(self, once: float, pb: _Problem, max_iters: int) -> None:
+        """The expected time, from one replay of every log (``once`` s): a
+        Levenberg–Marquardt iteration replays them about (parameters + 2)
+        times, and a fit takes TYPICAL_ITERS iterations or so."""
+        n = len(pb.labels)
+        per_iter = once * (n + 2)
+        typical = once * GRID + per_iter * min(TYPICAL_ITERS, max_iters)
+        self(f"{len(pb.logs)} log(s), {len(pb.labels)} parameter(s), {len(pb.robot.actuators)} joint(s) "
+             f"stepped; one replay of the logs takes {once:.2f} s: expect about {typical:.0f} s "
+             f"(at most {once * GRID + per_iter * (max_iters + PROBE_ITERS * 2):.0f} s at --max-iters {max_iters})")
+
+    def iteration(self, trace: list[Any]) -> None:
+        _lean(trace)
+        if self.say is None:
+            return
+        stage = f" ({self.stage})" if self.stage else ""
+        self(f"iteration {len(trace)}{stage}: cost {float(trace[-1].objective):.6g}, {self.rollouts} rollouts, "
+             f"{time.perf_counter() - self.started:.0f} s")
+
+
+#: The iterations a fit typically takes (for its expected time).
+TYPICAL_ITERS = 15
 
 
 def _lean(trace: list[Any]) -> None:
@@ -308,7 +505,7 @@ def _no_worse_than_nominal(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any,
 
 
 def _intervals(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any, res: Any, weights: np.ndarray | None,
-               ended: Predictions | None) -> tuple[np.ndarray, np.ndarray | None, bool, float]:
+               ended: Predictions | None) -> tuple[np.ndarray, np.ndarray | None, str, float]:
     """sysid's Gauss-Newton 95 % half-widths (infinite where the logs do not
     determine a parameter), widened by the square root of the residual's
     correlation time (returned; 1 where the noise was floored), the
@@ -319,13 +516,13 @@ def _intervals(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any, res: Any, w
     over other draws of the replay's noise (``_draw_spread``) is added."""
     n = len(pb.labels)
     if res is None or ended is None:
-        return np.full(n, math.nan), None, False, 1.0
+        return np.full(n, math.nan), None, "none", 1.0
     r_star, _, _ = residual_fn(opt.as_vector(), opt.copy())
     r_iv, floored = _interval_residuals(r_star, ended, weights, pb.sensors, len(pb.robot.actuators))
     try:
         cov, half = sysid.calculate_intervals(r_iv, res.jac, alpha=0.05)
     except (np.linalg.LinAlgError, ValueError):
-        return np.full(n, math.inf), None, floored, 1.0
+        return np.full(n, math.inf), None, "floored" if floored else "noise", 1.0
     # a noise-free log's residual is round-off, not noise: its floor stands for independent noise
     nu = len(pb.robot.actuators)
     kinds = [s // nu for s in pb.sensors]
@@ -346,7 +543,32 @@ def _intervals(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any, res: Any, w
             cov = cov * tau + spread
     sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     corr = cov / np.outer(sd, sd)
-    return half, (corr if np.all(np.isfinite(corr)) else None), floored, tau
+    source = "floored" if floored else "noise"
+    if not floored:
+        half, source = _model_error(pb, res.jac, r_star, ended, tau, half)
+    return half, (corr if np.all(np.isfinite(corr)) else None), source, tau
+
+
+def _model_error(pb: _Problem, jac: np.ndarray, r_star: list[np.ndarray], ended: Predictions, tau: float,
+                 half: np.ndarray) -> tuple[np.ndarray, str]:
+    """The intervals where the residual is structure the model cannot
+    follow (``_fit_intervals``): the wider of the noise's and the segments'
+    spread for each parameter, and which one they come from."""
+    from pupper_core._fit import intervals as fi
+
+    noise, source = half, "noise"
+    period = float(np.mean([np.mean(np.diff(t)) for t, _, _ in ended]))
+    seg = fi.segments([t for t, _, _ in ended], len(pb.sensors), period, tau)
+    got = fi.sandwich(jac, np.concatenate(r_star), seg) if seg is not None else None
+    if got is not None and fi.model_error(noise, got[1]):
+        half, source = np.where(np.isfinite(half), np.maximum(half, got[1]), half), "model error"
+    shifts = fi.per_log_shifts(jac, np.concatenate(r_star), [int(np.size(r)) for r in r_star])
+    if shifts is not None:
+        spread = np.max(np.abs(shifts), axis=0)
+        if fi.model_error(noise, spread):
+            # the logs disagree past their noise: each interval holds every log's own fit
+            half, source = np.where(np.isfinite(half), np.maximum(half, spread), half), "model error"
+    return half, source
 
 
 def _draw_spread(sysid: Any, pb: _Problem, opt: Any, jac: np.ndarray, r_star: list[np.ndarray],
@@ -410,6 +632,21 @@ def _judge(pb: _Problem, sol: _Solution, table: list[dict[str, Any]]) -> list[st
         elif bound is None and math.isfinite(h) and low < 0:
             out.append(f"{name}'s 95 % interval [{low:.4g}, {high:.4g}]{u} reaches below 0, which it cannot "
                        "be: the logs show it poorly or it is near 0; read its upper end as a bound")
+    kinds = {label[1]: i for i, label in enumerate(pb.labels)}
+    if "latency" in kinds and "delay" in kinds and (math.isinf(float(sol.half[kinds["latency"]]))
+                                                   or math.isnan(float(sol.half[kinds["latency"]]))):
+        out.append("latency and delay: the logs cannot tell the feedback latency (inside the loop: it changes "
+                   "the resonance) from the command delay (outside it: a pure lag); add a log at another kp or kd, "
+                   "or fit one of them")
+    if sol.source == "model error":
+        rms = float(np.mean([np.mean(a) for a in sol.after])) * 1e3
+        out.append(f"the residual ({rms:.3g} mrad RMS) is structure the model cannot follow, not noise: each "
+                   "interval is the widest of the noise's, the spread over the logs' segments (a block "
+                   "sandwich, what leaving segments in or out would move) and, with several logs, each log's "
+                   "own fit; it says how far the model's error lets the logs place each value, not a sensor's "
+                   "precision" + ("" if {"lag", "latency"} & set(kinds) else
+                                  "; a servo's torque lag is a common cause on real motors: try --params "
+                                  + ",".join(dict.fromkeys([*kinds, "lag"]))))
     out += _confounded(pb, sol)
     for lg, rms0, rms1 in zip(pb.logs, sol.before, sol.after):
         # by more than 1 % and a micro-radian: not round-off
@@ -418,6 +655,10 @@ def _judge(pb: _Problem, sol: _Solution, table: list[dict[str, Any]]) -> list[st
                        f"{np.mean(rms1) * 1e3:.3f} mrad): the fitted model explains it worse than the nominal one; "
                        "check the log (an angle offset, the gains in its header)")
     return out
+
+
+#: A correlation past which the feedback latency and the command delay are said to be one to the logs.
+APART = 0.9
 
 
 def _confounded(pb: _Problem, sol: _Solution) -> list[str]:
@@ -429,7 +670,11 @@ def _confounded(pb: _Problem, sol: _Solution) -> list[str]:
             c = float(sol.corr[i, j])
             if i >= j or abs(c) <= 0.95:
                 continue
-            if a_mem == b_mem and {a_kind, b_kind} == {"damping", "kd_scale"}:
+            if a_mem == b_mem and {a_kind, b_kind} == {"delay", "latency"} and abs(c) > APART:
+                out.append(f"{a_name} and {b_name} are confounded (correlation {c:+.2f}): the logs cannot tell "
+                           "the feedback latency (inside the loop: it changes the resonance) from the command "
+                           "delay (outside it: a pure lag); add a log at another kp or kd, or fit one of them")
+            elif a_mem == b_mem and {a_kind, b_kind} == {"damping", "kd_scale"}:
                 out.append(f"{a_name} and {b_name} are confounded (correlation {c:+.2f}): the logs "
                            "show only their sum; add a log at another kd (pupper excite --kd) or a torque column")
             elif abs(c) > CONFOUNDED:
@@ -439,18 +684,22 @@ def _confounded(pb: _Problem, sol: _Solution) -> list[str]:
 
 
 def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float,
-            val: Validation | None = None) -> FitResult:
+            val: Validation | None = None, per: str = "all") -> FitResult:
+    from pupper_core._fit.output import _whole_labels
+
     table = []
-    for i, (name, kind, members, nom) in enumerate(pb.labels):
+    # the actuators each value goes to in calibrated.xml: the whole robot's, where only some legs were stepped
+    for i, (name, kind, members, nom) in enumerate(_whole_labels(pb.robot, pb.labels, per)):
         x, h = float(sol.x[i]), float(sol.half[i])
         table.append({"parameter": name, "kind": kind,
-                      "actuators": " ".join(pb.robot.actuators[k] for k in members),
+                      "actuators": " ".join(pb.robot.full.actuators[k] for k in members),
                       "nominal": nom, "fitted": x, "low95": x - h, "high95": x + h, "unit": PARAMS[kind][0]})
     kept = pb.kept
     return FitResult(table, {lg.path.name: v for lg, v in zip(pb.logs, sol.before)},
                      {lg.path.name: v for lg, v in zip(pb.logs, sol.after)}, out_dir, seconds,
                      pb.warnings + sol.warnings + _judge(pb, sol, table) + (val.warnings if val else []),
                      [pb.robot.actuators[k] for k in kept], floored=sol.floored, correlation_time=sol.tau,
+                     interval_source=sol.source,
                      validation=val.rows if val else [], bode=val.bode if val else [])
 
 
@@ -475,6 +724,8 @@ def _cli_fit(args_json: str) -> list[str]:
             print(f"{name}: RMS angle error {b:.3f} -> {f:.3f} mrad (mean over {n} joint{'s' if n > 1 else ''})")
         if res.validation:
             print_table(res.validation)
+        for note in res.notes:
+            say(f"note: {note}")
         for w in res.warnings:
             say(f"warning: {w}")
         print(f"fitted in {res.seconds:.1f} s")

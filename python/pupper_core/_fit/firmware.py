@@ -27,8 +27,9 @@ KEYS = ("rate", "filter", "counts", "noload", "noise")
 #: (``pupper_core._fit._intervals``): the fit follows its one draw, and where
 #: it ends moves with it by as much as the hardware's own noise moves it.
 DRAWS = 12
-#: Where a firmware motor keeps the PD's kp, kd and command delay.
-KP_SLOT, KD_SLOT, DELAY_SLOT = 1, 2, 3
+#: Where a firmware motor keeps the PD's kp, kd, command delay, the feedback latency (how old the
+#: angle and velocity the PD reads are) and the torque's lag (a first-order filter behind the PD).
+KP_SLOT, KD_SLOT, DELAY_SLOT, LATENCY_SLOT, LAG_SLOT = 1, 2, 3, 4, 5
 
 
 @dataclass
@@ -120,7 +121,19 @@ class _State:
             lo = np.clip(peak * (-1 - speed / self.fw.noload), -peak, peak)
         else:
             hi, lo = peak, -peak
-        return np.asarray(np.clip(self.held, lo, hi))
+        return np.minimum(np.maximum(self.held, lo), hi)
+
+
+def _all_delayed(control: np.ndarray, lag: np.ndarray) -> np.ndarray:
+    """Every step's ``_delayed`` target at once (rollouts, steps, actuators)."""
+    n = control.shape[1]
+    at = np.maximum(np.arange(n)[None, :, None] - lag[:, None, :], 0.0)
+    i0 = np.floor(at).astype(int)
+    frac = at - i0
+    i1 = np.minimum(i0 + 1, np.arange(n)[None, :, None])
+    b = np.arange(control.shape[0])[:, None, None]
+    a = np.arange(control.shape[2])[None, None, :]
+    return np.asarray(control[b, i0, a] * (1 - frac) + control[b, i1, a] * frac)
 
 
 def _delayed(control: np.ndarray, k: int, lag: np.ndarray) -> np.ndarray:
@@ -166,9 +179,23 @@ def rollout_fn(sysid: Any, fw: Firmware) -> Any:
             mujoco.mj_setState(m, d, x, kind)
         jnt = m0.actuator_trnid[:, 0]
         qadr, dadr = m0.jnt_qposadr[jnt], m0.jnt_dofadr[jnt]
-        kp, kd, lag = (np.stack([m.actuator_gainprm[:, s] for m in models]) for s in (KP_SLOT, KD_SLOT, DELAY_SLOT))
+        kp, kd, lag, latency, tlag = (np.stack([m.actuator_gainprm[:, s] for m in models])
+                                      for s in (KP_SLOT, KD_SLOT, DELAY_SLOT, LATENCY_SLOT, LAG_SLOT))
         lag = lag / dt
-        peak = np.where(m0.actuator_forcelimited.astype(bool), np.abs(m0.actuator_forcerange).max(axis=1), np.inf)
+        # the PD reads the state `latency` old; updated every physics step and held over it, it acts
+        # half a step later than a continuous PD would: a firmware without a rate of its own stands for a
+        # continuous one, so it reads half a step younger (a latency under half a step is none)
+        latency = np.maximum(latency / dt - (0.5 if fw.rate is None else 0.0), 0.0)
+        # each rollout's own torque limit (a fitted one differs between a Jacobian's rollouts)
+        peak = np.stack([np.where(m.actuator_forcelimited.astype(bool), np.abs(m.actuator_forcerange).max(axis=1),
+                                  np.inf) for m in models])
+        # the torque's first-order lag per step (1: none)
+        follow = np.where(tlag > 0, -np.expm1(-dt / np.maximum(tlag, 1e-12)), 1.0)
+        lagged = np.any(tlag > 0)
+        felt = np.any(latency > 0)
+        qh = np.empty((nb2, n, nu)) if felt else None
+        vh = np.empty((nb2, n, nu)) if felt else None
+        out = np.zeros((nb2, nu))
         state = np.empty((nb2, n, mujoco.mj_stateSize(m0, kind)))
         sens = np.empty((nb2, n, m0.nsensordata))
         sign = np.where(np.arange(nb2) < nb, 1.0, -1.0)[:, None]
@@ -177,22 +204,41 @@ def rollout_fn(sysid: Any, fw: Firmware) -> Any:
         # torque sensors report (the hardware's dither is its own draw, which no replay can match)
         clean = _State(replace(fw, noise=None), (nb2, nu), dt) if fw.noise else None
         tau_cols = slice(2 * nu, 3 * nu)
+        # the angles and velocities read back from the state each step records (time, qpos, qvel first)
+        qcol = 1 + qadr
+        vcol = 1 + mujoco.mj_stateSize(m0, mujoco.mjtState.mjSTATE_QPOS) + dadr
+        clean_out = np.zeros((nb2, nu))
+        # the command `delay` ago at every step, once
+        targets = _all_delayed(control, lag)
         for k in range(n):
-            q = np.stack([d.qpos[qadr] for d in datas])
-            v = np.stack([d.qvel[dadr] for d in datas])
+            now = x0 if k == 0 else state[:, k - 1]
+            q, v = now[:, qcol], now[:, vcol]
+            speed = v
+            if qh is not None and vh is not None:
+                # what the PD reads is `latency` old (the state before the log's start held still)
+                qh[:, k], vh[:, k] = q, v
+                q, v = _delayed(qh, k, latency), _delayed(vh, k, latency)
             if fs.due(k * dt):
-                target = _delayed(control, k, lag)
+                target = targets[:, k]
                 fs.update(kp, kd, target, q, v)
                 if clean is not None:
                     clean.update(kp, kd, target, q, v)
-            tau = fs.deliver(peak, v)
+            tau = fs.deliver(peak, speed)
+            if lagged:
+                # the current loop follows the PD's torque with a first-order lag
+                out += follow * (tau - out) if k else tau - out
+                tau = out
             for b, (m, d) in enumerate(zip(models, datas)):
                 d.ctrl[:] = tau[b]
                 mujoco.mj_step(m, d)
                 mujoco.mj_getState(m, d, state[b, k], kind)
                 sens[b, k] = d.sensordata
             if clean is not None:
-                sens[:, k, tau_cols] = clean.deliver(peak, v)
+                torque = clean.deliver(peak, speed)
+                if lagged:
+                    clean_out += follow * (torque - clean_out) if k else torque - clean_out
+                    torque = clean_out
+                sens[:, k, tau_cols] = torque
         if nb2 > nb:
             return 0.5 * (state[:nb] + state[nb:]), 0.5 * (sens[:nb] + sens[nb:])
         return state, sens

@@ -92,7 +92,7 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
 
     atomic_write(out / "residuals.csv", residuals)
     _write_warnings(out, res)
-    xml = _calibrated_xml(robot, pb.labels, x)
+    xml = _calibrated_xml(robot.full, _whole_labels(robot, pb.labels, per), x)
     atomic_write(out / "calibrated.xml", lambda tmp: _write_text(tmp, xml))
     manifest = {
         "kind": "fit",
@@ -104,9 +104,11 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
         "fit": {r["parameter"]: {"nominal": r["nominal"], "fitted": r["fitted"], "low95": r["low95"],
                                  "high95": r["high95"], "unit": r["unit"]} for r in res.table},
         "rms_before_rad": res.rms_before, "rms_after_rad": res.rms_after,
-        "warnings": res.warnings, "seconds": res.seconds, "validation": res.validation,
+        "warnings": res.warnings, "notes": res.notes, "delay_scan": res.delay_scan, "seconds": res.seconds,
+        "validation": res.validation,
         "intervals": {"noise_floor": dict(zip(("angle_rad", "velocity_rad_s", "torque_nm"), NOISE_FLOOR)),
-                      "floored": res.floored, "correlation_time_samples": res.correlation_time},
+                      "floored": res.floored, "correlation_time_samples": res.correlation_time,
+                      "source": res.interval_source},
         "versions": {"mujoco": mujoco.__version__, "pupper": _version()},
     }
     atomic_write(out / "manifest.json", lambda tmp: _write_text(tmp, json.dumps(manifest, indent=2) + "\n"))
@@ -136,6 +138,18 @@ def _write_warnings(out: Path, res: FitResult) -> None:
                 w.writerow([next((n for n in names if text.startswith(n)), ""), text])
 
     atomic_write(path, write)
+
+
+def _whole_labels(robot: Robot, labels: list[tuple[str, str, list[int], float]],
+                  per: str) -> list[tuple[str, str, list[int], float]]:
+    """The labels over the whole robot where the fit stepped a part of it
+    (``robot.narrow``): a value per all or per group goes to every
+    joint of the whole robot it stands for, as if every leg were stepped."""
+    if robot.whole is None:
+        return labels
+    whole = dict(robot.full.members(per))
+    return [(name, kind, whole.get(name[len(kind):], [robot.full.actuators.index(robot.actuators[i]) for i in members]),
+             nom) for name, kind, members, nom in labels]
 
 
 def _calibrated_xml(robot: Robot, labels: list[tuple[str, str, list[int], float]], x: np.ndarray) -> str:

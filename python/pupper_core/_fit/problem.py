@@ -13,11 +13,10 @@ from typing import Any
 import numpy as np
 
 from pupper_core._fit.firmware import Firmware
-from pupper_core._fit.robot import Robot, initial_state, suspended_spec
+from pupper_core._fit.robot import Robot, initial_state, narrow, suspended_spec
 from pupper_core._fit.sysid import _held, _modifier
 from pupper_core._fit.terms import MAX_LOG_SECONDS, PARAMS, STILL_RAD, FitError
-from pupper_core._fit.columns import LogError
-from pupper_core._fit.log import JointLog, read_log
+from pupper_core._fit.log import JointLog, LogError, read_log
 from pupper_core._fit.columns import ColumnMap, read_map
 from pupper_core._fit.specs import LogSpec, gains_in_name, log_specs, name_pattern
 
@@ -39,10 +38,17 @@ class FitResult:
     floored: bool = False
     #: the residual's correlation time (samples): the intervals are widened by its square root
     correlation_time: float = 1.0
+    #: where the intervals come from: "noise" (the residual is the sensors'), "model error" (structure
+    #: the model cannot follow: the segments' spread, ``_fit_intervals``), "floored", "none"
+    interval_source: str = "noise"
     #: validation.csv's rows: per validated log and joint (``validate``)
     validation: list[dict[str, Any]] = field(default_factory=list)
     #: validation_bode.csv's rows: per validated log, joint and frequency
     bode: list[dict[str, Any]] = field(default_factory=list)
+    #: what the replay did with the logs that the user should know (not a doubt about the fit)
+    notes: list[str] = field(default_factory=list)
+    #: the delay scan the fit started from (``_fit_start``): its grid (s), costs and the starts taken
+    delay_scan: dict[str, Any] = field(default_factory=dict)
 
     def value(self, name: str) -> float:
         return next(float(r["fitted"]) for r in self.table if r["parameter"] == name)
@@ -99,6 +105,10 @@ class _Solution:
     warnings: list[str]
     #: the residual's correlation time (samples) the intervals were widened by
     tau: float = 1.0
+    #: the delay scan before the fit (``_fit_start``): its grid, costs and the starts taken
+    scan: dict[str, Any] = field(default_factory=dict)
+    #: where the intervals come from: "noise", "model error" (``_fit_intervals``), "floored", "none"
+    source: str = "noise"
 
 
 def _read_logs(paths: Sequence[Any], robot: Robot, columns: ColumnMap | None = None,
@@ -193,6 +203,142 @@ def _widen(lg: JointLog, robot: Robot) -> JointLog:
                     [a for a in robot.actuators if a in cols], digest=lg.digest)
 
 
+def narrowed(read: list[JointLog], robot: Robot) -> tuple[list[JointLog], Robot]:
+    """The logs and the robot the replay steps: only the legs some log
+    covers (``_fit_robot.narrow``), each log's columns of those."""
+    from dataclasses import replace
+
+    part = narrow(robot, {a for lg in read for a in lg.logged})
+    if part is robot:
+        return read, robot
+    out = []
+    for lg in read:
+        cols = [lg.actuators.index(a) for a in part.actuators]
+        out.append(replace(lg, actuators=list(part.actuators), target=lg.target[:, cols], q=lg.q[:, cols],
+                           qd=None if lg.qd is None else lg.qd[:, cols], tau=None if lg.tau is None else lg.tau[:, cols],
+                           kp=lg.kp[cols], kd=lg.kd[cols], logged=[a for a in lg.logged if a in part.actuators]))
+    return out, part
+
+
+#: Rows whose angles interpolate at least this much better evenly spaced than at their stamps were
+#: taken evenly (the stamps are the logger's clock, jittered).
+EVEN_RATIO = 0.5
+#: A velocity column lags its angles' derivative by at least this fraction of a sample to be advanced.
+LAG_SAMPLES = 0.5
+#: ... and matches the shifted derivative within this RMS fraction of its own size.
+LAG_FIT = 0.3
+
+
+def as_replayed(read: list[JointLog], dt: float) -> tuple[list[JointLog], list[str]]:
+    """The logs as the replay reads them, and a note for what it changed:
+    rows taken evenly where their angles say so (``_even``), a velocity
+    column advanced by the lag it shows behind its angles
+    (``_velocity_lag``); ``dt``: the model's timestep."""
+    from dataclasses import replace
+
+    out: list[JointLog] = []
+    evened: list[tuple[str, float, float]] = []
+    lagged: list[tuple[str, float]] = []
+    for lg in read:
+        even = _even(lg)
+        if even is not None:
+            t, jitter = even
+            evened.append((lg.path.name, jitter, float(np.mean(np.diff(lg.times)))))
+            lg = replace(lg, times=t)
+        lag = _velocity_lag(lg, dt)
+        if lag and lg.qd is not None:
+            t = lg.times
+            qd = np.stack([np.interp(t + lag, t, lg.qd[:, k]) for k in range(lg.qd.shape[1])], axis=1)
+            lagged.append((lg.path.name, lag))
+            lg = replace(lg, qd=qd)
+        out.append(lg)
+    notes = []
+    if evened:
+        jitter = _span([j * 1e3 for _, j, _ in evened])
+        period = _span([p * 1e3 for _, _, p in evened], ".2f")
+        notes.append(f"{_names([n for n, _, _ in evened])}: the angles change smoothly from row to row but not at "
+                     f"their time stamps (which jitter by {jitter} ms RMS about an even {period} ms): the rows are "
+                     "replayed evenly spaced, the stamps taken as the logger's clock")
+    if lagged:
+        notes.append(f"{_names([n for n, _ in lagged])}: the velocity runs {_span([g * 1e3 for _, g in lagged])} ms "
+                     "behind the angles' own derivative (an estimate from older samples): it is compared with the "
+                     "model's velocity that much earlier")
+    return out, notes
+
+
+def _names(names: list[str]) -> str:
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+
+
+def _span(values: list[float], fmt: str = ".1f") -> str:
+    lo, hi = f"{min(values):{fmt}}", f"{max(values):{fmt}}"
+    return lo if lo == hi else f"{lo} to {hi}"
+
+
+def _moving(lg: JointLog) -> list[int]:
+    cols = [lg.actuators.index(a) for a in (lg.logged or lg.actuators)]
+    return [c for c in cols if float(np.ptp(lg.q[:, c])) > STILL_RAD]
+
+
+def _even(lg: JointLog) -> tuple[np.ndarray, float] | None:
+    """Even times for a log whose rows were taken evenly though stamped
+    unevenly, and the stamps' RMS jitter; None where the stamps are even or
+    the angles follow them. Each angle between its neighbours is
+    interpolated by the stamps and by the rows' order: a loop that samples
+    its motors on time but stamps late (a ROS clock read when the callback
+    runs) gives angles smooth in rows, not in stamps (a Pupper's bench
+    log: a third of the error in rows)."""
+    t = lg.times
+    steps = np.diff(t)
+    if len(t) < 10 or float(np.ptp(steps)) <= 1e-6 * float(np.mean(steps)):
+        return None
+    cols = _moving(lg)
+    if not cols:
+        return None
+    q = lg.q[:, cols]
+    a, b, c = q[:-2], q[1:-1], q[2:]
+    frac = ((t[1:-1] - t[:-2]) / (t[2:] - t[:-2]))[:, None]
+    stamped = float(np.sum((b - (a + (c - a) * frac)) ** 2))
+    rows = float(np.sum((b - 0.5 * (a + c)) ** 2))
+    if not rows < EVEN_RATIO ** 2 * stamped:
+        return None
+    even = np.linspace(t[0], t[-1], len(t))
+    return even, float(np.sqrt(np.mean((t - even) ** 2)))
+
+
+def _velocity_lag(lg: JointLog, dt: float) -> float:
+    """How far (s) the velocity column runs behind the model's velocity:
+    its lag behind the angles' central derivative, less the half step by
+    which MuJoCo's velocity (the last step's difference) runs behind it
+    too; 0 where that is under LAG_SAMPLES of a sample or the column does
+    not match the shifted derivative within LAG_FIT. One lag for every
+    column of the log (the loop's estimate is the same for each motor)."""
+    if lg.qd is None:
+        return 0.0
+    cols = _moving(lg)
+    if not cols:
+        return 0.0
+    t = lg.times
+    period = float(np.mean(np.diff(t)))
+    dq = np.stack([np.gradient(lg.q[:, c], t) for c in cols], axis=1)
+    qd = lg.qd[:, cols]
+    size = float(np.sum(qd ** 2))
+    if not size > 0:
+        return 0.0
+    shifts = np.arange(0.0, 6 * period, period / 20)
+
+    def err(s: float) -> float:
+        moved = np.stack([np.interp(t - s, t, dq[:, k]) for k in range(dq.shape[1])], axis=1)
+        return float(np.sum((qd - moved) ** 2))
+
+    errs = np.array([err(float(s)) for s in shifts])
+    k = int(np.argmin(errs))
+    lag = float(shifts[k]) - 0.5 * dt
+    if lag < LAG_SAMPLES * period or errs[k] > LAG_FIT ** 2 * size:
+        return 0.0
+    return lag
+
+
 def _check_log(lg: JointLog, robot: Robot) -> None:
     if lg.base != "suspended":
         raise FitError(f"{lg.path}: '# base: {lg.base}': fit replays logs of the robot hung in "
@@ -254,6 +400,9 @@ def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], p
         q0 = q[:n0].mean(axis=0) if held >= n0 and not has_qd else q[0]
         qd0 = cols[1][0] if has_qd else np.zeros(nu)
         x0 = initial_state(m, robot, q0, qd0, target[0])
+        unlogged = [k for k, a in enumerate(robot.actuators) if a not in lg.logged]
+        if unlogged and len(unlogged) < nu:
+            x0 = _settled(m, x0, robot, [k for k in range(nu) if k not in unlogged], q0, qd0, target[0])
         control = sysid.TimeSeries.from_control_names(*_held(t, target, m.opt.timestep), m)
         measured = sysid.TimeSeries.from_names(t, y, m)
         sequences.append(sysid.ModelSequences(f"log{li}", spec, lg.path.stem, x0, control, measured))
@@ -261,6 +410,34 @@ def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], p
     pdict, labels, x_nominal = _parameters(sysid, robot, names, per, gains, kept, _logged(robot, read),
                                            warnings, firmware is not None)
     return _Problem(robot, read, sequences, pdict, labels, x_nominal, sensors, gains, warnings, firmware)
+
+
+#: How long (s) the joints a log does not cover settle at their targets before it starts.
+SETTLE_S = 1.0
+
+
+def _settled(m: Any, x0: np.ndarray, robot: Robot, logged: list[int], q0: np.ndarray, qd0: np.ndarray,
+             target0: np.ndarray) -> np.ndarray:
+    """The start with the joints a log does not cover where they rest: held
+    at their targets, they sag under gravity (mrad at kp 5), and started at
+    the targets themselves they sagged during the log and moved the logged
+    joints with them (5 µrad off a noise-free log's own replay, past the
+    intervals' noise floor). They settle for SETTLE_S with the first target
+    held; the logged joints then start where the log says."""
+    import mujoco
+    from mujoco import rollout
+
+    hold = np.tile(target0, (max(int(round(SETTLE_S / m.opt.timestep)), 1), 1))
+    state, _ = rollout.rollout(m, mujoco.MjData(m), x0, hold)
+    d = mujoco.MjData(m)
+    mujoco.mj_setState(m, d, np.asarray(state[0, -1]), mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    q, qd = np.array(q0, dtype=float), np.array(qd0, dtype=float)
+    for k, j in enumerate(robot.joints):
+        if k not in logged:
+            jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+            q[k], qd[k] = d.qpos[m.jnt_qposadr[jid]], d.qvel[m.jnt_dofadr[jid]]
+    # a fresh start there (time 0, the command history holding the first target)
+    return initial_state(m, robot, q, qd, target0)
 
 
 def _order(lg: JointLog, robot: Robot) -> list[int]:

@@ -56,6 +56,15 @@ class Robot:
     fixed_base: bool = False
     #: each actuator's leg (-1: none): hung from a welded base, legs do not interact
     legs: list[int] = field(default_factory=list)
+    #: the bodies (whole legs) the replay leaves out of the model: no log moves them
+    dropped: tuple[str, ...] = ()
+    #: the whole robot this one is a part of (``narrow``); None: it is the whole robot
+    whole: Robot | None = None
+
+    @property
+    def full(self) -> Robot:
+        """The whole robot (calibrated.xml is written over it)."""
+        return self.whole if self.whole is not None else self
 
     def natural_hz(self, kp: np.ndarray) -> np.ndarray:
         """Each joint's natural frequency (Hz) at stiffness ``kp``."""
@@ -119,6 +128,54 @@ def load_robot(model: str | os.PathLike[str]) -> Robot:
                  float(m.opt.timestep), _inertia(m, joints, rest), fixed, legs)
 
 
+def narrow(robot: Robot, moved: set[str]) -> Robot:
+    """The robot with only the legs that hold an actuator in ``moved``:
+    hung from a welded base, a leg no log covers neither moves nor touches
+    the others, so the replay leaves it out (a one-motor log of the
+    12-joint Pupper steps a quarter of the joints and friction
+    constraints: 4 times faster). The whole robot where the model names
+    no legs, a leg's subtree holds another's joint, or the reduced model
+    does not compile."""
+    import mujoco
+
+    if not robot.legs or -1 in robot.legs or robot.whole is not None:
+        return robot
+    keep_legs = {robot.legs[k] for k, a in enumerate(robot.actuators) if a in moved}
+    keep = [k for k in range(len(robot.actuators)) if robot.legs[k] in keep_legs]
+    if not keep or len(keep) == len(robot.actuators):
+        return robot
+    m = mujoco.MjModel.from_xml_path(str(robot.file))
+    jid = {j: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in robot.joints}
+    body_leg: dict[int, int] = {int(m.jnt_bodyid[jid[j]]): robot.legs[k] for k, j in enumerate(robot.joints)}
+    roots: list[str] = []
+    for leg in sorted(set(robot.legs) - keep_legs):
+        bodies = {b for b, lg in body_leg.items() if lg == leg}
+        top = [b for b in bodies if int(m.body_parentid[b]) not in bodies]
+        if len(top) != 1:
+            return robot
+        # the subtree below the leg's root: it must hold no joint of a kept leg
+        sub = {top[0]}
+        for b in range(m.nbody):
+            p = b
+            while p > 0 and p not in sub:
+                p = int(m.body_parentid[p])
+            if p in sub:
+                sub.add(b)
+        if any(body_leg.get(b, leg) != leg for b in sub):
+            return robot
+        roots.append(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, top[0]))
+    part = Robot(robot.file, [robot.actuators[k] for k in keep], [robot.joints[k] for k in keep],
+                 [robot.groups[k] for k in keep], {robot.actuators[k]: robot.ranges[robot.actuators[k]] for k in keep},
+                 robot.limits[keep], robot.own_kp[keep], robot.own_kd[keep], robot.armature[keep],
+                 robot.damping[keep], robot.frictionloss[keep], robot.rest[keep], robot.timestep,
+                 robot.inertia[keep], robot.fixed_base, [robot.legs[k] for k in keep], tuple(roots), robot)
+    try:
+        suspended_spec(part, part.own_kp, part.own_kd).compile()
+    except ValueError:
+        return robot
+    return part
+
+
 def _inertia(m: Any, joints: list[str], rest: list[float]) -> np.ndarray:
     """Each joint's own inertia at the rest pose: its diagonal of the mass
     matrix (the same whether the base is free or welded)."""
@@ -142,7 +199,7 @@ def suspended_spec(robot: Robot, kp: np.ndarray, kd: np.ndarray, firmware: bool 
     """The robot hung in the air at the given gains, sensing each actuated
     joint's angle, velocity and actuator force (sensors in that order).
     ``firmware``: its actuators plain torque motors, the gains and the
-    command delay kept for the firmware's replay (``_fit_firmware``)."""
+    command delay kept for the firmware's replay (``firmware``)."""
     import mujoco
 
     spec = mujoco.MjSpec.from_file(str(robot.file))
@@ -153,6 +210,12 @@ def suspended_spec(robot: Robot, kp: np.ndarray, kd: np.ndarray, firmware: bool 
         spec.delete(k)
     for s in list(spec.sensors):
         spec.delete(s)
+    if robot.dropped:
+        kept = set(robot.actuators)
+        for a in [a for a in spec.actuators if a.name not in kept]:
+            spec.delete(a)
+        for name in robot.dropped:
+            spec.delete(spec.body(name))
     spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     n = _history_samples(robot)
     for i, name in enumerate(robot.actuators):

@@ -33,33 +33,39 @@ def _sysid() -> Any:
 
 def _held(t: np.ndarray, target: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Targets logged slower than the physics or unevenly (time stamps as
-    recorded), as a servo holds them: each from the physics step nearest its
-    instant until the next (sysid would interpolate between them). An
-    even log at the physics rate or faster is sysid's to resample."""
+    recorded), as a servo holds them: each from the first physics step at
+    or after its instant until the next (sysid would interpolate between
+    them). A delayed command is read from this history linearly between
+    steps, which ramps each switch over the step before it: from the first
+    step after the instant, the ramp is centred on the instant on average
+    (from the nearest step, as before, it was half a step early: a fitted
+    delay half a step too long). An even log at the physics rate or faster
+    is sysid's to resample."""
     steps = np.diff(t)
     period = float(np.mean(steps))
     even = float(np.ptp(steps)) <= 1e-6 * period + 1e-12
     if period <= dt * (1 + 1e-9) and even:
         return t, target
     tc = np.arange(0.0, t[-1] + dt / 2, dt)
-    # the target whose instant is nearest each step's start: at most half a step off
-    idx = np.searchsorted(t, tc + 0.5 * dt, side="right") - 1
+    # the target in force at each step's start: the last sent at or before it
+    idx = np.searchsorted(t, tc + 1e-9 * dt, side="right") - 1
     return tc, target[np.clip(idx, 0, len(t) - 1)]
 
 
 def _modifier(kind: str, members: list[int], robot: Robot, gains: dict[int, tuple[np.ndarray, np.ndarray]],
               firmware: bool = False) -> Any:
-    from pupper_core._fit.firmware import DELAY_SLOT, KD_SLOT, KP_SLOT
+    from pupper_core._fit.firmware import DELAY_SLOT, KD_SLOT, KP_SLOT, LAG_SLOT, LATENCY_SLOT
 
-    slot = {"kp_scale": KP_SLOT, "kd_scale": KD_SLOT, "delay": DELAY_SLOT}
+    slot = {"kp_scale": KP_SLOT, "kd_scale": KD_SLOT, "delay": DELAY_SLOT, "latency": LATENCY_SLOT, "lag": LAG_SLOT}
 
     def apply(spec: Any, p: Any) -> None:
         v = float(p.value[0])
         for i in members:
+            act = spec.actuator(robot.actuators[i])
             if firmware and kind in slot:
                 # the firmware's own gains and command delay (a torque motor's spare gain parameters)
-                base = 1.0 if kind == "delay" else gains[id(spec)][0 if kind == "kp_scale" else 1][i]
-                spec.actuator(robot.actuators[i]).gainprm[slot[kind]] = base * v
+                base = gains[id(spec)][0 if kind == "kp_scale" else 1][i] if "scale" in kind else 1.0
+                act.gainprm[slot[kind]] = base * v
                 continue
             if kind in ("armature", "damping", "frictionloss"):
                 j = spec.joint(robot.joints[i])
@@ -68,15 +74,17 @@ def _modifier(kind: str, members: list[int], robot: Robot, gains: dict[int, tupl
                 else:
                     setattr(j, kind, v)
             elif kind == "delay":
-                spec.actuator(robot.actuators[i]).delay = v
+                act.delay = v
+            elif kind == "kp_scale":
+                kp, _ = gains[id(spec)]
+                act.gainprm[0] = kp[i] * v
+                act.biasprm[1] = -kp[i] * v
+            elif kind == "kd_scale":
+                _, kd = gains[id(spec)]
+                act.biasprm[2] = -kd[i] * v
             else:
-                kp, kd = gains[id(spec)]
-                act = spec.actuator(robot.actuators[i])
-                if kind == "kp_scale":
-                    act.gainprm[0] = kp[i] * v
-                    act.biasprm[1] = -kp[i] * v
-                else:
-                    act.biasprm[2] = -kd[i] * v
+                # the firmware's own (latency): a fit that names it replays through the firmware
+                raise FitError(f"{kind} is the servo firmware's: fit it through its replay (--motor)")
     return apply
 
 

@@ -15,7 +15,12 @@ PARAMS: dict[str, tuple[str, float, float]] = {
     "kp_scale": ("", 0.2, 5.0),
     "kd_scale": ("", 0.2, 5.0),
     "delay": ("s", 0.0, 0.05),
+    "lag": ("s", 0.0, 0.05),
+    "latency": ("s", 0.0, 0.05),
 }
+#: The parameters of the servo firmware's loop: a fit that names one replays through the firmware
+#: (``--motor``, ideal where not given): the torque's lag behind the PD, and how old the PD's readings are.
+FIRMWARE_ONLY = ("lag", "latency")
 DEFAULT_PARAMS = ("armature", "damping", "frictionloss", "kp_scale", "kd_scale", "delay")
 GROUPS = ("haa", "hfe", "kfe")
 PER = ("all", "group", "joint")

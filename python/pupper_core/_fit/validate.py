@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from pupper_core._fit.freq import PHASE_AT, Response, bandwidth, delay_left, phase_at, response
-from pupper_core._fit.problem import _Problem, _problem, _Solution
+from pupper_core._fit.problem import _Problem, _problem, _Solution, narrowed
 from pupper_core._fit.sysid import _predictions, _residual_fn
 from pupper_core._fit.terms import FitError
 from pupper_core._fit.log import JointLog
@@ -67,7 +67,9 @@ def validate(sysid: Any, pb: _Problem, sol: _Solution, read: list[JointLog], nam
              per: str) -> Validation:
     """Replays ``read`` through the nominal model and the calibrated one
     (the fit's values; nominal where the fit left a parameter out)."""
-    vpb = _problem(sysid, pb.robot, read, names, per, pb.firmware)
+    # the validated logs' own legs of the whole robot (they may cover others than the fit's)
+    read, robot = narrowed(read, pb.robot.full)
+    vpb = _problem(sysid, robot, read, names, per, pb.firmware)
     fitted = {label[0]: float(v) for label, v in zip(pb.labels, sol.x)}
     x_cal = np.array([fitted.get(label[0], float(x0)) for label, x0 in zip(vpb.labels, vpb.x_nominal)])
     residual_fn = _residual_fn(sysid, vpb.sequences, vpb.enabled(sysid), None, vpb.firmware)
@@ -78,7 +80,7 @@ def validate(sysid: Any, pb: _Problem, sol: _Solution, read: list[JointLog], nam
         rel = lg.times - lg.times[0]
         held = np.clip(np.searchsorted(rel, t + 1e-12, side="right") - 1, 0, len(rel) - 1)
         for col, k in enumerate(vpb.kept):
-            name = pb.robot.actuators[k]
+            name = vpb.robot.actuators[k]
             q = {"log": me[:, col], "nominal": p0[:, col], "calibrated": p1[:, col]}
             command = lg.target[held, k]
             resp = {m: response(t, command, q[m]) for m in MODELS}

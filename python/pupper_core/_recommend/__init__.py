@@ -41,7 +41,8 @@ def recommend(
     # the search
     robots: int = 32, trials: int = 48, batch: int = 16, seed: int = 0, polish: int = 4,
     # the robots, their firmware and their push
-    seconds: float = 4.0, push_force: float | None = None, motor: str | None = None, sensing_delay: float = 0.002,
+    seconds: float = 4.0, push_force: float | None = None, motor: str | None = None,
+    sensing_delay: float | None = None,
     command_delay: float = 0.0, spread: Sequence[str] | None = None, from_fit: str | os.PathLike[str] | None = None,
     # the constraints and the motors' limits
     min_phase_margin: float = 30.0, min_gain_margin: float = 6.0, max_saturation: float = 0.05, max_sag: float = 0.1,
@@ -62,7 +63,9 @@ def recommend(
     start pose) below it, so a crouch that barely dips is no answer; and
     each group's loop, as the firmware
     ``motor`` (default ``rate=500,counts=16384``) closes it with
-    ``sensing_delay`` s old measurements (drawn 0 to it in whole steps on
+    ``sensing_delay`` s old measurements (default 0.002, or with
+    ``from_fit`` the upper end of a fitted feedback ``latency``; the card
+    says which; drawn 0 to it in whole steps on
     the robots), keeps ``min_phase_margin`` degrees and ``min_gain_margin``
     dB at the spread's worst corner (what the motors deliver of the gains,
     the joints' least and most inertia). A ``command_delay`` (s) is not in

@@ -398,6 +398,8 @@ def print_card(rec: Recommendation) -> None:
         print("".join(f"{v:>12}" for v in vals))
     print(f"kp, kd: the gains to command (recommended.yaml's kps, kds){_delivered_note(plan)}"
           + ("; the margins are of the delivered gains (motor kp, motor kd)" if scaled else ""))
+    if plan.latency_from:
+        print(plan.latency_from)
     c0 = rec.cards[0]
     searched = rec.searched
     also = (f" (on the exported MJCF, whose numbers MjSpec writes to six digits; {searched.p95_dip_mm:.4g} mm in "

@@ -130,6 +130,41 @@ def _motor(motor: str | None, command_delay: float) -> str:
     return spec
 
 
+#: The feedback latency assumed where neither --sensing-delay nor a fit says one (s).
+SENSING_DELAY = 0.002
+
+
+def _latency(rows: Sequence[Mapping[str, str]], given: float | None) -> tuple[float, str]:
+    """The feedback latency the margins assume (s), and with a fit where
+    it and the command delay come from: a fitted latency's upper end (the
+    oldest measurements the logs allow) unless --sensing-delay is given."""
+    if not rows:
+        return (SENSING_DELAY if given is None else given), ""
+    lat = [(float(r["fitted"]), *_interval(r)) for r in rows if r.get("parameter") == "latency"]
+    # an interval the logs could not bound places no latency
+    unplaced = [r for r in rows if r.get("parameter") == "latency"
+                and not all(math.isfinite(float(r[k] or "nan")) for k in ("low95", "high95"))]
+    if given is not None:
+        said = f"{given:g} s, given by --sensing-delay"
+        if lat:
+            said += f" (the fit measured {max(v for v, _, _ in lat):.3g} s)"
+        sensing = given
+    elif lat and not unplaced:
+        sensing = max(0.0, max(b for _, _, b in lat))
+        said = (f"{sensing:.3g} s, the upper end of the fit's feedback latency (fit.csv: latency "
+                + ", ".join(f"{v:.3g} s [{a:.3g}, {b:.3g}]" for v, a, b in lat) + ")")
+    else:
+        sensing = SENSING_DELAY
+        said = (f"{sensing:g} s, the default: the fit could not bound its feedback latency (add a log at "
+                "another kp)" if unplaced else
+                f"{sensing:g} s, the default: the fit measured no feedback latency (fit it: --params ...,latency)")
+    delays = [(float(r["fitted"]), *_interval(r)) for r in rows if r.get("parameter") == "delay"]
+    command = ("command delay " + ", ".join(f"{a:.3g} to {b:.3g} s" for _, a, b in delays)
+               + " drawn per robot, the fit's delay interval (fit.csv: delay)" if delays and
+               max(b for _, _, b in delays) > 1e-9 else "no command delay (the fit found none)")
+    return sensing, f"latency assumed: sensing (feedback) {said}; {command}"
+
+
 def _fit_rows(d: Path) -> list[dict[str, str]]:
     f = d / "fit.csv"
     if not (f.is_file() and (d / "calibrated.xml").is_file()):
@@ -198,7 +233,7 @@ def _armature_low(rows: Sequence[Mapping[str, str]], names: Sequence[str]) -> di
 
 
 def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int, seed: int, seconds: float,
-         push_force: float | None, motor: str | None, sensing_delay: float, command_delay: float,
+         push_force: float | None, motor: str | None, sensing_delay: float | None, command_delay: float,
          spread: Sequence[str] | None, from_fit: str | os.PathLike[str] | None, min_phase_margin: float,
          min_gain_margin: float, max_saturation: float, kp_max: float | None, kd_max: float | None,
          joint_order: Sequence[str] | str | None, controller: str, polish: int, max_sag: float,
@@ -232,6 +267,7 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
         # a delay interval of round-off around 0 (a noise-free fit) is no delay
         if delays and max(b for _, b in delays) > 1e-9:
             base.append(f"motor_delay={min(a for a, _ in delays):.6g}:{max(b for _, b in delays):.6g}")
+    sensing_delay, latency_from = _latency(rows, sensing_delay)
     from pupper_core._run import info
 
     inf = info(model)
@@ -270,10 +306,11 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
                 max_saturation=max_saturation, joint_order=order, controller=controller, polish=polish,
                 max_sag=max_sag, stance=stance(model=model), from_fit=fit_dir, fit_rows=rows,
                 fit_draws=_fit_draws(rows, names, seed) if rows else [], current=now, current_from=now_from,
-                caps=capped)
+                caps=capped, latency_from=latency_from)
 
 
-def _check_numbers(*, robots: int, trials: int, batch: int, polish: int, seconds: float, sensing_delay: float,
+def _check_numbers(*, robots: int, trials: int, batch: int, polish: int, seconds: float,
+                   sensing_delay: float | None,
                    command_delay: float, min_phase_margin: float, min_gain_margin: float, max_sag: float,
                    max_saturation: float, kp_max: float | None, kd_max: float | None) -> None:
     """Each number in its range, or one line naming the flag and a value."""
@@ -283,7 +320,8 @@ def _check_numbers(*, robots: int, trials: int, batch: int, polish: int, seconds
         raise RecommendError(f"--polish {polish} must be a whole number >= 0 (0: the search's pick, unmoved)")
     _positive("the simulated seconds per robot, e.g. 4", seconds, "--seconds")
     _reaches_the_push(seconds)
-    _positive("seconds of feedback latency, e.g. 0.002", sensing_delay, "--sensing-delay", zero=True)
+    if sensing_delay is not None:
+        _positive("seconds of feedback latency, e.g. 0.002", sensing_delay, "--sensing-delay", zero=True)
     _positive("seconds of command delay, e.g. 0.01", command_delay, "--command-delay", zero=True)
     _positive("degrees, e.g. 30", min_phase_margin, "--min-phase-margin", zero=True)
     if min_phase_margin >= 180:
@@ -300,7 +338,7 @@ def _check_numbers(*, robots: int, trials: int, batch: int, polish: int, seconds
 
 
 #: The longest command delay (s) the card's predicted step response can
-#: show: it is measured over the 2.5 s after its step (_recommend_card), and
+#: show: it is measured over the 2.5 s after its step (card), and
 #: a delayed step needs room to rise and settle there.
 MAX_COMMAND_DELAY = 1.0
 
@@ -322,7 +360,7 @@ def _check_types(kw: Mapping[str, Any]) -> None:
     for n in ("seconds", "sensing_delay", "command_delay", "min_phase_margin", "min_gain_margin", "max_saturation",
               "max_sag", "push_force", "kp_max", "kd_max"):
         v = kw[n]
-        if v is None and n in ("push_force", "kp_max", "kd_max"):
+        if v is None and n in ("push_force", "kp_max", "kd_max", "sensing_delay"):
             continue
         if isinstance(v, bool) or not isinstance(v, numbers.Real):
             raise bad(n, "a number")

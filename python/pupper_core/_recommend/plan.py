@@ -125,6 +125,8 @@ class Plan:
     #: whether motor caps (--kp-max and --kd-max, or the model's numerics)
     #: bound every group's search, rather than the defaults' x20 and x50
     caps: bool = False
+    #: with a fit: which latencies the margins and robots assumed, and where each came from
+    latency_from: str = ""
 
     def sags(self, height: float) -> bool:
         """Whether a robot whose lowest final base height is `height` (m)
@@ -165,4 +167,5 @@ class Plan:
                                    "kd": [self.kd_factors[0] * g.kd_scale[0], self.kd_factors[1] * g.kd_scale[1]]}
                           for g in self.groups},
             "current": {g: list(v) for g, v in self.current.items()}, "current_from": self.current_from,
+            **({"latency_from": self.latency_from} if self.latency_from else {}),
         }

@@ -219,6 +219,11 @@ pub(super) struct FitArgs {
     /// [default: MuJoCo's ideal servo]
     #[arg(long, value_name = "KEY=VALUE,...")]
     motor: Option<String>,
+    /// Where the fit starts a kind of parameter, KIND=VALUE,... (e.g. delay=0.015); the delay is
+    /// also estimated from the logs, and the lowest cost of every start is kept
+    /// [default: the model's values]
+    #[arg(long, value_name = "KIND=VALUE,...")]
+    start: Option<String>,
 }
 
 /// What `pupper_core._fit._cli_fit` is given: the flags and the run

@@ -86,9 +86,10 @@ pub(super) struct RecommendArgs {
     #[arg(long, default_value = "rate=500,counts=16384", value_name = "SPEC")]
     motor: String,
     /// Age of the measurements the firmware's PD reads (s): in the loop margins, and drawn 0 to it
-    /// (whole physics steps) on the robots.
-    #[arg(long, default_value_t = 0.002, value_name = "S", allow_negative_numbers = true, value_parser = finite)]
-    sensing_delay: f64,
+    /// (whole physics steps) on the robots [default: 0.002, or with --from-fit the upper end of the
+    /// fit's feedback latency where it fitted one; the card says which]
+    #[arg(long, value_name = "S", allow_negative_numbers = true, value_parser = finite)]
+    sensing_delay: Option<f64>,
     /// Delay of the commanded target (s): the firmware's command delay; shifts the step response.
     #[arg(long, default_value_t = 0.0, value_name = "S", allow_negative_numbers = true, value_parser = finite)]
     command_delay: f64,

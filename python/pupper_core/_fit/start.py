@@ -1,0 +1,156 @@
+"""Where a fit starts (``pupper_core._fit`` runs Levenberg–Marquardt from
+here): no parameter may start where its Jacobian is structurally zero.
+
+The delay's nominal value is 0, and MuJoCo applies any actuator delay up to
+one timestep as a whole step: between 0 and a step the replay does not
+change, so a finite-difference Jacobian has a zero column there and the
+optimizer never moves the delay; it then bends every other parameter to
+make up for the delay it cannot see (on a real Pupper log: 20 ms of delay
+left at 0, kp scale 0.57, kd scale 0.49, friction ×9). So, before the
+least-squares fit, the delay is estimated from the logs themselves: the
+replay's cost over a grid of delays (every other parameter at its start),
+each grid point one rollout of each log, all in one batched call, its
+minimum refined by a parabola through its neighbours. That is the lag that
+best aligns the model's response with the log's, through the model's own
+dynamics (a cross-correlation of command and angle would count the
+joint's own lag as delay). The fit then starts from the best delays found
+(the lowest minimum of the grid, the next local minimum where it is
+nearly as low, and any start the caller gives) and keeps the lowest cost:
+multi-start over what is cheap. A start is never below STEPS_OFF
+timesteps, where the delay's column is zero."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from pupper_core._fit.problem import _Problem
+from pupper_core._fit.terms import PARAMS, FitError
+
+#: The delay grid's points (0 to the delay's upper bound).
+GRID = 11
+#: A second local minimum of the grid is a start too when its cost is within this factor of the lowest.
+SECOND = 1.5
+#: A delay starts at least this many timesteps in (below one its Jacobian column is zero).
+STEPS_OFF = 1.5
+
+
+def parse_start(start: str | Mapping[str, float] | None, names: list[str]) -> dict[str, float]:
+    """--start's text (KIND=VALUE,...) or a mapping: where the fit starts
+    each kind of parameter (every parameter of that kind)."""
+    if start is None:
+        return {}
+    items: list[tuple[str, Any]]
+    if isinstance(start, str):
+        items = []
+        for part in (p.strip() for p in start.split(",") if p.strip()):
+            key, eq, value = part.partition("=")
+            if not eq:
+                raise FitError(f"--start item '{part}' is not KIND=VALUE: write e.g. --start delay=0.015")
+            items.append((key.strip(), value.strip()))
+    else:
+        items = list(start.items())
+    out: dict[str, float] = {}
+    for key, value in items:
+        if key not in names:
+            raise FitError(f"--start names '{key}', which is not fitted: give one of {', '.join(names)}")
+        if key in out:
+            raise FitError(f"--start gives '{key}' twice: keep one value")
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise FitError(f"--start {key}={value} is not a number") from None
+        _, lo, hi = PARAMS[key]
+        if not (math.isfinite(v) and lo <= v <= hi):
+            raise FitError(f"--start {key}={value} lies outside {key}'s bounds [{lo:g}, {hi:g}]: give a value "
+                           "inside them")
+        out[key] = v
+    return out
+
+
+def _delays(pb: _Problem) -> list[int]:
+    return [i for i, label in enumerate(pb.labels) if label[1] == "delay"]
+
+
+def least_delay(pb: _Problem) -> float:
+    """The smallest delay a start takes: below it the Jacobian's column is zero."""
+    return STEPS_OFF * pb.robot.timestep
+
+
+def with_start(pb: _Problem, x: np.ndarray, start: dict[str, float]) -> np.ndarray:
+    """``x`` with the caller's start values, a delay moved off its flat first step."""
+    x = x.copy()
+    for i, (_, kind, _, _) in enumerate(pb.labels):
+        if kind in start:
+            x[i] = start[kind]
+        if kind == "delay":
+            x[i] = max(x[i], least_delay(pb))
+        elif kind in ("lag", "latency"):
+            # an exact filter's response is flat in a time constant far below a step
+            x[i] = max(x[i], pb.robot.timestep)
+    return x
+
+
+def costs(residual_fn: Any, params: Any, xs: np.ndarray) -> np.ndarray:
+    """The cost at each column of ``xs``, every column in one batched rollout."""
+    r, _, _ = residual_fn(xs, params.copy())
+    out = np.zeros(xs.shape[1])
+    for ri in r:
+        ri = np.asarray(ri).reshape(-1, xs.shape[1])
+        out += np.sum(np.square(ri), axis=0)
+    return np.where(np.isfinite(out), out, np.inf)
+
+
+def delay_scan(residual_fn: Any, pb: _Problem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The grid of delays and the cost at each (every delay of the fit set
+    to the grid's value, the rest at ``x``)."""
+    hi = float(pb.pdict.get_bounds()[1][_delays(pb)[0]])
+    grid = np.linspace(0.0, hi, GRID)
+    xs = np.tile(x.reshape(-1, 1), (1, GRID))
+    for i in _delays(pb):
+        xs[i, :] = grid
+    return grid, costs(residual_fn, pb.pdict, xs)
+
+
+def _refine(grid: np.ndarray, cost: np.ndarray, k: int) -> float:
+    """The grid's minimum at k refined by the parabola through it and its neighbours."""
+    if 0 < k < len(grid) - 1 and np.all(np.isfinite(cost[k - 1:k + 2])):
+        c0, c1, c2 = cost[k - 1:k + 2]
+        den = c0 - 2 * c1 + c2
+        if den > 0:
+            h = grid[1] - grid[0]
+            return float(grid[k] + 0.5 * h * (c0 - c2) / den)
+    return float(grid[k])
+
+
+def starts(residual_fn: Any, pb: _Problem, x0: np.ndarray,
+           start: dict[str, float]) -> tuple[list[np.ndarray], dict[str, Any]]:
+    """The start vectors the fit runs from, and what the scan found (for the
+    manifest): without a delay to fit, the one start ``x0`` (the caller's
+    values in it)."""
+    base = with_start(pb, x0, start)
+    delays = _delays(pb)
+    if not delays:
+        return [base], {}
+    grid, cost = delay_scan(residual_fn, pb, base)
+    if not np.any(np.isfinite(cost)):
+        return [base], {"grid_s": grid.tolist(), "cost": cost.tolist()}
+    # the grid's local minima, lowest first
+    interior = [k for k in range(len(grid)) if np.isfinite(cost[k])
+                and (k == 0 or cost[k] <= cost[k - 1]) and (k == len(grid) - 1 or cost[k] <= cost[k + 1])]
+    interior.sort(key=lambda k: cost[k])
+    found = [interior[0]] + [k for k in interior[1:2] if cost[k] <= SECOND * cost[interior[0]]]
+    lo = least_delay(pb)
+    out: list[np.ndarray] = []
+    for k in found:
+        x = base.copy()
+        x[delays] = max(_refine(grid, cost, k), lo)
+        out.append(x)
+    if "delay" in start and not any(abs(float(x[delays[0]]) - base[delays[0]]) < 1e-12 for x in out):
+        # the caller's own start runs too: the lowest cost of all is kept
+        out.append(base)
+    return out, {"grid_s": grid.tolist(), "cost": cost.tolist(),
+                 "starts_s": [float(x[delays[0]]) for x in out]}
