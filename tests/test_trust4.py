@@ -414,7 +414,7 @@ def test_item_25_the_lock_names_nobody_after_a_recommend_run(motor_run) -> None:
 
 def test_item_26_a_file_that_is_no_model_prints_no_mujoco_warning(run, tmp_path: Path) -> None:
     junk = tmp_path / "notamodel"
-    junk.write_text("root:x:0:0:root:/root:/bin/bash\n")
+    junk.write_text("name: value\nnot an MJCF file, nor XML at all\n")
     for args in (("sweep", "--seconds", "0.2", "-o", tmp_path / "s"), ("info",),
                  ("recommend", "-o", tmp_path / "r")):
         p = run(*args, "--model", junk, timeout=300)
