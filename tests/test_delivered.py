@@ -228,7 +228,7 @@ def test_recommend_from_a_fit_assumes_its_fitted_latency_and_says_so(tmp_path):
     latency it assumed and where each came from; --sensing-delay still wins."""
     pytest.importorskip("scipy")
     import pupper_core as pc
-    from pupper_core._recommend.plan import plan
+    from pupper_core._recommend import plan_for as plan
     from stand_log import COLUMNS, PLAIN, stand_log
 
     # two kps: the latency (inside the loop) is told from the delay (outside it)
