@@ -19,7 +19,9 @@ what the calibrated model predicts against the nominal one on the log it
 did not see: RMS angle error, -3 dB bandwidth, phase at 10 Hz, and the
 issue's targets (RMS at most a quarter of nominal, bandwidth within 10 %,
 phase within 5 deg); then the three motors' fitted parameters side by side
-with their intervals, where the intervals come from (noise or model
+with their intervals, a warning where a motor parameter of the three
+(one motor type) comes out with disjoint intervals (naming the part of
+the model it suspects), where the intervals come from (noise or model
 error), the answer from three delay starts, and the time of a fit of two
 20 s logs of one motor (its kp 5 and kp 7.5 logs together).
 """
@@ -36,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import pupper_core as pc
+from pupper_core._fit import disagreements, fit_entries, load_robot, motor_types
 
 REPO = Path(__file__).resolve().parent.parent
 REAL = REPO.parent / "shared" / "real_logs"
@@ -114,6 +117,13 @@ def main() -> None:
                     lo, hi = r.interval(n)
                     cells.append(f"{r.value(n):.4g} [{lo:.3g}, {hi:.3g}]")
                 print(f"  {n:<13}" + "".join(f"{c:>34}" for c in cells))
+            # one motor type: their motor parameters should agree within their intervals
+            entries = [e for m in motors for e in fit_entries(fits[(m, model)], MOTORS[m][2])]
+            said = disagreements(entries, motor_types(load_robot("pupper_v3")))
+            for w in said:
+                print(f"  warning: {w}")
+            if not said:
+                print("  the three motors' motor parameters agree within their intervals")
         if not a.quick:
             print()
             fitted = real_log(d, 3, 5)
@@ -145,6 +155,7 @@ def plot(traces: dict, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     motors = sorted({m for m, _ in traces})
     fig, axes = plt.subplots(2, len(motors), figsize=(5.2 * len(motors), 6.4), squeeze=False)
@@ -174,6 +185,9 @@ def plot(traces: dict, path: Path) -> None:
         for ax in (gain, phase):
             ax.grid(alpha=0.3)
             ax.tick_params(labelsize=7)
+            # plain labels on a few ticks: the log axis's own minor labels overlap (2x10^0 3x10^0 ...)
+            ax.set_xticks([2, 3, 5, 10, 20], labels=["2", "3", "5", "10", "20"])
+            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     fig.tight_layout()
     fig.savefig(path, dpi=90)
 

@@ -7,6 +7,7 @@ The stand is examples/stand_log.py: a plain MuJoCo loop, not pupper's code."""
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 from pathlib import Path
@@ -18,7 +19,7 @@ import pytest
 from conftest import REPO, read_csv
 
 sys.path.insert(0, str(REPO / "examples"))
-from stand_log import COLUMNS, MOTOR, TRUTH, stand_log  # noqa: E402
+from stand_log import COLUMNS, MOTOR, PLAIN, TRUTH, stand_log  # noqa: E402
 
 pytest.importorskip("scipy", reason="the fit extra (make test installs it)")
 
@@ -218,3 +219,61 @@ def test_three_delay_starts_give_one_answer(bench):
         for row in got[0].table:
             lo, hi = row["low95"], row["high95"]
             assert abs(res.value(row["parameter"]) - row["fitted"]) <= 0.01 * (hi - lo), (row, res.table)
+
+
+def two_knees(d: Path, back_kp_scale: float) -> tuple[Path, str]:
+    """One log of two knees of one motor type (the right front and back),
+    the back one's servo delivering ``back_kp_scale`` of its kp where the
+    front's delivers the stand's 0.95: two runs of the plain stand at one
+    seed (the same stamps and command; hung from a welded base the legs do
+    not interact), side by side as one loop would log them. Its column map."""
+    import csv
+
+    rows = [list(csv.reader(p.open())) for p in (
+        stand_log(d / "front.csv", kp=5.0, kd=0.1, seed=0, **PLAIN),
+        stand_log(d / "back.csv", kp=5.0, kd=0.1, seed=0,
+                  **{**PLAIN, "truth": {**PLAIN["truth"], "kp_scale": back_kp_scale}}))]
+    head = rows[0][0]
+    take = [head.index(c) for c in ("fr_knee_cmd", "fr_knee_pos", "fr_knee_vel")]
+    out = d / "two_knees.csv"
+    with out.open("w", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(head + ["br_knee_cmd", "br_knee_pos", "br_knee_vel"])
+        for front, back in zip(rows[0][1:], rows[1][1:]):
+            w.writerow(front + [back[i] for i in take])
+    cmap = (f"time=stamp,{MOTOR}.target=fr_knee_cmd,{MOTOR}.q=fr_knee_pos,{MOTOR}.qd=fr_knee_vel,"
+            "leg_back_r_3.target=br_knee_cmd,leg_back_r_3.q=br_knee_pos,leg_back_r_3.qd=br_knee_vel")
+    return out, cmap
+
+
+def test_motors_of_one_type_that_disagree_are_said(tmp_path):
+    """Issues 47 and 48: two knees of one motor type, one servo's kp 1.6 /
+    0.95 times the other's, fitted per joint in one fit: their kp scales
+    come out with disjoint intervals while their delays agree, and a
+    warning names the parameter, both motors with their values and
+    intervals, and the gain structure as the suspect, in the manifest and
+    on the report's fit page. Where intervals overlap, nothing is said."""
+    from pupper_core._fit import disagreements, fit_entries, load_robot, motor_types
+
+    log, cmap = two_knees(tmp_path, 1.6)
+    res = pc.fit([log], columns=cmap, kp=5.0, kd=0.1, per="joint", params="kp_scale,delay", progress=False,
+                 out=tmp_path / "fit")
+    front, back = res.value(f"kp_scale.{MOTOR}"), res.value("kp_scale.leg_back_r_3")
+    assert 1.5 < back / front < 1.85, (front, back)
+    said = [w for w in res.warnings if w.startswith("kp_scale disagrees")]
+    assert len(said) == 1, res.warnings
+    lo, hi = res.interval("kp_scale.leg_back_r_3")
+    for words in (f"{MOTOR} {front:.4g}", f"leg_back_r_3 {back:.4g} [{lo:.4g}, {hi:.4g}]",
+                  "while delay agrees", "suspect the motor model's gain structure"):
+        assert words in said[0], (words, said[0])
+    assert not any(w.startswith("delay disagrees") for w in res.warnings), res.warnings
+    manifest = json.loads((tmp_path / "fit" / "manifest.json").read_text())
+    assert said[0] in manifest["warnings"]
+    assert "kp_scale disagrees between motors of one type" in (tmp_path / "fit" / "report.html").read_text()
+    # the same values with intervals that overlap (or one not finite): no warning
+    entries = fit_entries(res)
+    types = motor_types(load_robot("pupper_v3"))
+    assert disagreements(entries, types) == said
+    wide = [(k, m, x, x - 1.0, x + 1.0) for k, m, x, _, _ in entries]
+    assert disagreements(wide, types) == []
+    assert disagreements([(k, m, x, math.nan, math.nan) for k, m, x, _, _ in entries], types) == []

@@ -683,6 +683,88 @@ def _confounded(pb: _Problem, sol: _Solution) -> list[str]:
     return out
 
 
+#: The parameters of the motor itself, which motors of one type share (the link's own, armature and
+#: damping, stay per joint: they carry the link's inertia and losses).
+MOTOR_KINDS = ("kp_scale", "kd_scale", "delay", "lag", "latency", "frictionloss")
+#: What each motor parameter's disagreement puts in doubt: the part of the model it stands for.
+_SUSPECT = {
+    "gain": "the motor model's gain structure (a gain scale stands in for what differs from joint to joint "
+            "and the model leaves out: the link's inertia or load, a transmission, the torque limit at speed)",
+    "timing": "the motor model's timing structure (a command delay and a first-order torque lag: the logs' "
+              "time stamps or loop rate differ, or the servo's lag is not first-order)",
+    "friction": "the friction model (Coulomb friction loss alone: the joints' own friction, seals or cables, "
+                "differs, or friction varies with speed, viscous or Stribeck)",
+}
+_PART = {"kp_scale": "gain", "kd_scale": "gain", "delay": "timing", "lag": "timing", "latency": "timing",
+         "frictionloss": "friction"}
+
+
+def fit_entries(res: FitResult, label: str = "") -> list[tuple[str, str, float, float, float]]:
+    """A fit's motor parameters as (kind, motors, value, low, high): the
+    motors are the logged actuators a value stands for (fit.csv lists every
+    actuator it goes to), ``label`` said after them (a fit's run)."""
+    out = []
+    for r in res.table:
+        if r["kind"] not in MOTOR_KINDS:
+            continue
+        motors = [a for a in r["actuators"].split() if a in res.actuators]
+        _, lo, hi = PARAMS[r["kind"]]
+        # a value on its bound has no meaningful interval (the fit warns of it): nothing to compare
+        on_bound = min(abs(r["fitted"] - lo), abs(r["fitted"] - max(hi, 4 * r["nominal"]))) <= 1e-6 * (hi - lo)
+        if motors and not on_bound:
+            out.append((r["kind"], " ".join(motors) + (f" ({label})" if label else ""), float(r["fitted"]),
+                        float(r["low95"]), float(r["high95"])))
+    return out
+
+
+def disagreements(entries: Sequence[tuple[str, str, float, float, float]],
+                  type_of: Mapping[str, float]) -> list[str]:
+    """Warnings for motors of one type (``type_of``: an actuator's torque
+    limit, its type) whose motor parameter comes out with disjoint 95 %
+    intervals (``entries``: ``fit_entries``' rows, of one fit per joint or
+    of several fits): each names the parameter, the motors, their values
+    and intervals, and the part of the model it suspects: motors of one
+    type are one motor, so a parameter that differs while the others agree
+    points at the model's structure for that part, not at the motors. An
+    interval not meaningful (NaN) or infinite is never disjoint."""
+    def kind_of(motors: str) -> float | None:
+        types = {type_of.get(a) for a in motors.split(" (")[0].split()}
+        return types.pop() if len(types) == 1 else None
+
+    groups: dict[tuple[str, float], list[tuple[str, float, float, float]]] = {}
+    for kind, motors, x, lo, hi in entries:
+        t = kind_of(motors)
+        if t is not None and math.isfinite(lo) and math.isfinite(hi):
+            groups.setdefault((kind, t), []).append((motors, x, lo, hi))
+    split: dict[tuple[str, float], list[tuple[int, int]]] = {}
+    for key, rows in groups.items():
+        pairs = [(i, j) for i in range(len(rows)) for j in range(i + 1, len(rows))
+                 if rows[i][3] < rows[j][2] or rows[j][3] < rows[i][2]]
+        if pairs:
+            split[key] = pairs
+    out = []
+    for (kind, t), pairs in split.items():
+        rows = groups[(kind, t)]
+        apart = sorted({k for p in pairs for k in p})
+        said = ", ".join(f"{rows[k][0]} {rows[k][1]:.4g} [{rows[k][2]:.4g}, {rows[k][3]:.4g}]" for k in apart)
+        agree = sorted(k2 for (k2, t2), rs in groups.items() if t2 == t and len(rs) > 1 and (k2, t2) not in split)
+        limit = f"torque limit {t:g} N·m" if math.isfinite(t) else "no torque limit"
+        unit = PARAMS[kind][0]
+        text = (f"{kind} disagrees between motors of one type ({limit}): {said}{' ' + unit if unit else ''}, "
+                "intervals disjoint")
+        if agree:
+            text += f", while {', '.join(agree)} agree{'s' if len(agree) == 1 else ''}"
+        others = {k2 for k2, t2 in split if t2 == t} - {kind}
+        if others and not agree:
+            text += (f"; {', '.join(sorted(others))} disagree too: the motors themselves may differ (a worn "
+                     "or another motor), or the joints' model (link inertia, load) is wrong")
+        else:
+            also = f" ({', '.join(sorted(others))} disagree{'s' if len(others) == 1 else ''} too)" if others else ""
+            text += f": suspect {_SUSPECT[_PART[kind]]}{also}, not the motors"
+        out.append(text)
+    return out
+
+
 def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float,
             val: Validation | None = None, per: str = "all") -> FitResult:
     from pupper_core._fit.output import _whole_labels
@@ -695,12 +777,20 @@ def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float,
                       "actuators": " ".join(pb.robot.full.actuators[k] for k in members),
                       "nominal": nom, "fitted": x, "low95": x - h, "high95": x + h, "unit": PARAMS[kind][0]})
     kept = pb.kept
-    return FitResult(table, {lg.path.name: v for lg, v in zip(pb.logs, sol.before)},
-                     {lg.path.name: v for lg, v in zip(pb.logs, sol.after)}, out_dir, seconds,
-                     pb.warnings + sol.warnings + _judge(pb, sol, table) + (val.warnings if val else []),
-                     [pb.robot.actuators[k] for k in kept], floored=sol.floored, correlation_time=sol.tau,
-                     interval_source=sol.source,
-                     validation=val.rows if val else [], bode=val.bode if val else [])
+    res = FitResult(table, {lg.path.name: v for lg, v in zip(pb.logs, sol.before)},
+                    {lg.path.name: v for lg, v in zip(pb.logs, sol.after)}, out_dir, seconds,
+                    pb.warnings + sol.warnings + _judge(pb, sol, table) + (val.warnings if val else []),
+                    [pb.robot.actuators[k] for k in kept], floored=sol.floored, correlation_time=sol.tau,
+                    interval_source=sol.source,
+                    validation=val.rows if val else [], bode=val.bode if val else [])
+    # per joint or group, motors of one type get a value each: they should agree
+    res.warnings += disagreements(fit_entries(res), motor_types(pb.robot.full))
+    return res
+
+
+def motor_types(robot: Robot) -> dict[str, float]:
+    """Each actuator's type: its torque limit (the model says no more of a motor)."""
+    return {a: float(robot.limits[k]) for k, a in enumerate(robot.actuators)}
 
 
 # ---------------------------------------------------------------------- CLI
