@@ -77,13 +77,15 @@ def imports(path: Path, root: Path = PACKAGE) -> list[tuple[int, str]]:
                 mod = node.module.removeprefix("pupper_core").removeprefix(".")
             else:
                 continue
-            if mod:
+            # `from pupper_core._fit import intervals` names a module, not a
+            # name of _fit's own: the arrow goes to the module
+            modules = [(node.lineno, f"{mod}.{a.name}" if mod else a.name) for a in node.names
+                       if (root / (f"{mod}/{a.name}".strip("/").replace(".", "/"))).is_dir()
+                       or (root / f"{(mod.replace('.', '/') + '/') if mod else ''}{a.name}.py").is_file()
+                       or (root / f"{(mod.replace('.', '/') + '/') if mod else ''}{a.name}.pyi").is_file()]
+            if mod and len(modules) < len(node.names):
                 out.append((node.lineno, mod))
-            # `from pupper_core import _fit` names modules, not names
-            out += [(node.lineno, f"{mod}.{a.name}" if mod else a.name) for a in node.names
-                    if (root / (f"{mod}/{a.name}".strip("/").replace(".", "/"))).is_dir()
-                    or (root / f"{(mod.replace('.', '/') + '/') if mod else ''}{a.name}.py").is_file()
-                    or (root / f"{(mod.replace('.', '/') + '/') if mod else ''}{a.name}.pyi").is_file()]
+            out += modules
     return out
 
 

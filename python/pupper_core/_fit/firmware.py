@@ -151,96 +151,106 @@ def _delayed(control: np.ndarray, k: int, lag: np.ndarray) -> np.ndarray:
 def rollout_fn(sysid: Any, fw: Firmware) -> Any:
     """sysid's custom rollout through the firmware: every rollout of a call
     stepped together, the firmware's arithmetic batched over them."""
-    import mujoco
     from mujoco.sysid._src.trajectory import arrays2traj, sequence2array, timeseries2array
 
     def rollout(**kw: Any) -> Any:
         control, control_times = timeseries2array(kw["control_signal"])
         x0 = sequence2array(kw["initial_states"])
-        state, sens = _run(list(kw["models"]), control, x0)
+        state, sens = _replay(fw, list(kw["models"]), control, x0)
         return arrays2traj(kw["models"], x0, control, control_times, state, sens, kw["rollout_signal_mapping"],
                            kw["rollout_state_mapping"], kw["ctrl_mapping"])
 
-    def _run(models: list[Any], control: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Each rollout's state and sensors; with noise, the mean of an
-        antithetic pair (the noise read, and its negative): the response to
-        the noise itself, which no replay can match to the hardware's own
-        draw, cancels to first order, and what the noise does to the
-        friction (it dithers the joint loose) stays."""
-        nb = len(models)
-        if fw.noise:
-            models, control, x0 = models * 2, np.concatenate([control, control]), np.concatenate([x0, x0])
-        nb2, n, nu = control.shape
-        m0 = models[0]
-        dt = float(m0.opt.timestep)
-        datas = [mujoco.MjData(m) for m in models]
-        kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
-        for m, d, x in zip(models, datas, x0):
-            mujoco.mj_setState(m, d, x, kind)
-        jnt = m0.actuator_trnid[:, 0]
-        qadr, dadr = m0.jnt_qposadr[jnt], m0.jnt_dofadr[jnt]
-        kp, kd, lag, latency, tlag = (np.stack([m.actuator_gainprm[:, s] for m in models])
-                                      for s in (KP_SLOT, KD_SLOT, DELAY_SLOT, LATENCY_SLOT, LAG_SLOT))
-        lag = lag / dt
-        # the PD reads the state `latency` old; updated every physics step and held over it, it acts
-        # half a step later than a continuous PD would: a firmware without a rate of its own stands for a
-        # continuous one, so it reads half a step younger (a latency under half a step is none)
-        latency = np.maximum(latency / dt - (0.5 if fw.rate is None else 0.0), 0.0)
-        # each rollout's own torque limit (a fitted one differs between a Jacobian's rollouts)
-        peak = np.stack([np.where(m.actuator_forcelimited.astype(bool), np.abs(m.actuator_forcerange).max(axis=1),
-                                  np.inf) for m in models])
-        # the torque's first-order lag per step (1: none)
-        follow = np.where(tlag > 0, -np.expm1(-dt / np.maximum(tlag, 1e-12)), 1.0)
-        lagged = np.any(tlag > 0)
-        felt = np.any(latency > 0)
-        qh = np.empty((nb2, n, nu)) if felt else None
-        vh = np.empty((nb2, n, nu)) if felt else None
-        out = np.zeros((nb2, nu))
-        state = np.empty((nb2, n, mujoco.mj_stateSize(m0, kind)))
-        sens = np.empty((nb2, n, m0.nsensordata))
-        sign = np.where(np.arange(nb2) < nb, 1.0, -1.0)[:, None]
-        fs = _State(fw, (nb2, nu), dt, sign)
-        # the torque the PD gives on the replay's own angle, without the noise it reads: what the
-        # torque sensors report (the hardware's dither is its own draw, which no replay can match)
-        clean = _State(replace(fw, noise=None), (nb2, nu), dt) if fw.noise else None
-        tau_cols = slice(2 * nu, 3 * nu)
-        # the angles and velocities read back from the state each step records (time, qpos, qvel first)
-        qcol = 1 + qadr
-        vcol = 1 + mujoco.mj_stateSize(m0, mujoco.mjtState.mjSTATE_QPOS) + dadr
-        clean_out = np.zeros((nb2, nu))
-        # the command `delay` ago at every step, once
-        targets = _all_delayed(control, lag)
-        for k in range(n):
-            now = x0 if k == 0 else state[:, k - 1]
-            q, v = now[:, qcol], now[:, vcol]
-            speed = v
-            if qh is not None and vh is not None:
-                # what the PD reads is `latency` old (the state before the log's start held still)
-                qh[:, k], vh[:, k] = q, v
-                q, v = _delayed(qh, k, latency), _delayed(vh, k, latency)
-            if fs.due(k * dt):
-                target = targets[:, k]
-                fs.update(kp, kd, target, q, v)
-                if clean is not None:
-                    clean.update(kp, kd, target, q, v)
-            tau = fs.deliver(peak, speed)
-            if lagged:
-                # the current loop follows the PD's torque with a first-order lag
-                out += follow * (tau - out) if k else tau - out
-                tau = out
-            for b, (m, d) in enumerate(zip(models, datas)):
-                d.ctrl[:] = tau[b]
-                mujoco.mj_step(m, d)
-                mujoco.mj_getState(m, d, state[b, k], kind)
-                sens[b, k] = d.sensordata
-            if clean is not None:
-                torque = clean.deliver(peak, speed)
-                if lagged:
-                    clean_out += follow * (torque - clean_out) if k else torque - clean_out
-                    torque = clean_out
-                sens[:, k, tau_cols] = torque
-        if nb2 > nb:
-            return 0.5 * (state[:nb] + state[nb:]), 0.5 * (sens[:nb] + sens[nb:])
-        return state, sens
-
     return rollout
+
+
+def _actuators(fw: Firmware, models: list[Any], dt: float) -> tuple[np.ndarray, ...]:
+    """Each rollout's actuator parameters as the replay steps them: kp, kd,
+    the command delay and the PD's latency in steps, the torque limit, and
+    the share of the way the torque follows the PD per step (1: no lag)."""
+    kp, kd, lag, latency, tlag = (np.stack([m.actuator_gainprm[:, s] for m in models])
+                                  for s in (KP_SLOT, KD_SLOT, DELAY_SLOT, LATENCY_SLOT, LAG_SLOT))
+    lag = lag / dt
+    # the PD reads the state `latency` old; updated every physics step and held over it, it acts
+    # half a step later than a continuous PD would: a firmware without a rate of its own stands for a
+    # continuous one, so it reads half a step younger (a latency under half a step is none)
+    latency = np.maximum(latency / dt - (0.5 if fw.rate is None else 0.0), 0.0)
+    # each rollout's own torque limit (a fitted one differs between a Jacobian's rollouts)
+    peak = np.stack([np.where(m.actuator_forcelimited.astype(bool), np.abs(m.actuator_forcerange).max(axis=1),
+                              np.inf) for m in models])
+    # the torque's first-order lag per step (1: none)
+    follow = np.where(tlag > 0, -np.expm1(-dt / np.maximum(tlag, 1e-12)), 1.0)
+    return kp, kd, lag, latency, peak, follow
+
+
+def _replay(fw: Firmware, models: list[Any], control: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each rollout's state and sensors through the firmware ``fw``; with noise, the mean of an
+    antithetic pair (the noise read, and its negative): the response to
+    the noise itself, which no replay can match to the hardware's own
+    draw, cancels to first order, and what the noise does to the
+    friction (it dithers the joint loose) stays."""
+    import mujoco
+
+    nb = len(models)
+    if fw.noise:
+        models, control, x0 = models * 2, np.concatenate([control, control]), np.concatenate([x0, x0])
+    nb2, n, nu = control.shape
+    m0 = models[0]
+    dt = float(m0.opt.timestep)
+    datas = [mujoco.MjData(m) for m in models]
+    kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    for m, d, x in zip(models, datas, x0):
+        mujoco.mj_setState(m, d, x, kind)
+    jnt = m0.actuator_trnid[:, 0]
+    qadr, dadr = m0.jnt_qposadr[jnt], m0.jnt_dofadr[jnt]
+    kp, kd, lag, latency, peak, follow = _actuators(fw, models, dt)
+    lagged = np.any(follow < 1.0)
+    felt = np.any(latency > 0)
+    qh = np.empty((nb2, n, nu)) if felt else None
+    vh = np.empty((nb2, n, nu)) if felt else None
+    out = np.zeros((nb2, nu))
+    state = np.empty((nb2, n, mujoco.mj_stateSize(m0, kind)))
+    sens = np.empty((nb2, n, m0.nsensordata))
+    sign = np.where(np.arange(nb2) < nb, 1.0, -1.0)[:, None]
+    fs = _State(fw, (nb2, nu), dt, sign)
+    # the torque the PD gives on the replay's own angle, without the noise it reads: what the
+    # torque sensors report (the hardware's dither is its own draw, which no replay can match)
+    clean = _State(replace(fw, noise=None), (nb2, nu), dt) if fw.noise else None
+    tau_cols = slice(2 * nu, 3 * nu)
+    # the angles and velocities read back from the state each step records (time, qpos, qvel first)
+    qcol = 1 + qadr
+    vcol = 1 + mujoco.mj_stateSize(m0, mujoco.mjtState.mjSTATE_QPOS) + dadr
+    clean_out = np.zeros((nb2, nu))
+    # the command `delay` ago at every step, once
+    targets = _all_delayed(control, lag)
+    for k in range(n):
+        now = x0 if k == 0 else state[:, k - 1]
+        q, v = now[:, qcol], now[:, vcol]
+        speed = v
+        if qh is not None and vh is not None:
+            # what the PD reads is `latency` old (the state before the log's start held still)
+            qh[:, k], vh[:, k] = q, v
+            q, v = _delayed(qh, k, latency), _delayed(vh, k, latency)
+        if fs.due(k * dt):
+            target = targets[:, k]
+            fs.update(kp, kd, target, q, v)
+            if clean is not None:
+                clean.update(kp, kd, target, q, v)
+        tau = fs.deliver(peak, speed)
+        if lagged:
+            # the current loop follows the PD's torque with a first-order lag
+            out += follow * (tau - out) if k else tau - out
+            tau = out
+        for b, (m, d) in enumerate(zip(models, datas)):
+            d.ctrl[:] = tau[b]
+            mujoco.mj_step(m, d)
+            mujoco.mj_getState(m, d, state[b, k], kind)
+            sens[b, k] = d.sensordata
+        if clean is not None:
+            torque = clean.deliver(peak, speed)
+            if lagged:
+                clean_out += follow * (torque - clean_out) if k else torque - clean_out
+                torque = clean_out
+            sens[:, k, tau_cols] = torque
+    if nb2 > nb:
+        return 0.5 * (state[:nb] + state[nb:]), 0.5 * (sens[:nb] + sens[nb:])
+    return state, sens

@@ -1,0 +1,349 @@
+"""Solving a fit: the memory a rollout batch may take, the starts (the
+delay's grid, the user's), Levenberg-Marquardt until the cost is flat,
+and its progress on a terminal."""
+
+from __future__ import annotations
+
+import io
+import os
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from pupper_core._rundir import say
+from pupper_core._fit.judge import _intervals
+from pupper_core._fit.jacobian import jacobian_fn
+from pupper_core._fit.problem import _Problem, _Solution
+from pupper_core._fit.robot import Robot, suspended_spec
+from pupper_core._fit.start import GRID, starts
+from pupper_core._fit.sysid import _predictions, _residual_fn, _rms, _whitening
+from pupper_core._fit.terms import MEMORY_COPIES, MEMORY_FRACTION, FitError
+from pupper_core._fit.log import JointLog
+
+
+def _memory_limit() -> float:
+    """The bytes a fit may allocate: a fraction of the machine's memory."""
+    try:
+        total = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        total = 16 * 2**30
+    return MEMORY_FRACTION * float(total)
+
+
+
+def _check_memory(read: list[JointLog], robot: Robot, n_rollouts: int) -> None:
+    """Refuses a fit whose rollouts would not fit in memory, before any is
+    allocated: every Jacobian rolls each log out once per perturbed rollout
+    (a parameter; per joint, one on every leg at once) and once more,
+    keeping the full state and the sensors of every physics step, and sysid
+    copies them (MEMORY_COPIES)."""
+    import mujoco
+
+    m = suspended_spec(robot, read[0].kp, read[0].kd).compile()
+    per_step = 8 * (mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS) + m.nsensordata)
+    steps = sum(lg.duration / min(robot.timestep, float(np.mean(np.diff(lg.times)))) + 1 for lg in read)
+    need = per_step * steps * (n_rollouts + 1) * MEMORY_COPIES
+    limit = _memory_limit()
+    if need > limit:
+        raise FitError(f"the fit would allocate about {_size(need)} ({len(read)} log(s), {steps:,.0f} physics "
+                       f"steps, {n_rollouts + 1} rollouts of each per Jacobian), past {_size(limit)} "
+                       f"({MEMORY_FRACTION:.0%} of this machine's memory): fit fewer or shorter logs at once, "
+                       "or fewer parameters (--params, --per all)")
+
+
+
+def _size(n: float) -> str:
+    return f"{n / 2**30:.1f} GiB" if n >= 2**30 else f"{n / 2**20:.0f} MiB"
+
+
+
+def _solve(sysid: Any, pb: _Problem, max_iters: int, start: dict[str, float] | None = None,
+           say: _Progress | None = None) -> _Solution:
+    nu = len(pb.robot.actuators)
+    say = say or _Progress(False)
+    enabled = pb.enabled(sysid)
+    residual_fn = say.counting(_residual_fn(sysid, pb.sequences, enabled, None, pb.firmware), len(pb.logs))
+    clock = time.perf_counter()
+    _check_finite(residual_fn, pb)
+    say.expect(time.perf_counter() - clock, pb, max_iters)
+    before = _rms(_predictions(residual_fn, pb.pdict, pb.x_nominal), pb.sensors, nu)
+    sink = io.StringIO()
+    xs, scan = starts(residual_fn, pb, pb.pdict.as_vector(), start or {})
+    if "starts_s" in scan:
+        say(f"delay scan: {len(scan['grid_s'])} delays, starts at " +
+            ", ".join(f"{d * 1e3:.1f} ms" for d in scan["starts_s"]))
+    opt, res = _multistart(sysid, pb, xs, residual_fn, max_iters, sink, say)
+    weights = None
+    if any(s >= nu for s in pb.sensors):
+        # whiten: each kind of signal by its own noise, so the pooled
+        # variance of the intervals means something
+        weights = _whitening(residual_fn, opt, nu, pb.sensors)
+        residual_fn = say.counting(_residual_fn(sysid, pb.sequences, enabled, weights, pb.firmware), len(pb.logs))
+        say("whitened by each signal's noise: fitting on from there")
+        opt, res = _optimize(sysid, pb, opt, residual_fn, max_iters, sink, say)
+    opt, res = _no_delay_if_lower(sysid, pb, residual_fn, opt, res)
+    warnings: list[str] = []
+    opt, res = _no_worse_than_nominal(sysid, pb, residual_fn, opt, res, max_iters, sink, warnings)
+    x = opt.as_vector()
+    # the replay where the fit ended, once: its intervals' residual and the error after
+    ended = None if res is None else _predictions(residual_fn, opt, x)
+    half, corr, source, tau = _intervals(sysid, pb, residual_fn, opt, res, weights, ended)
+    after = before if ended is None else _rms(ended, pb.sensors, nu)
+    return _Solution(x, half, corr, residual_fn, opt, before, after, source == "floored", warnings, tau, scan,
+                     source)
+
+
+
+#: Each start runs this many iterations; the best then runs on to the end.
+PROBE_ITERS = 4
+
+
+
+def _multistart(sysid: Any, pb: _Problem, xs: list[np.ndarray], residual_fn: Any, max_iters: int,
+                sink: io.StringIO, say: _Progress) -> tuple[Any, Any]:
+    """Levenberg–Marquardt from each start (``_fit_start.starts``): a few
+    iterations each, then the lowest cost on to the end."""
+    if len(xs) == 1 or max_iters <= PROBE_ITERS:
+        best = None
+        for k, x in enumerate(xs):
+            p = pb.pdict.copy()
+            p.update_from_vector(x)
+            say.stage = f"start {k + 1} of {len(xs)}" if len(xs) > 1 else ""
+            opt, res = _optimize(sysid, pb, p, residual_fn, max_iters, sink, say)
+            c = _cost(residual_fn, opt, opt.as_vector())
+            if best is None or c < best[0]:
+                best = (c, opt, res)
+        assert best is not None
+        say.stage = ""
+        return best[1], best[2]
+    probes = []
+    for k, x in enumerate(xs):
+        p = pb.pdict.copy()
+        p.update_from_vector(x)
+        say.stage = f"start {k + 1} of {len(xs)}"
+        opt, _ = _optimize(sysid, pb, p, residual_fn, PROBE_ITERS, sink, say)
+        probes.append((_cost(residual_fn, opt, opt.as_vector()), k, opt))
+    c, k, opt = min(probes, key=lambda t: (t[0], t[1]))
+    say.stage = f"on from start {k + 1}"
+    out = _optimize(sysid, pb, opt, residual_fn, max_iters - PROBE_ITERS, sink, say)
+    say.stage = ""
+    return out
+
+
+
+def _no_delay_if_lower(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any, res: Any) -> tuple[Any, Any]:
+    """A delay that ends within one timestep: MuJoCo applies it as a whole
+    step, and no start below a step can move (``_fit_start``); no delay at
+    all is another replay, which the fit cannot reach by steps. Where every
+    such delay at 0 costs less, it is 0 (the Jacobian there is the one at
+    the end: the other parameters do not move)."""
+    x = opt.as_vector().copy()
+    flat = [i for i, label in enumerate(pb.labels)
+            if label[1] == "delay" and x[i] <= pb.robot.timestep * (1 + 1e-9)]
+    if not flat:
+        return opt, res
+    x0 = x.copy()
+    x0[flat] = 0.0
+    if _cost(residual_fn, opt, x0) < _cost(residual_fn, opt, x):
+        p = opt.copy()
+        p.update_from_vector(x0)
+        return p, res
+    return opt, res
+
+
+
+def _optimize(sysid: Any, pb: _Problem, start: Any, residual_fn: Any, max_iters: int,
+              sink: io.StringIO, say: _Progress | None = None) -> tuple[Any, Any]:
+    # legs do not interact: one rollout perturbs a parameter on each (a per-joint fit costs a per-group one)
+    jac = jacobian_fn(residual_fn, start, pb)
+
+    def callback(trace: list[Any]) -> None:
+        if say is not None:
+            say.iteration(trace)
+        else:
+            _lean(trace)
+        _stop_when_flat(trace)
+
+    try:
+        opt, res = sysid.optimize(start, residual_fn, optimizer="mujoco", verbose=False, max_iters=max_iters,
+                                  x_scale="jac", output=sink, iter_callback=callback,
+                                  **({"jacobian": jac} if jac is not None else {}))
+        return opt, res
+    except _Flat as flat:
+        return _ended_at(start, residual_fn, flat.x, jac)
+    except np.linalg.LinAlgError as e:
+        raise FitError(f"the fit's linear algebra failed ({e}): the logs do not determine the parameters; "
+                       "fit fewer (--params) or give logs where every joint moves") from None
+
+
+
+#: The optimizer stops when FLAT_ITERS iterations in a row each lower the cost by less than this fraction of it.
+FTOL = 1e-5
+
+
+
+FLAT_ITERS = 2
+
+
+
+class _Flat(Exception):
+    """The cost stopped falling (``_stop_when_flat``): the fit ends at ``x``."""
+
+    def __init__(self, x: np.ndarray) -> None:
+        super().__init__()
+        self.x = x
+
+
+
+def _stop_when_flat(trace: list[Any]) -> None:
+    """mujoco.minimize stops on a small step or gradient only: along a
+    valley the logs do not determine (damping against kd scale, which
+    angles show only as a sum) it went on for 20 more iterations of
+    steps that moved the cost in its seventh digit (a real log: twice the
+    fit's time). Stops once the cost falls by less than FTOL of itself
+    FLAT_ITERS iterations in a row."""
+    steps = [t for t in trace if t.step is not None]
+    if len(steps) < FLAT_ITERS:
+        return
+    last = steps[-FLAT_ITERS:]
+    if all(0 <= float(t.reduction) <= FTOL * float(t.objective) for t in last):
+        x = np.asarray(last[-1].candidate + last[-1].step).ravel()
+        raise _Flat(x)
+
+
+
+def _ended_at(start: Any, residual_fn: Any, x: np.ndarray, jac: Any) -> tuple[Any, Any]:
+    """The optimizer's outcome at ``x`` where the fit stopped it: the
+    parameters and the Jacobian there (the intervals' own)."""
+    from mujoco import minimize
+    from scipy.optimize import OptimizeResult
+
+    opt = start.copy()
+    opt.update_from_vector(x)
+    lo, hi = (np.asarray(b, dtype=float).reshape(-1, 1) for b in opt.get_bounds())
+
+    def residual(xv: np.ndarray) -> np.ndarray:
+        r, _, _ = residual_fn(xv if xv.ndim == 1 or xv.shape[1] > 1 else xv[:, 0], opt.copy())
+        return np.concatenate(r).reshape(-1, 1) if xv.ndim == 2 and xv.shape[1] == 1 else np.concatenate(r)
+
+    xc = x.reshape(-1, 1)
+    r = residual(xc)
+    if jac is not None:
+        J = jac(xc, r)
+    else:
+        J, _ = minimize.jacobian_fd(residual, xc, r, np.float64(np.finfo(np.float64).eps ** 0.5), 0, [lo, hi])
+    return opt, OptimizeResult(x=x, jac=J, grad=None, extras={})
+
+
+
+class _Progress:
+    """What a fit says while it runs (on stderr where it is a terminal, or
+    to a callable): its expected time, the delay scan, each iteration's
+    cost, the rollouts so far."""
+
+    def __init__(self, progress: bool | Callable[[str], None]) -> None:
+        if callable(progress):
+            self.say: Callable[[str], None] | None = progress
+        elif progress and sys.stderr.isatty():
+            self.say = say
+        else:
+            self.say = None
+        self.rollouts = 0
+        self.started = time.perf_counter()
+        self.stage = ""
+
+    def __call__(self, line: str) -> None:
+        if self.say is not None:
+            self.say(f"fit: {line}")
+
+    def counting(self, residual_fn: Any, logs: int) -> Any:
+        """``residual_fn``, counting its rollouts (a column of x per log)."""
+        def counted(x: np.ndarray, params: Any, **kw: Any) -> Any:
+            self.rollouts += logs * (1 if np.ndim(x) == 1 else int(np.shape(x)[1]))
+            return residual_fn(x, params, **kw)
+        return counted
+
+    def expect(self, once: float, pb: _Problem, max_iters: int) -> None:
+        """The expected time, from one replay of every log (``once`` s): a
+        Levenberg–Marquardt iteration replays them about (parameters + 2)
+        times, and a fit takes TYPICAL_ITERS iterations or so."""
+        n = len(pb.labels)
+        per_iter = once * (n + 2)
+        typical = once * GRID + per_iter * min(TYPICAL_ITERS, max_iters)
+        self(f"{len(pb.logs)} log(s), {len(pb.labels)} parameter(s), {len(pb.robot.actuators)} joint(s) "
+             f"stepped; one replay of the logs takes {once:.2f} s: expect about {typical:.0f} s "
+             f"(at most {once * GRID + per_iter * (max_iters + PROBE_ITERS * 2):.0f} s at --max-iters {max_iters})")
+
+    def iteration(self, trace: list[Any]) -> None:
+        _lean(trace)
+        if self.say is None:
+            return
+        stage = f" ({self.stage})" if self.stage else ""
+        self(f"iteration {len(trace)}{stage}: cost {float(trace[-1].objective):.6g}, {self.rollouts} rollouts, "
+             f"{time.perf_counter() - self.started:.0f} s")
+
+
+
+#: The iterations a fit typically takes (for its expected time).
+TYPICAL_ITERS = 15
+
+
+
+def _lean(trace: list[Any]) -> None:
+    """Keeps the Jacobian and residual of the optimizer's last iteration
+    only (the intervals need it; each earlier one would hold another
+    samples x parameters matrix: 1 GB over a per-joint fit of two 20 s logs)."""
+    import dataclasses
+
+    if len(trace) > 1 and trace[-2].jacobian is not None:
+        trace[-2] = dataclasses.replace(trace[-2], jacobian=None, residual=None)
+
+
+
+def _check_finite(residual_fn: Any, pb: _Problem) -> None:
+    """Refuses logs the nominal model cannot replay (it diverges)."""
+    p = pb.pdict.copy()
+    p.update_from_vector(pb.x_nominal)
+    r, _, _ = residual_fn(pb.x_nominal, p)
+    for lg, ri in zip(pb.logs, r):
+        if not np.all(np.isfinite(ri)):
+            raise FitError(f"{lg.path}: the model's replay of it is not finite at the nominal values (it "
+                           f"diverges at the log's gains, kp up to {lg.kp.max():g}, kd up to {lg.kd.max():g}): "
+                           "check the gains in its header")
+
+
+
+def _cost(residual_fn: Any, params: Any, x: np.ndarray) -> float:
+    p = params.copy()
+    p.update_from_vector(x)
+    r, _, _ = residual_fn(x, p)
+    return float(sum(np.sum(np.square(ri)) for ri in r))
+
+
+def _no_worse_than_nominal(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any, res: Any, max_iters: int,
+                           sink: io.StringIO, warnings: list[str]) -> tuple[Any, Any]:
+    """A fit that ends worse than the nominal values (it started from them
+    with those on a bound moved inside, and can stall in a flat valley or a
+    step, like the delay's below one timestep) is restarted from them
+    exactly; if it still ends worse, the nominal values are kept (``res``
+    None: no interval means anything there)."""
+    nominal = _cost(residual_fn, pb.pdict, pb.x_nominal)
+    ended = _cost(residual_fn, opt, opt.as_vector())
+    if ended <= nominal:
+        return opt, res
+    start = pb.pdict.copy()
+    start.update_from_vector(pb.x_nominal)
+    opt2, res2 = _optimize(sysid, pb, start, residual_fn, max_iters, sink)
+    again = _cost(residual_fn, opt2, opt2.as_vector())
+    if again <= nominal:
+        warnings.append(f"the fit ended worse than the nominal values (cost {ended:.4g} against {nominal:.4g}): "
+                        "restarted from them")
+        return opt2, res2
+    warnings.append(f"the fit ended worse than the nominal values (cost {ended:.4g}, restarted from them "
+                    f"{again:.4g}, against {nominal:.4g}): the nominal values are kept and no interval is "
+                    "meaningful; check the logs (an angle offset, the gains in the header, a joint's columns "
+                    "under another's name)")
+    return start, None
