@@ -214,15 +214,16 @@ def test_a_fit_that_cannot_beat_the_nominal_values_keeps_them(nominal, tmp_path,
     import json
 
     from pupper_core import _fit
+    from pupper_core._fit import solve
 
-    optimize = _fit._optimize
+    optimize = solve._optimize
 
     def stalled(sysid, pb, start, residual_fn, max_iters, sink, say=None):
         opt, res = optimize(sysid, pb, start, residual_fn, 1, sink, say)
         opt.update_from_vector(np.array([3.0]))
         return opt, res
 
-    monkeypatch.setattr(_fit, "_optimize", stalled)
+    monkeypatch.setattr(solve, "_optimize", stalled)
     _fit._cli_fit(json.dumps({"logs": [str(nominal)], "params": "kp_scale", "out": str(tmp_path / "fit")}))
     printed = capsys.readouterr()
     assert "kp_scale           1           1           (not meaningful)" in printed.out, printed.out
@@ -304,9 +305,10 @@ def test_a_log_the_fit_explains_worse_is_warned(nominal, tmp_path):
 
 def test_memory_is_bounded_before_anything_is_allocated(nominal, monkeypatch):
     from pupper_core import _fit
+    from pupper_core._fit import solve
 
     # this machine with 1 MiB to spare: the 2.3 s log's fit needs about 33 MiB
-    monkeypatch.setattr(_fit, "_memory_limit", lambda: 2.0**20)
+    monkeypatch.setattr(solve, "_memory_limit", lambda: 2.0**20)
     with pytest.raises(_fit.FitError, match=r"would allocate about 33 MiB .*past 1 MiB .* fewer or shorter logs"):
         pc.fit(nominal, params="armature", progress=False)
 
