@@ -83,7 +83,7 @@ impl<'a, 'py> Bound<'a, 'py> {
                 i
             }
         };
-        stability::cell_margins(self.cfg, info, &inertia, cell, self.damping)
+        stability::cell_margins(info, &inertia, &s, self.damping)
     }
 
     pub(super) fn mark(&self, r: &mut CellResult) {
