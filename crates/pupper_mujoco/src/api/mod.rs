@@ -71,8 +71,8 @@ fn task_results(job: &[u8], task: &[u8], threads: usize) -> Result<Vec<CellResul
             return Err(Error::Cluster(format!(
                 "the model '{}' here is not the driver's (SHA-256 {} here, {} there): put the same file at the same path on every node (a shared filesystem)",
                 cfg.model.display(),
-                pupper_core::results::rundir::short(&model.info().sha256),
-                pupper_core::results::rundir::short(&job.model_sha256)
+                pupper_core::results::output::short(&model.info().sha256),
+                pupper_core::results::output::short(&job.model_sha256)
             )));
         }
         let physics = bridge::physics(model, &cfg.backend)?;
@@ -353,7 +353,7 @@ pub fn write_best(outcome: &SweepOutcome, rule: &best::Rule) -> Result<Vec<best:
     let groups = best::best(&outcome.header, &outcome.rows, rule)?;
     if let Some(dir) = &outcome.out {
         let (h, rows) = best::table(&outcome.header, &outcome.rows, rule, &groups);
-        pupper_core::results::rundir::write_atomic(
+        pupper_core::results::files::write_atomic(
             &dir.join(output::BEST),
             &output::csv_bytes(&h, &rows)?,
         )?;
