@@ -6,9 +6,8 @@ use std::path::PathBuf;
 use clap::Args;
 use pupper_core::{Error, Result};
 
-use super::args::ModelArg;
+use super::args::{ModelArg, rundir_name};
 use super::python::python_command;
-use super::rundir_name;
 use crate::pyargs::PyArgs;
 use pupper_mujoco::bridge::calls;
 
