@@ -214,6 +214,13 @@ pub(super) struct OutputArgs {
     pub(super) force: bool,
 }
 
+/// The run directory a command writes to without `-o`:
+/// `runs/<local time>-<suffix>`.
+pub(super) fn rundir_name(suffix: &str) -> PathBuf {
+    let stamp = chrono::Local::now().format("%Y%m%d-%H%M%S");
+    PathBuf::from("runs").join(format!("{stamp}-{suffix}"))
+}
+
 /// What sweep and tune both take after their own flags: the simulation,
 /// its push and sine, and where the run goes (in that order in `--help`).
 #[derive(Args, Debug)]

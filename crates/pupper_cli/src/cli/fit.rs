@@ -7,9 +7,8 @@ use clap::Args;
 use pupper_core::{Error, Result};
 use serde::Serialize;
 
-use super::args::ModelArg;
+use super::args::{ModelArg, rundir_name};
 use super::python::python_command;
-use super::rundir_name;
 use crate::pyargs;
 use pupper_mujoco::bridge::calls;
 

@@ -9,9 +9,8 @@ use pupper_core::Result;
 use pupper_core::request::spec::{self, SweepSpec};
 use pupper_core::results::best;
 
-use super::args::{BackendArgs, GridArg, ModelArg, PopulationArgs};
+use super::args::{BackendArgs, GridArg, ModelArg, PopulationArgs, rundir_name};
 use super::python::python_command;
-use super::rundir_name;
 use super::sweep::{Job, run_job};
 use crate::pyargs::PyArgs;
 use pupper_mujoco::bridge::calls;

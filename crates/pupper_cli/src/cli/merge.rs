@@ -6,7 +6,7 @@ use clap::Args;
 use pupper_core::Result;
 use pupper_core::results::rundir::Existing;
 
-use super::rundir_name;
+use super::args::rundir_name;
 
 #[derive(Args, Debug)]
 pub(super) struct MergeArgs {

@@ -203,10 +203,3 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
         Command::View { model } => model::view(&model),
     }
 }
-
-/// The run directory a command writes to without `-o`:
-/// `runs/<local time>-<suffix>`.
-fn rundir_name(suffix: &str) -> PathBuf {
-    let stamp = chrono::Local::now().format("%Y%m%d-%H%M%S");
-    PathBuf::from("runs").join(format!("{stamp}-{suffix}"))
-}

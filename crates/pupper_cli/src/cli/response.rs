@@ -42,7 +42,7 @@ pub(super) struct ResponseArgs {
     #[arg(long, default_value = "step", value_name = "KIND")]
     signal: String,
     /// The signal's size (rad), added to the joint's pose angle.
-    #[arg(long, default_value_t = pupper_core::plan::excitation::AMPLITUDE, value_name = "RAD", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = pupper_core::plan::response::AMPLITUDE, value_name = "RAD", allow_negative_numbers = true)]
     amplitude: f64,
     /// --signal sine: its frequency (Hz).
     #[arg(long, value_name = "HZ", allow_negative_numbers = true)]

@@ -16,9 +16,8 @@ use pupper_core::{Error, Result};
 use pupper_mujoco::api::{self, SweepOutcome, SweepRequest, SweepUi};
 use pupper_mujoco::bridge;
 
-use super::args::{GridArg, PopulationArgs, RunArgs, RunnerArgs, SetupArgs};
+use super::args::{GridArg, PopulationArgs, RunArgs, RunnerArgs, SetupArgs, rundir_name};
 use super::python::{write_files, write_report};
-use super::rundir_name;
 use crate::print;
 use pupper_mujoco::bridge::calls;
 

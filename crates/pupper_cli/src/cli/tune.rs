@@ -8,9 +8,8 @@ use pupper_core::request::spec::SweepSpec;
 use pupper_core::{Error, Result};
 use serde_json::Value;
 
-use super::args::{BackendArgs, BatchArgs, PopulationArgs, SetupArgs};
+use super::args::{BackendArgs, BatchArgs, PopulationArgs, SetupArgs, rundir_name};
 use super::python::python_command;
-use super::rundir_name;
 use crate::pyargs;
 use pupper_mujoco::bridge::calls;
 

@@ -11,7 +11,7 @@ use super::{Sig, short};
 const OVERSHOOT_NOISE_PCT: f64 = 1e-6;
 
 /// A response run's summary: a table per joint group, a row per cell.
-pub fn response(o: &SweepOutcome) -> String {
+pub(super) fn table(o: &SweepOutcome) -> String {
     let status_at = o.header.iter().position(|h| h == "status");
     // axis columns come before the first "<metric>.<group>" column
     let first = o

@@ -10,7 +10,7 @@ use crate::plan::grid::{Axis, Cell, Grid};
 use crate::plan::integrator::Integrator;
 use crate::plan::mode::Mode;
 use crate::plan::motor::Motor;
-use crate::plan::randomize::{Draws, Replicates};
+use crate::plan::randomize::Replicates;
 use crate::plan::schedule::Schedule;
 use crate::plan::setup::CellSetup;
 use crate::robot::model::{ModelInfo, ModelSource};
@@ -160,22 +160,6 @@ impl SweepConfig {
     /// joints in a response run.
     pub fn sims_per_cell(&self) -> usize {
         self.replicate_count() * self.experiment.sims_per_replicate()
-    }
-
-    /// The physical setting of one replicate of a cell, with its draws.
-    pub fn setup_replicate(&self, cell: &Cell, d: &Draws, info: &ModelInfo) -> CellSetup {
-        let mut s = self.setup(cell, info);
-        s.torso_mass_factor = d.torso_mass;
-        s.leg_mass_factor = d.leg_mass;
-        s.motor_gain = d.motor_gain.clone();
-        if d.friction.is_some() {
-            s.friction = d.friction;
-        }
-        if let Some(f) = d.push_force {
-            s.push_force[2] = f;
-        }
-        s.push_at = d.push_at;
-        s
     }
 
     /// Refuses a motor firmware faster than the physics of any cell (the

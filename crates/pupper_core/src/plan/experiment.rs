@@ -1,5 +1,5 @@
 //! What a run's simulations do: the experiment kinds, as one type. Each
-//! kind is a module per layer (the response's plan is `plan::excitation`,
+//! kind is a module per layer (the response's plan is `plan::response`,
 //! its probe `sim::response`, its tables `results::kinds::response`), and
 //! each layer dispatches on [`Experiment`] in one place, its registry: a
 //! new kind is a variant here and a module per layer.
@@ -7,10 +7,11 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
-use crate::plan::excitation::Excitation;
 use crate::plan::hold::Load;
-use crate::plan::kind::{KindPlan, Stand};
+use crate::plan::kind::KindPlan;
+use crate::plan::response::Excitation;
 use crate::plan::schedule::Schedule;
+use crate::plan::stand::Stand;
 use crate::robot::model::ModelInfo;
 
 /// The experiment of a run (the manifest's config keeps it).
@@ -120,7 +121,7 @@ impl Experiment {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plan::excitation::Signal;
+    use crate::plan::response::Signal;
 
     fn step() -> Excitation {
         Excitation {

@@ -1,5 +1,6 @@
 //! What an experiment kind decides of its simulations before any physics
-//! ([`KindPlan`]), and the stand kind's plan. The kinds themselves are one
+//! ([`KindPlan`]); each kind's plan is in its own module (`plan::stand`,
+//! `plan::response`, `plan::hold`). The kinds themselves are one
 //! type, `plan::experiment::Experiment`; each layer has a module per kind
 //! and dispatches on that type in one place, its registry.
 
@@ -57,14 +58,5 @@ pub trait KindPlan {
         _replicated: bool,
     ) -> crate::error::Result<()> {
         Ok(())
-    }
-}
-
-/// The stand kind: nothing excited, the schedule's push acts.
-pub struct Stand;
-
-impl KindPlan for Stand {
-    fn name(&self) -> &'static str {
-        "sweep"
     }
 }

@@ -3,7 +3,6 @@
 
 pub mod backend;
 pub mod config;
-pub mod excitation;
 pub mod experiment;
 pub mod grid;
 pub mod hold;
@@ -12,7 +11,9 @@ pub mod kind;
 pub mod mode;
 pub mod motor;
 pub mod randomize;
+pub mod response;
 pub mod schedule;
 pub mod setup;
 pub mod shard;
 pub mod stability;
+pub mod stand;

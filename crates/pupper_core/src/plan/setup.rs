@@ -1,6 +1,7 @@
 //! One simulation's physical setting: gains, limits, push, body.
 
 use crate::error::Result;
+use crate::plan::randomize::Draws;
 use crate::robot::model::ModelInfo;
 
 /// One cell's physical setting, resolved from the grid and the defaults.
@@ -31,6 +32,22 @@ pub struct CellSetup {
 }
 
 impl CellSetup {
+    /// This cell's setting for one of its replicates, with its draws.
+    pub fn with_draws(&self, d: &Draws) -> CellSetup {
+        let mut s = self.clone();
+        s.torso_mass_factor = d.torso_mass;
+        s.leg_mass_factor = d.leg_mass;
+        s.motor_gain = d.motor_gain.clone();
+        if d.friction.is_some() {
+            s.friction = d.friction;
+        }
+        if let Some(f) = d.push_force {
+            s.push_force[2] = f;
+        }
+        s.push_at = d.push_at;
+        s
+    }
+
     /// Actuator `a`'s Kp.
     pub fn kp(&self, a: usize) -> f64 {
         self.kp.get(a).copied().unwrap_or(0.0)

@@ -4,9 +4,8 @@
 //! not a robot: such a cell is marked `past_bound` and never ranked.
 
 use crate::math::response::pd_margin;
-use crate::plan::config::SweepConfig;
-use crate::plan::grid::Cell;
 use crate::plan::mode::Mode;
+use crate::plan::setup::CellSetup;
 use crate::robot::model::ModelInfo;
 
 /// How the integrator takes the PD's damping term.
@@ -39,16 +38,15 @@ impl Damping {
     }
 }
 
-/// Each actuator's margin in `cell` at its nominal gains and timestep, from
-/// the joints' reflected inertias at the start pose (`inertia`, ctrl order).
+/// Each actuator's margin in a cell of setup `s` at its nominal gains and
+/// timestep, from the joints' reflected inertias at the start pose
+/// (`inertia`, ctrl order).
 pub fn cell_margins(
-    cfg: &SweepConfig,
     info: &ModelInfo,
     inertia: &[f64],
-    cell: &Cell,
+    s: &CellSetup,
     damping: Damping,
 ) -> Vec<f64> {
-    let s = cfg.setup(cell, info);
     let dt = s.timestep.unwrap_or(info.timestep);
     (0..info.nu.min(inertia.len()))
         .map(|a| damping.margin(inertia[a], s.kp(a), s.kd(a), dt))

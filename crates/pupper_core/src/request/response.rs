@@ -2,7 +2,7 @@
 //! a sweep spec whose config excites joints instead of pushing the robot.
 
 use crate::error::{Error, Result};
-use crate::plan::excitation::{AMPLITUDE, Excitation, HOLD, Signal};
+use crate::plan::response::{AMPLITUDE, Excitation, HOLD, Signal};
 use crate::request::spec::{AutoPose, PoseInput, SweepSpec};
 
 /// Simulated seconds per cell unless `--seconds` says.

@@ -8,9 +8,9 @@ use crate::error::{Error, Result};
 use crate::plan::config::SweepConfig;
 use crate::plan::shard::Shard;
 use crate::results::output::{
-    Manifest, MergedShard, config_diff, read_detail, read_manifest, read_rows, read_traces,
+    Manifest, MergedShard, config_diff, read_detail, read_manifest, read_rows, read_traces, short,
 };
-use crate::results::rundir::{Existing, RunWriter, short};
+use crate::results::rundir::{Existing, RunWriter};
 use crate::results::tables::header_of;
 
 fn bad(text: String) -> Error {

@@ -2,8 +2,10 @@
 //! directory (atomic writes, resume, merge) and the ranking rule.
 
 pub mod best;
+pub mod files;
 pub mod kinds;
 pub mod merge;
 pub mod output;
+pub mod resume;
 pub mod rundir;
 pub mod tables;

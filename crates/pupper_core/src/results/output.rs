@@ -20,6 +20,8 @@ pub const MANIFEST: &str = "manifest.json";
 pub const TRACES: &str = "traces.csv";
 pub const BEST: &str = "best.csv";
 pub const REPLICATES: &str = "replicates.csv";
+/// The lock file every writer of a run directory holds.
+pub const LOCK: &str = ".pupper.lock";
 
 /// The metrics summarised over replicates: the numeric ones but the time
 /// of an event, which only failed replicates have.
@@ -257,6 +259,11 @@ pub struct MergedShard {
     pub cells: usize,
     pub wall_seconds: f64,
     pub started_unix: u64,
+}
+
+/// The first 12 hex digits of a SHA-256, as messages show it.
+pub fn short(sha: &str) -> &str {
+    &sha[..sha.len().min(12)]
 }
 
 /// Reads a run's manifest.

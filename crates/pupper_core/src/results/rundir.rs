@@ -16,17 +16,15 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
+use crate::results::files::{Appender, refuse_non_regular, write_atomic};
 use crate::results::output::Detail;
 use crate::results::output::{
-    MANIFEST, Manifest, REPLICATES, SUMMARY, TRACES, Trace, config_diff, csv_bytes, fmt_f64,
-    read_detail, read_manifest, read_rows, read_traces,
+    LOCK, MANIFEST, Manifest, REPLICATES, SUMMARY, TRACES, Trace, csv_bytes, fmt_f64, read_manifest,
 };
+use crate::results::resume;
 use crate::results::tables::NamedTable;
 use crate::results::tables::{self, BODE, RESPONSE, RESPONSE_TRACES, header_of};
 use crate::sim::runner::CellResult;
-
-/// The lock file every writer of a run directory holds.
-pub const LOCK: &str = ".pupper.lock";
 
 /// Seconds between flushes to disk while a run goes on (and at its end).
 const SYNC_EVERY_S: f64 = 1.0;
@@ -43,60 +41,6 @@ pub enum Existing {
     /// `out` is a name to start from: the first of `out`, `out-1`, `out-2`,
     /// ... that does not exist is created (safe when many start at once).
     Unique,
-}
-
-/// Writes `bytes` to `path` through a temporary file in the same directory,
-/// flushed before the rename (and the directory after it), so a crash never
-/// leaves a short file under the final name. The temporary file is removed
-/// on every error.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    refuse_non_regular(path)?;
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-    let written = File::create(&tmp)
-        .and_then(|mut f| {
-            f.write_all(bytes)?;
-            f.sync_all()
-        })
-        .map_err(|e| Error::io("write", path, e))
-        .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io("rename into", path, e)));
-    if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    written?;
-    sync_dir(dir)
-}
-
-/// Refuses a `path` that exists and is not a regular file (a FIFO, a
-/// device, a socket, a directory): renaming over it would replace the node
-/// itself, and a device or a FIFO is no place for a table.
-pub fn refuse_non_regular(path: &Path) -> Result<()> {
-    match std::fs::metadata(path) {
-        Ok(m) if !m.is_file() => Err(Error::Output(format!(
-            "'{}' exists and is not a regular file ({}): pupper writes only regular files; move it away or choose another --out",
-            path.display(),
-            file_kind(&m)
-        ))),
-        _ => Ok(()),
-    }
-}
-
-/// What a file that is not a regular one is, in words.
-fn file_kind(m: &std::fs::Metadata) -> &'static str {
-    use std::os::unix::fs::FileTypeExt;
-    let t = m.file_type();
-    if t.is_dir() {
-        "a directory"
-    } else if t.is_fifo() {
-        "a FIFO"
-    } else if t.is_char_device() || t.is_block_device() {
-        "a device"
-    } else if t.is_socket() {
-        "a socket"
-    } else {
-        "not a file"
-    }
 }
 
 /// The files a run directory may hold that pupper writes (its Python side
@@ -118,12 +62,6 @@ fn refuse_non_regular_outputs(dir: &Path) -> Result<()> {
         refuse_non_regular(&dir.join(name))?;
     }
     Ok(())
-}
-
-fn sync_dir(dir: &Path) -> Result<()> {
-    File::open(dir)
-        .and_then(|d| d.sync_all())
-        .map_err(|e| Error::io("flush", dir, e))
 }
 
 /// Takes the directory's lock, or says who holds it.
@@ -191,73 +129,6 @@ fn remove_stale_temps(dir: &Path) {
     }
 }
 
-/// True when `dir` holds nothing a run would keep: no rows, only our lock,
-/// temporary files, and a summary with at most its header.
-fn only_ours(dir: &Path) -> bool {
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return false;
-    };
-    entries.flatten().all(|e| {
-        let name = e.file_name().to_string_lossy().into_owned();
-        name == LOCK
-            || (name.starts_with('.') && name.contains(".tmp"))
-            || ((name == SUMMARY
-                || name == TRACES
-                || name == REPLICATES
-                || name == RESPONSE
-                || name == BODE
-                || name == RESPONSE_TRACES)
-                && std::fs::read_to_string(e.path()).is_ok_and(|t| t.lines().count() <= 1))
-    })
-}
-
-/// An append-only file and the length it had at the last consistent point.
-struct Appender {
-    path: PathBuf,
-    file: File,
-    len: u64,
-}
-
-impl Appender {
-    fn open(path: PathBuf) -> Result<Appender> {
-        let file = OpenOptions::new()
-            .append(true)
-            .open(&path)
-            .map_err(|e| Error::io("open", &path, e))?;
-        let len = file
-            .metadata()
-            .map_err(|e| Error::io("read", &path, e))?
-            .len();
-        Ok(Appender { path, file, len })
-    }
-
-    fn append(&mut self, bytes: &[u8]) -> Result<()> {
-        self.file
-            .write_all(bytes)
-            .map_err(|e| Error::io("write", &self.path, e))
-    }
-
-    /// Back to the last consistent length (frees what a failed write took).
-    fn roll_back(&mut self) {
-        let _ = self.file.set_len(self.len);
-    }
-
-    fn commit(&mut self) -> Result<()> {
-        self.len = self
-            .file
-            .metadata()
-            .map_err(|e| Error::io("read", &self.path, e))?
-            .len();
-        Ok(())
-    }
-
-    fn sync(&self) -> Result<()> {
-        self.file
-            .sync_data()
-            .map_err(|e| Error::io("flush", &self.path, e))
-    }
-}
-
 /// Open files of a directory being written.
 struct Open {
     _lock: File,
@@ -266,6 +137,73 @@ struct Open {
     /// One per table of [`RunWriter::details`].
     details: Vec<Appender>,
     synced: Instant,
+}
+
+/// A chunk's lines for each table, as appended.
+struct Chunk<'a> {
+    traces: &'a [u8],
+    /// One per table of [`RunWriter::details`].
+    details: &'a [Vec<u8>],
+    rows: &'a [u8],
+}
+
+impl Open {
+    /// Appends a chunk to the tables and writes `manifest`, flushing every
+    /// [`SYNC_EVERY_S`]; if any write fails, every table goes back to its
+    /// last consistent length and the error is returned.
+    fn append(&mut self, dir: &Path, chunk: &Chunk<'_>, manifest: &Manifest) -> Result<()> {
+        let sync = self.synced.elapsed().as_secs_f64() >= SYNC_EVERY_S;
+        if let Err(e) = self.write(dir, chunk, manifest, sync) {
+            for a in self
+                .traces
+                .iter_mut()
+                .chain(self.details.iter_mut())
+                .chain(self.summary.iter_mut())
+            {
+                a.roll_back();
+            }
+            return Err(e);
+        }
+        for a in self
+            .traces
+            .iter_mut()
+            .chain(self.details.iter_mut())
+            .chain(self.summary.iter_mut())
+        {
+            a.commit()?;
+        }
+        if sync {
+            self.synced = Instant::now();
+        }
+        Ok(())
+    }
+
+    fn write(
+        &mut self,
+        dir: &Path,
+        chunk: &Chunk<'_>,
+        manifest: &Manifest,
+        sync: bool,
+    ) -> Result<()> {
+        if let Some(t) = &mut self.traces {
+            t.append(chunk.traces)?;
+        }
+        for (a, bytes) in self.details.iter_mut().zip(chunk.details) {
+            a.append(bytes)?;
+        }
+        // the summary last: a row promises the rest is on disk
+        if let Some(s) = &mut self.summary {
+            s.append(chunk.rows)?;
+        }
+        if sync {
+            for a in self.traces.iter().chain(&self.details).chain(&self.summary) {
+                a.sync()?;
+            }
+        }
+        let text = serde_json::to_string_pretty(manifest)
+            .map_err(|e| Error::Internal(format!("manifest: {e}")))?;
+        write_atomic(&dir.join(MANIFEST), (text + "\n").as_bytes())
+    }
 }
 
 /// Writes a run directory as chunks finish.
@@ -328,7 +266,7 @@ impl RunWriter {
             }
             // a run killed while creating its directory left no manifest
             // and no rows: the full command with --resume starts it afresh
-            Existing::Resume if !dir.join(MANIFEST).exists() && only_ours(dir) => {
+            Existing::Resume if !dir.join(MANIFEST).exists() && resume::only_ours(dir) => {
                 w.lock = Some(lock(dir)?);
             }
             Existing::Resume => {
@@ -336,45 +274,9 @@ impl RunWriter {
                 w.lock = Some(lock(dir)?);
                 // read under the lock: no writer is changing it now
                 let old = read_manifest(dir).unwrap_or(old);
-                let diff = config_diff(&old.config, &w.manifest.config);
-                if !diff.is_empty() {
-                    return Err(Error::ResumeMismatch(format!(
-                        "cannot resume '{}': this command differs from the run's in {}; rerun the original command with --resume (or --resume DIR alone), or use a new --out",
-                        dir.display(),
-                        diff.join(", ")
-                    )));
-                }
-                let shard_of = |m: &Manifest| m.shard.as_ref().map(|s| s.shard.to_string());
-                if shard_of(&old) != shard_of(&w.manifest) {
-                    let name =
-                        |s: Option<String>| s.map_or("no shard".into(), |s| format!("shard {s}"));
-                    return Err(Error::ResumeMismatch(format!(
-                        "cannot resume '{}': it holds {} of the grid, this command {}; resume it with --resume DIR alone, or use a new --out",
-                        dir.display(),
-                        name(shard_of(&old)),
-                        name(shard_of(&w.manifest))
-                    )));
-                }
-                if old.model.sha256 != w.manifest.model.sha256 {
-                    return Err(Error::ResumeMismatch(format!(
-                        "cannot resume '{}': the model '{}' changed since the run started (SHA-256 {} then, {} now); use a new --out",
-                        dir.display(),
-                        old.model.source,
-                        short(&old.model.sha256),
-                        short(&w.manifest.model.sha256)
-                    )));
-                }
-                w.rows = read_rows(dir, &w.manifest.config, &header_of(&w.manifest.config))?;
-                for (k, d) in w.details.iter().enumerate() {
-                    w.detail_rows[k] = read_detail(dir, d, &w.rows)?;
-                }
-                // a cell without all its rows on disk runs again
-                let details = &w.detail_rows;
-                w.rows
-                    .retain(|i, _| details.iter().all(|d| d.contains_key(i)));
-                if w.want_traces {
-                    w.traces = read_traces(dir, &w.rows)?;
-                }
+                resume::check_continues(dir, &old, &w.manifest)?;
+                let kept = resume::read_kept(dir, &w.manifest.config, &w.details, w.want_traces)?;
+                (w.rows, w.detail_rows, w.traces) = (kept.rows, kept.details, kept.traces);
             }
             Existing::Overwrite if dir.is_dir() => w.lock = Some(lock(dir)?),
             _ => {}
@@ -562,55 +464,17 @@ impl RunWriter {
                     csv_bytes(&[], &rows)
                 })
                 .collect::<Result<Vec<_>>>()?;
-            let cells_done = self.rows.len() + results.len();
             let mut manifest = self.manifest.clone();
-            manifest.cells_done = cells_done;
+            manifest.cells_done = self.rows.len() + results.len();
             manifest.batches += 1;
             manifest.wall_seconds = self.started.elapsed().as_secs_f64();
-            let sync = open.synced.elapsed().as_secs_f64() >= SYNC_EVERY_S;
             let dir = self.dir.as_deref().unwrap_or(Path::new("."));
-            let written = (|| -> Result<()> {
-                if let Some(t) = &mut open.traces {
-                    t.append(traces.as_bytes())?;
-                }
-                for (a, bytes) in open.details.iter_mut().zip(&details) {
-                    a.append(bytes)?;
-                }
-                // the summary last: a row promises the rest is on disk
-                if let Some(s) = &mut open.summary {
-                    s.append(&rows)?;
-                }
-                if sync {
-                    for a in open.traces.iter().chain(&open.details).chain(&open.summary) {
-                        a.sync()?;
-                    }
-                }
-                let text = serde_json::to_string_pretty(&manifest)
-                    .map_err(|e| Error::Internal(format!("manifest: {e}")))?;
-                write_atomic(&dir.join(MANIFEST), (text + "\n").as_bytes())
-            })();
-            if let Err(e) = written {
-                for a in open
-                    .traces
-                    .iter_mut()
-                    .chain(open.details.iter_mut())
-                    .chain(open.summary.iter_mut())
-                {
-                    a.roll_back();
-                }
-                return Err(e);
-            }
-            for a in open
-                .traces
-                .iter_mut()
-                .chain(open.details.iter_mut())
-                .chain(open.summary.iter_mut())
-            {
-                a.commit()?;
-            }
-            if sync {
-                open.synced = Instant::now();
-            }
+            let chunk = Chunk {
+                traces: traces.as_bytes(),
+                details: &details,
+                rows: &rows,
+            };
+            open.append(dir, &chunk, &manifest)?;
         }
         for ((r, fields), details) in results.iter().zip(new_rows).zip(new_details) {
             self.rows.insert(r.cell.index, fields);
@@ -655,11 +519,6 @@ fn trace_lines(out: &mut String, id: &str, samples: &[(f64, f64)]) {
     for (t, z) in samples {
         out.push_str(&format!("{id},{},{}\n", fmt_f64(*t), fmt_f64(*z)));
     }
-}
-
-/// The first 12 hex digits of a SHA-256, as messages show it.
-pub fn short(sha: &str) -> &str {
-    &sha[..sha.len().min(12)]
 }
 
 /// Creates `dir` (its parents as needed); it must not exist yet.

@@ -14,6 +14,14 @@ use crate::sim::firmware::{Sensing, firmware};
 /// simulations share models, half that when each has its own.
 const TORQUE_LANE_PER_THREAD: usize = 32;
 
+/// A cell of a chunk and its setting, resolved once per cell: it picks the
+/// cell's batch (by timestep) and is the base of its replicates' settings.
+#[derive(Clone, Copy)]
+pub(crate) struct Resolved<'a> {
+    pub(crate) cell: &'a Cell,
+    pub(crate) setup: &'a CellSetup,
+}
+
 /// One simulation of a chunk: a replicate of a cell (of one excited joint,
 /// in a response run).
 pub(crate) struct SimPlan {
@@ -39,7 +47,7 @@ pub(crate) struct ChunkPlan {
 impl ChunkPlan {
     pub(crate) fn new(
         cfg: &SweepConfig,
-        cells: &[&Cell],
+        cells: &[Resolved<'_>],
         dt: f64,
         info: &ModelInfo,
     ) -> Result<ChunkPlan> {
@@ -58,8 +66,8 @@ impl ChunkPlan {
         for (ci, c) in cells.iter().enumerate() {
             for &joint in &excited {
                 for r in 0..cfg.replicate_count() {
-                    let d = reps.draws(&c.id, r as u32, info.nu);
-                    let setup = cfg.setup_replicate(c, &d, info);
+                    let d = reps.draws(&c.cell.id, r as u32, info.nu);
+                    let setup = c.setup.with_draws(&d);
                     // a replicate's own push start moves its push window;
                     // only replicate 0 keeps a trace
                     let mut own = schedule.clone();
@@ -76,7 +84,7 @@ impl ChunkPlan {
                     out.schedules.push(own);
                     out.sensing.push(Sensing::new(
                         d.delay,
-                        reps.noise(&c.id, r as u32),
+                        reps.noise(&c.cell.id, r as u32),
                         firmware(cfg, info, dt, &d),
                     ));
                     out.setups.push(setup);

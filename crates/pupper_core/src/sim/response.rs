@@ -3,7 +3,7 @@
 //! step figures or the frequency response when the simulation ends.
 
 use crate::math::response::{self as resp, Bode};
-use crate::plan::excitation::{Excitation, Signal};
+use crate::plan::response::{Excitation, Signal};
 use crate::sim::metrics::{SATURATED, Status};
 
 pub use crate::sim::joints::{CHIRP_POINTS, JOINT_METRIC_NAMES, JointMetrics, JointResult};

@@ -1,26 +1,24 @@
 //! The experiment runner: cells in chunks, each chunk one batch stepped to
 //! the schedule, metrics streamed per cell. Pure Rust over [`Physics`].
 
-use std::cell::RefCell;
-
-use crate::error::{Error, Result};
-use crate::math::pd;
+use crate::error::Result;
 use crate::plan::config::SweepConfig;
 use crate::plan::experiment::Experiment;
 use crate::plan::grid::Cell;
 use crate::plan::mode::Mode;
+use crate::plan::setup::CellSetup;
 use crate::robot::layout::Layout;
-use crate::sim::chunk::{ChunkPlan, lanes};
-use crate::sim::firmware::Sensing;
+use crate::sim::chunk::{ChunkPlan, Resolved, lanes};
 use crate::sim::frames::{FrameRecorder, frame_count};
 use crate::sim::hold::HoldProbe;
 use crate::sim::metrics::{Metrics, Recorder};
-use crate::sim::physics::SimBatch;
-use crate::sim::physics::{Force, Physics};
-use crate::sim::probe::{Finish, Probe, Sample, Start};
+use crate::sim::physics::{Physics, SimBatch};
+use crate::sim::probe::{Finish, Probe, Start};
 use crate::sim::response::JointProbe;
 use crate::sim::stand::StandProbe;
+use crate::sim::stepping::{ChunkState, Stepping, step_lane};
 
+pub use crate::sim::hooks::{Hooks, NoHooks};
 pub use crate::sim::result::{CellResult, Replicate};
 
 /// Most cells per batch on the cpu backend unless `--chunk-cells` says.
@@ -56,24 +54,6 @@ impl Default for RunOptions {
     }
 }
 
-/// Callbacks from a running sweep.
-pub trait Hooks {
-    /// `steps` more cell-steps are done.
-    fn progress(&mut self, _steps: u64) {}
-    /// True to stop now; checked about every 50 ms of simulation work.
-    fn should_stop(&mut self) -> bool {
-        false
-    }
-    /// A chunk of cells finished (in grid order within the chunk).
-    fn chunk_done(&mut self, _results: &[CellResult]) -> Result<()> {
-        Ok(())
-    }
-}
-
-/// Hooks that do nothing.
-pub struct NoHooks;
-impl Hooks for NoHooks {}
-
 /// Runs `cells` (any subset of the grid, e.g. the ones a resume still
 /// needs). Results come back in the order of `cells`. On interrupt returns
 /// `Error::Interrupted` after the finished chunks were passed to `hooks`.
@@ -90,16 +70,10 @@ pub fn run_cells(
     if let Some(fps) = opts.frame_rate {
         frame_count(cfg.schedule.duration, fps)?;
     }
-    // Cells of one batch must share a timestep: group, keeping grid order within.
-    let model_dt = physics.info().timestep;
-    let mut groups: Vec<(u64, Vec<&Cell>)> = Vec::new();
-    for c in cells {
-        let dt = cfg.setup(c, physics.info()).timestep.unwrap_or(model_dt);
-        match groups.iter_mut().find(|(b, _)| *b == dt.to_bits()) {
-            Some((_, g)) => g.push(c),
-            None => groups.push((dt.to_bits(), vec![c])),
-        }
-    }
+    // each cell's setting, resolved once: its timestep picks its batch, its
+    // replicates' settings start from it
+    let setups: Vec<CellSetup> = cells.iter().map(|c| cfg.setup(c, physics.info())).collect();
+    let groups = by_timestep(cells, &setups, physics.info().timestep);
     let mut plans = Vec::with_capacity(groups.len());
     for (bits, _) in &groups {
         plans.push(cfg.schedule.plan(f64::from_bits(*bits))?.steps);
@@ -115,7 +89,7 @@ pub fn run_cells(
     let mut out: Vec<CellResult> = Vec::with_capacity(cells.len());
     for ((bits, group), steps) in groups.iter().zip(plans) {
         let dt = f64::from_bits(*bits);
-        let mut rest: &[&Cell] = group;
+        let mut rest: &[Resolved<'_>] = group;
         while !rest.is_empty() {
             // a cell's replicates always share its batch
             let fit = match limit {
@@ -145,6 +119,25 @@ pub fn run_cells(
     };
     out.sort_by_key(|r| pos(&r.cell));
     Ok(out)
+}
+
+/// The cells by timestep, as the bits of it (the cells of one batch share
+/// one), keeping grid order within each.
+fn by_timestep<'a>(
+    cells: &'a [Cell],
+    setups: &'a [CellSetup],
+    model_dt: f64,
+) -> Vec<(u64, Vec<Resolved<'a>>)> {
+    let mut groups: Vec<(u64, Vec<Resolved<'a>>)> = Vec::new();
+    for (cell, setup) in cells.iter().zip(setups) {
+        let bits = setup.timestep.unwrap_or(model_dt).to_bits();
+        let c = Resolved { cell, setup };
+        match groups.iter_mut().find(|(b, _)| *b == bits) {
+            Some((_, g)) => g.push(c),
+            None => groups.push((bits, vec![c])),
+        }
+    }
+    groups
 }
 
 /// Sizes batches to about `chunk_seconds` of work from the speed measured
@@ -202,133 +195,11 @@ fn probe(cfg: &SweepConfig, s: &Start<'_>) -> Box<dyn Probe> {
     }
 }
 
-/// Per-simulation accumulators of a chunk.
-struct ChunkState<'a> {
-    layout: &'a Layout,
-    /// Joint targets per simulation (before any excitation).
-    targets: &'a [Vec<f64>],
-    probes: Vec<Box<dyn Probe>>,
-    frames: Vec<Option<FrameRecorder>>,
-    /// Steps each simulation took (fewer than the schedule's when it
-    /// diverged or, with `stop_fallen`, fell).
-    steps: Vec<u64>,
-}
-
-impl ChunkState<'_> {
-    /// One post-step sample of simulation `sim`, whose step ended at `t`;
-    /// `act` the actuator forces, `peak`/`nsat` over all actuators.
-    #[allow(clippy::too_many_arguments)]
-    fn sample(
-        &mut self,
-        sim: usize,
-        t: f64,
-        pushing: bool,
-        qpos: &[f64],
-        act: &[f64],
-        peak: f64,
-        nsat: usize,
-    ) {
-        self.steps[sim] += 1;
-        self.probes[sim].observe(&Sample {
-            t,
-            qpos,
-            act,
-            peak,
-            nsat,
-            targets: &self.targets[sim],
-            layout: self.layout,
-        });
-        if let Some(f) = &mut self.frames[sim] {
-            f.offer(t, qpos, pushing);
-        }
-    }
-
-    /// True when simulation `sim` has fallen and may stop stepping.
-    fn fallen(&self, sim: usize) -> bool {
-        self.probes[sim].fallen()
-    }
-
-    fn diverge(&mut self, sim: usize, t: f64) {
-        self.probes[sim].diverge(t);
-    }
-}
-
-/// The peak |force| of `act` and how many are at their `limits`.
-fn peak_and_saturated(act: &[f64], limits: &[f64]) -> (f64, usize) {
-    let (mut peak, mut nsat) = (0.0f64, 0usize);
-    for (&f, &lim) in act.iter().zip(limits) {
-        peak = peak.max(f.abs());
-        // the actuator clamps at its force range
-        if f.abs() >= lim * (1.0 - 1e-12) {
-            nsat += 1;
-        }
-    }
-    (peak, nsat)
-}
-
-/// What stays fixed while a chunk steps.
-struct Stepping<'a> {
-    cfg: &'a SweepConfig,
-    plan: &'a ChunkPlan,
-    limits: &'a [Vec<f64>],
-    targets: &'a [Vec<f64>],
-    layout: &'a Layout,
-    dt: f64,
-    nsteps: usize,
-    /// Steps at which some simulation's push starts or ends: no call
-    /// crosses one.
-    bounds: Vec<usize>,
-    /// Control every step: torque mode's PD in Rust.
-    per_step: bool,
-    /// Targets that move on a schedule (the response): each call gets
-    /// every step's ctrl.
-    moving: bool,
-    chunk_steps: usize,
-}
-
-impl Stepping<'_> {
-    /// Simulation `sim`'s target of actuator `a` at time `t`.
-    fn target(&self, sim: usize, a: usize, t: f64) -> f64 {
-        let base = self.targets[sim][a];
-        match self.plan.sims[sim].excited {
-            Some(j) if j == a => {
-                base + self
-                    .cfg
-                    .experiment
-                    .plan()
-                    .target_offset(t, self.cfg.schedule.duration)
-            }
-            _ => base,
-        }
-    }
-
-    /// The external base force on simulation `sim` at time `t` (pushed or not).
-    fn force(&self, sim: usize, pushing: bool, t: f64) -> [f64; 3] {
-        let mut f = if pushing {
-            self.plan.setups[sim].push_force
-        } else {
-            [0.0; 3]
-        };
-        if self.cfg.schedule.sine.is_some() {
-            let s = self.cfg.schedule.sine_force(t);
-            for i in 0..3 {
-                f[i] += s[i];
-            }
-        }
-        let own = self.cfg.experiment.plan().base_force(t);
-        if own != [0.0; 3] {
-            for i in 0..3 {
-                f[i] += own[i];
-            }
-        }
-        f
-    }
-}
-
+/// Runs one chunk of cells sharing the timestep `dt` as one batch.
 fn run_chunk(
     physics: &dyn Physics,
     cfg: &SweepConfig,
-    cells: &[&Cell],
+    cells: &[Resolved<'_>],
     dt: f64,
     opts: RunOptions,
     hooks: &mut dyn Hooks,
@@ -345,22 +216,7 @@ fn run_chunk(
     let mut batch = physics.start(&plan.setups, cfg.mode, &schedule.initial, opts.threads)?;
     let layout = physics.layout().clone();
     let n = plan.len();
-    let probes: Vec<Box<dyn Probe>> = (0..n)
-        .map(|sim| {
-            probe(
-                cfg,
-                &Start {
-                    excited: plan.sims[sim].excited,
-                    replicate: plan.sims[sim].replicate,
-                    schedule: &plan.schedules[sim],
-                    dt,
-                    stance: batch.stance(sim),
-                    layout: &layout,
-                    limits: &limits[sim],
-                },
-            )
-        })
-        .collect();
+    let probes = probes(cfg, &plan, batch.as_ref(), &layout, &limits, dt);
     let targets: Vec<Vec<f64>> = (0..n).map(|s| batch.targets(s).to_vec()).collect();
     let mut state = ChunkState {
         layout: &layout,
@@ -369,13 +225,6 @@ fn run_chunk(
         steps: vec![0; n],
         frames: frame_recorders(cfg, batch.as_ref(), n, opts.frame_rate)?,
     };
-    let mut bounds: Vec<usize> = plan
-        .sims
-        .iter()
-        .flat_map(|s| [s.push.start, s.push.end])
-        .collect();
-    bounds.sort_unstable();
-    bounds.dedup();
     // torque mode's PD in Rust, one control step per call; otherwise the
     // actuators hold the PD and calls advance open-loop (unless targets move)
     let host_pd = cfg.mode == Mode::Torque && !batch.actuator_pd();
@@ -393,7 +242,7 @@ fn run_chunk(
         layout: &layout,
         dt,
         nsteps: schedule.plan(dt)?.steps,
-        bounds,
+        bounds: push_bounds(&plan),
         per_step: host_pd,
         moving,
         chunk_steps: opts.chunk_steps,
@@ -411,6 +260,46 @@ fn run_chunk(
         )?;
     }
     finish_chunk(cfg, cells, dt, plan, state)
+}
+
+/// Each simulation's probe, of the chunk's experiment kind.
+fn probes(
+    cfg: &SweepConfig,
+    plan: &ChunkPlan,
+    batch: &dyn SimBatch,
+    layout: &Layout,
+    limits: &[Vec<f64>],
+    dt: f64,
+) -> Vec<Box<dyn Probe>> {
+    (0..plan.len())
+        .map(|sim| {
+            probe(
+                cfg,
+                &Start {
+                    excited: plan.sims[sim].excited,
+                    replicate: plan.sims[sim].replicate,
+                    schedule: &plan.schedules[sim],
+                    dt,
+                    stance: batch.stance(sim),
+                    layout,
+                    limits: &limits[sim],
+                },
+            )
+        })
+        .collect()
+}
+
+/// The steps at which some simulation's push starts or ends: no call
+/// crosses one.
+fn push_bounds(plan: &ChunkPlan) -> Vec<usize> {
+    let mut bounds: Vec<usize> = plan
+        .sims
+        .iter()
+        .flat_map(|s| [s.push.start, s.push.end])
+        .collect();
+    bounds.sort_unstable();
+    bounds.dedup();
+    bounds
 }
 
 /// The frame recorders of a chunk's `n` simulations at `fps` (None: no
@@ -436,244 +325,11 @@ fn frame_recorders(
         .collect()
 }
 
-/// Steps one lane of simulations through the whole schedule.
-fn step_lane(
-    st: &Stepping<'_>,
-    batch: &mut dyn SimBatch,
-    state: &mut ChunkState<'_>,
-    sensing: &mut [Sensing],
-    lane: Vec<usize>,
-    hooks: &mut dyn Hooks,
-    since_check: &mut usize,
-) -> Result<()> {
-    let dt = st.dt;
-    let mut alive = lane;
-    let n = alive.len();
-    let mut k = 0usize;
-    let mut t_before = 0.0f64;
-    // Time before each step of a call: the clock the schedule is written in.
-    let mut step_time = Vec::new();
-    while k < st.nsteps && !alive.is_empty() {
-        let mut end = (k + st.chunk_steps.max(1)).min(st.nsteps);
-        if st.per_step {
-            end = k + 1;
-        }
-        if let Some(&b) = st.bounds.iter().find(|&&b| b > k) {
-            end = end.min(b);
-        }
-        let pushing = |sim: usize| st.plan.sims[sim].push.contains(&k);
-        let nstep = end - k;
-        step_time.clear();
-        let mut t = t_before;
-        for _ in 0..nstep {
-            step_time.push(t);
-            t += dt;
-        }
-        let diverged: Vec<(usize, usize)> = if st.per_step {
-            let forces: Vec<[f64; 3]> = alive
-                .iter()
-                .map(|&s| st.force(s, pushing(s), step_time[0]))
-                .collect();
-            let d = step_controlled(
-                st,
-                batch,
-                state,
-                sensing,
-                &alive,
-                &forces,
-                step_time[0],
-                &pushing,
-            )?;
-            d.into_iter().map(|p| (p, 0)).collect()
-        } else {
-            advance_open_loop(st, batch, state, &alive, &step_time, &pushing)?
-        };
-        // Diverged cells leave the batch; their clock is set to the event.
-        let mut dead: Vec<usize> = Vec::new();
-        for (pos, step) in diverged {
-            let sim = alive[pos];
-            state.diverge(sim, step_time[step] + dt);
-            dead.push(sim);
-        }
-        alive.retain(|s| !dead.contains(s));
-        let stepped = alive.len() + dead.len();
-        if st.cfg.schedule.stop_fallen {
-            // a robot on the floor has nothing more to say: it stops here
-            alive.retain(|&s| !state.fallen(s));
-        }
-        hooks.progress((nstep * stepped) as u64);
-        t_before = t;
-        k = end;
-        *since_check += nstep * n;
-        if *since_check >= 2000 || !st.per_step {
-            *since_check = 0;
-            if hooks.should_stop() {
-                return Err(Error::Interrupted("stopped by a signal".into()));
-            }
-        }
-    }
-    Ok(())
-}
-
-/// One open-loop call over the steps starting at `step_time`: the
-/// actuators hold the PD (servo mode, or torque mode's actuator PD), so the
-/// batch advances without the runner; moving targets are handed over as
-/// every step's ctrl. Returns the diverged (position in `alive`, step).
-fn advance_open_loop(
-    st: &Stepping<'_>,
-    batch: &mut dyn SimBatch,
-    state: &mut ChunkState<'_>,
-    alive: &[usize],
-    step_time: &[f64],
-    pushing: &dyn Fn(usize) -> bool,
-) -> Result<Vec<(usize, usize)>> {
-    let dt = st.dt;
-    let nstep = step_time.len();
-    // a force that changes every step: one per step of the call
-    let sine = st.cfg.schedule.sine.is_some() || st.cfg.experiment.plan().varying_force();
-    let forces: Vec<[f64; 3]>;
-    let force = if sine {
-        forces = alive
-            .iter()
-            .flat_map(|&s| (0..nstep).map(move |j| (s, j)))
-            .map(|(s, j)| st.force(s, pushing(s), step_time[j]))
-            .collect();
-        Force::PerStep(&forces)
-    } else {
-        forces = alive
-            .iter()
-            .map(|&s| st.force(s, pushing(s), step_time[0]))
-            .collect();
-        Force::Constant(&forces)
-    };
-    let mut observe = |pos: usize, step: usize, qpos: &[f64], act: &[f64]| {
-        let sim = alive[pos];
-        let (peak, nsat) = peak_and_saturated(act, &st.limits[sim]);
-        state.sample(
-            sim,
-            step_time[step] + dt,
-            pushing(sim),
-            qpos,
-            act,
-            peak,
-            nsat,
-        );
-    };
-    Ok(match st.moving {
-        false => batch.advance(alive, nstep, force, None, &mut observe)?,
-        true => {
-            // the servos' targets of every step, known in advance
-            let nu = st.layout.nu;
-            let mut ctrl = Vec::with_capacity(alive.len() * nstep * nu);
-            for &sim in alive {
-                for &t in step_time {
-                    ctrl.extend((0..nu).map(|a| st.target(sim, a, t)));
-                }
-            }
-            batch.advance(alive, nstep, force, Some(&ctrl), &mut observe)?
-        }
-    })
-}
-
-/// What the controller of one simulation worked out for its step: the
-/// largest delivered force, how many actuators were at their limit, and
-/// (servo mode) each actuator's force.
-struct TorqueScratch {
-    peak: f64,
-    nsat: usize,
-    forces: Vec<f64>,
-}
-
-/// One controlled step of the simulations `alive` at time `t`: torque
-/// mode's PD in Rust writes ctrl from each state (towards targets that may
-/// move), then all step once and are sampled.
-#[allow(clippy::too_many_arguments)]
-fn step_controlled(
-    st: &Stepping<'_>,
-    batch: &mut dyn SimBatch,
-    state: &mut ChunkState<'_>,
-    sensing: &mut [Sensing],
-    alive: &[usize],
-    forces: &[[f64; 3]],
-    t: f64,
-    pushing: &dyn Fn(usize) -> bool,
-) -> Result<Vec<usize>> {
-    let layout = st.layout;
-    let nu = layout.nu;
-    let scratch: RefCell<Vec<TorqueScratch>> = RefCell::new(
-        (0..alive.len())
-            .map(|_| TorqueScratch {
-                peak: 0.0,
-                nsat: 0,
-                forces: Vec::new(),
-            })
-            .collect(),
-    );
-    batch.step_controlled(
-        alive,
-        forces,
-        &mut |pos, qpos, qvel, ctrl| {
-            let sim = alive[pos];
-            let s = &st.plan.setups[sim];
-            let lim = &st.limits[sim];
-            let mut scratch = scratch.borrow_mut();
-            let sc = &mut scratch[pos];
-            sc.peak = 0.0;
-            sc.nsat = 0;
-            let sense = &mut sensing[sim];
-            sense.remember(layout, qpos, qvel);
-            sc.forces.clear();
-            let due = sense.firmware.as_mut().map(|f| f.due(t));
-            for a in 0..nu {
-                let (tau, sat) = match due {
-                    None => {
-                        let (q, v) = sense.read(layout, a, qpos, qvel);
-                        pd::torque(s.kp(a), s.kd(a), st.target(sim, a, t), q, v, lim[a])
-                    }
-                    Some(due) => {
-                        if due {
-                            let (q, v) = sense.read(layout, a, qpos, qvel);
-                            if let Some(f) = sense.firmware.as_mut() {
-                                let target = st.target(sim, a, t - f.delays[a]);
-                                f.update(a, s.kp(a), s.kd(a), target, q, v);
-                            }
-                        }
-                        match &sense.firmware {
-                            Some(f) => f.deliver(a, lim[a], qvel[layout.act_dof[a]]),
-                            None => (0.0, false),
-                        }
-                    }
-                };
-                ctrl[a] = tau;
-                // what the motor delivers: its gain times the command,
-                // clamped at its force range
-                let signed = s.gain(a) * tau;
-                sc.forces.push(signed.clamp(-lim[a], lim[a]));
-                let delivered = signed.abs();
-                sc.peak = sc.peak.max(if delivered > lim[a] {
-                    lim[a]
-                } else {
-                    delivered
-                });
-                sc.nsat += (sat || delivered >= lim[a] * (1.0 + 1e-12)) as usize;
-            }
-        },
-        &mut |pos, _step, qpos, act| {
-            let sim = alive[pos];
-            let scratch = scratch.borrow();
-            let sc = &scratch[pos];
-            // the cpu batch reports no forces here: the controller's own
-            let forces = if act.is_empty() { &sc.forces[..] } else { act };
-            state.sample(sim, t + st.dt, pushing(sim), qpos, forces, sc.peak, sc.nsat);
-        },
-    )
-}
-
 /// Back to cells: replicate 0 carries the trace and frames; a response
 /// run's cells carry each excited joint's result.
 fn finish_chunk(
     cfg: &SweepConfig,
-    cells: &[&Cell],
+    cells: &[Resolved<'_>],
     dt: f64,
     plan: ChunkPlan,
     state: ChunkState<'_>,
@@ -689,7 +345,7 @@ fn finish_chunk(
     {
         if out.len() == sim.cell {
             out.push(CellResult {
-                cell: cells[sim.cell].clone(),
+                cell: cells[sim.cell].cell.clone(),
                 metrics: Metrics::empty(),
                 replicates: Vec::new(),
                 trace: Vec::new(),

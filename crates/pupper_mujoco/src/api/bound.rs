@@ -15,7 +15,7 @@ type BodyKey = (u64, u64);
 
 /// What marks a run's cells past the stability bound: each body's joint
 /// inertias at the start pose and how the integrator takes the damping.
-pub(super) struct Bound<'a, 'py> {
+pub(super) struct StabilityBound<'a, 'py> {
     cfg: &'a SweepConfig,
     model: &'a bridge::LoadedModel<'py>,
     /// The start pose's qpos, where every body's inertias are read.
@@ -25,14 +25,14 @@ pub(super) struct Bound<'a, 'py> {
     bodies: std::cell::RefCell<Vec<(BodyKey, Vec<f64>)>>,
 }
 
-impl<'a, 'py> Bound<'a, 'py> {
+impl<'a, 'py> StabilityBound<'a, 'py> {
     /// None where pupper states no bound: RK4, no start pose to read the
     /// inertias at, or torque mode's firmware closing another loop than the
     /// PD at the physics step (a filtered derivative, a slower update).
     pub(super) fn new(
         cfg: &'a SweepConfig,
         model: &'a bridge::LoadedModel<'py>,
-    ) -> Option<Bound<'a, 'py>> {
+    ) -> Option<StabilityBound<'a, 'py>> {
         let info = model.info();
         let damping = Damping::of(cfg.mode, info.integrator)?;
         let firmware = cfg.mode == Mode::Torque
@@ -50,7 +50,7 @@ impl<'a, 'py> Bound<'a, 'py> {
             return None;
         }
         let qpos = start_qpos(model, &cfg.schedule.initial).ok().flatten()?;
-        Some(Bound {
+        Some(StabilityBound {
             cfg,
             model,
             qpos,
@@ -83,7 +83,7 @@ impl<'a, 'py> Bound<'a, 'py> {
                 i
             }
         };
-        stability::cell_margins(self.cfg, info, &inertia, cell, self.damping)
+        stability::cell_margins(info, &inertia, &s, self.damping)
     }
 
     pub(super) fn mark(&self, r: &mut CellResult) {

@@ -22,9 +22,11 @@ use pupper_core::sim::metrics::Status;
 use pupper_core::sim::runner::{self, CellResult, Hooks, RunOptions};
 
 mod bound;
+mod response;
 mod start;
 mod sweep;
 
+pub use response::{StepTrace, step_traces};
 use start::{check_start, resolved};
 pub use sweep::{SweepOutcome, SweepRequest, run_sweep};
 
@@ -69,8 +71,8 @@ fn task_results(job: &[u8], task: &[u8], threads: usize) -> Result<Vec<CellResul
             return Err(Error::Cluster(format!(
                 "the model '{}' here is not the driver's (SHA-256 {} here, {} there): put the same file at the same path on every node (a shared filesystem)",
                 cfg.model.display(),
-                pupper_core::results::rundir::short(&model.info().sha256),
-                pupper_core::results::rundir::short(&job.model_sha256)
+                pupper_core::results::output::short(&model.info().sha256),
+                pupper_core::results::output::short(&job.model_sha256)
             )));
         }
         let physics = bridge::physics(model, &cfg.backend)?;
@@ -317,65 +319,12 @@ pub fn record(cfg: &SweepConfig, cells: &[Cell], fps: f64) -> Result<Vec<Recordi
     })
 }
 
-/// One excited joint's angle after every physics step of a response
-/// cell's replicate 0 (time from the excitation's start, rad).
-pub struct StepTrace {
-    pub index: usize,
-    pub id: String,
-    pub joint: String,
-    pub t: Vec<f64>,
-    pub angle: Vec<f64>,
-}
-
-/// The excited joints' angles of cells of a response run at the physics
-/// rate: the cells run again as the manifest says (the same simulation
-/// that wrote response_traces.csv, which keeps every `trace_every`-th of
-/// these samples), for figures that draw a 10 ms rise without the steps
-/// of a 20 ms sampling.
-pub fn step_traces(dir: &std::path::Path, indices: &[usize]) -> Result<Vec<StepTrace>> {
-    let mut cfg = output::read_manifest(dir)?.config;
-    if cfg.experiment.excitation().is_none() {
-        return Err(Error::Config(format!(
-            "{} is not a response run: step traces are a response's",
-            dir.display()
-        )));
-    }
-    cfg.schedule.trace_every = 1;
-    let cells = cells_of(dir, &cfg, indices)?;
-    bridge::with_config_model(&cfg, |model| {
-        let cfg = &resolved(&cfg, model)?;
-        let physics = bridge::physics(model, &cfg.backend)?;
-        let results = runner::run_cells(
-            physics.as_ref(),
-            cfg,
-            &cells,
-            RunOptions::default(),
-            &mut runner::NoHooks,
-        )?;
-        let Some(e) = cfg.experiment.excitation() else {
-            return Ok(vec![]);
-        };
-        Ok(results
-            .into_iter()
-            .flat_map(|r| {
-                let (index, id) = (r.cell.index, r.cell.id.clone());
-                r.joints
-                    .into_iter()
-                    .filter(|j| j.replicate == 0)
-                    .map(move |j| StepTrace {
-                        index,
-                        id: id.clone(),
-                        joint: e.name_of(j.actuator).to_string(),
-                        t: j.trace.iter().map(|p| p.0).collect(),
-                        angle: j.trace.iter().map(|p| p.1).collect(),
-                    })
-            })
-            .collect())
-    })
-}
-
 /// The cells of a run directory's grid at these indices.
-fn cells_of(dir: &std::path::Path, cfg: &SweepConfig, indices: &[usize]) -> Result<Vec<Cell>> {
+pub(super) fn cells_of(
+    dir: &std::path::Path,
+    cfg: &SweepConfig,
+    indices: &[usize],
+) -> Result<Vec<Cell>> {
     let all = cfg.grid.cells();
     indices
         .iter()
@@ -404,7 +353,7 @@ pub fn write_best(outcome: &SweepOutcome, rule: &best::Rule) -> Result<Vec<best:
     let groups = best::best(&outcome.header, &outcome.rows, rule)?;
     if let Some(dir) = &outcome.out {
         let (h, rows) = best::table(&outcome.header, &outcome.rows, rule, &groups);
-        pupper_core::results::rundir::write_atomic(
+        pupper_core::results::files::write_atomic(
             &dir.join(output::BEST),
             &output::csv_bytes(&h, &rows)?,
         )?;

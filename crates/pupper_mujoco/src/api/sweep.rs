@@ -18,7 +18,7 @@ use pupper_core::sim::cluster::{self, Address, Job};
 use pupper_core::sim::runner::{self, CellResult, Hooks, RunOptions};
 
 use super::SweepUi;
-use super::bound::Bound;
+use super::bound::StabilityBound;
 use super::start::{check_start, resolved, start_targets};
 use pupper_core::results::tables::NamedTable;
 
@@ -124,8 +124,8 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
         let given = cfg;
         let cfg = &resolved(cfg, model)?;
         let push = scaled_push(given, cfg, info);
-        let bound = Bound::new(cfg, model);
-        let unstable = bound.as_ref().and_then(Bound::note);
+        let bound = StabilityBound::new(cfg, model);
+        let unstable = bound.as_ref().and_then(StabilityBound::note);
         let mark = bound.as_ref().map(|b| move |r: &mut CellResult| b.mark(r));
         // hung in the air, a response run needs no floor
         let standing = !cfg.experiment.plan().suspended();

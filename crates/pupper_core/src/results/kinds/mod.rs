@@ -10,7 +10,7 @@ pub mod stand;
 use crate::plan::config::SweepConfig;
 use crate::results::output::Detail;
 use crate::sim::result::CellResult;
-use crate::{plan::experiment::Experiment, plan::kind::Stand};
+use crate::{plan::experiment::Experiment, plan::stand::Stand};
 
 pub trait KindTables {
     /// summary.csv's header.

@@ -4,7 +4,7 @@
 
 use crate::math::decimal::fmt_f64;
 use crate::plan::config::SweepConfig;
-use crate::plan::excitation::{Excitation, Signal};
+use crate::plan::response::{Excitation, Signal};
 use crate::results::kinds::KindTables;
 use crate::results::output::{Detail, cell_columns, cell_fields};
 use crate::sim::metrics::Status;

@@ -3,7 +3,7 @@
 //! a row per replicate in replicates.csv.
 
 use crate::plan::config::SweepConfig;
-use crate::plan::kind::Stand;
+use crate::plan::stand::Stand;
 use crate::results::kinds::KindTables;
 use crate::results::output::{
     Detail, REPLICATES, STATISTICS, aggregated, axis_names, header, replicate_row,
