@@ -121,6 +121,6 @@ fn the_checker_sees_what_it_looks_for() {
     assert!(layer_of("request/spec") > layer_of("math/pd"));
     let all = imports();
     assert!(all["sim/runner"].contains("plan/config"));
-    assert!(all["plan/grid"].contains("math/decimal"));
+    assert!(all["plan/axis"].contains("math/decimal"));
     assert!(all["results/kinds"].contains("sim/result"));
 }

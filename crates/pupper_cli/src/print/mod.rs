@@ -1,11 +1,13 @@
 //! Text and JSON for the terminal.
 
+mod gains;
 mod hold;
 mod model;
 mod response;
 mod stand;
 
-pub use model::{doctor, gains, info, pose, stand};
+pub use gains::gains;
+pub use model::{doctor, info, pose, stand};
 
 use std::fmt::Write;
 

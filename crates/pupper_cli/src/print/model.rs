@@ -1,5 +1,5 @@
-//! The model commands' printouts: `info`, `stand`, `doctor`, `pose`,
-//! `gains`.
+//! The model commands' printouts: `info`, `stand`, `doctor`, `pose`
+//! (`gains` has its own file).
 
 use std::fmt::Write;
 
@@ -7,8 +7,7 @@ use pupper_core::robot::model::ModelInfo;
 use pupper_mujoco::api::StandReport;
 use pupper_mujoco::bridge::PythonReport;
 
-use super::Sig;
-
+/// `pupper info`: sizes, joints, actuators, keyframes, sensors, legs.
 pub fn info(m: &ModelInfo) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "model      {} ({})", m.name, m.source);
@@ -20,6 +19,24 @@ pub fn info(m: &ModelInfo) -> String {
     );
     let _ = writeln!(s, "timestep   {} s", m.timestep);
     let _ = writeln!(s, "total mass {:.3} kg", m.total_mass);
+    joints(&mut s, m);
+    actuators(&mut s, m);
+    let _ = writeln!(s, "\nkeyframes ({})", m.keyframes.len());
+    for k in &m.keyframes {
+        let head: Vec<String> = k.qpos.iter().take(7).map(|v| format!("{v}")).collect();
+        let more = if k.qpos.len() > 7 { " ..." } else { "" };
+        let _ = writeln!(s, "  {:<10} qpos [{}{more}]", k.name, head.join(" "));
+    }
+    let _ = writeln!(s, "\nsensors ({})", m.sensors.len());
+    for x in &m.sensors {
+        let _ = writeln!(s, "  {:<18} {:<14} dim {}", x.name, x.kind, x.dim);
+    }
+    legs(&mut s, m);
+    s
+}
+
+/// The joints: name, type, addresses, range.
+fn joints(s: &mut String, m: &ModelInfo) {
     let _ = writeln!(s, "\njoints ({})", m.joints.len());
     let _ = writeln!(
         s,
@@ -37,6 +54,10 @@ pub fn info(m: &ModelInfo) -> String {
             j.name, j.kind, j.qpos_adr, j.dof_adr, range
         );
     }
+}
+
+/// The actuators in ctrl order: joint, group, own gains, torque limit.
+fn actuators(s: &mut String, m: &ModelInfo) {
     let _ = writeln!(s, "\nactuators in ctrl order ({})", m.actuators.len());
     let _ = writeln!(
         s,
@@ -78,16 +99,10 @@ pub fn info(m: &ModelInfo) -> String {
             "  -: a motor, no servo gains of its own: a run uses --kp/--kd (or a kp/kd grid)"
         );
     }
-    let _ = writeln!(s, "\nkeyframes ({})", m.keyframes.len());
-    for k in &m.keyframes {
-        let head: Vec<String> = k.qpos.iter().take(7).map(|v| format!("{v}")).collect();
-        let more = if k.qpos.len() > 7 { " ..." } else { "" };
-        let _ = writeln!(s, "  {:<10} qpos [{}{more}]", k.name, head.join(" "));
-    }
-    let _ = writeln!(s, "\nsensors ({})", m.sensors.len());
-    for x in &m.sensors {
-        let _ = writeln!(s, "  {:<18} {:<14} dim {}", x.name, x.kind, x.dim);
-    }
+}
+
+/// Each leg measured on the compiled body at the default pose.
+fn legs(s: &mut String, m: &ModelInfo) {
     if !m.legs.is_empty() {
         let _ = writeln!(
             s,
@@ -106,7 +121,6 @@ pub fn info(m: &ModelInfo) -> String {
             );
         }
     }
-    s
 }
 
 pub fn stand(r: &StandReport) -> String {
@@ -200,139 +214,5 @@ pub fn pose(p: &pupper_core::robot::pose::StandPose) -> String {
     }
     let t: Vec<String> = p.targets.iter().map(|v| format!("{v:.4}")).collect();
     let _ = writeln!(s, "targets (actuator order): {}", t.join(","));
-    s
-}
-
-/// The loop margins' columns, when a firmware is given: below 0 deg the
-/// loop is unstable.
-fn margins(pm: Option<f64>, gm: Option<f64>) -> String {
-    match (pm, gm) {
-        (Some(pm), Some(gm)) => format!(
-            " {:>9} {:>9}",
-            if pm < 0.0 {
-                format!("{pm:.0} UNST")
-            } else {
-                format!("{pm:.0}")
-            },
-            if gm.is_finite() {
-                format!("{gm:.1}")
-            } else {
-                "inf".into()
-            }
-        ),
-        _ => String::new(),
-    }
-}
-
-/// `pupper gains`: a line per joint group, then per joint.
-pub fn gains(r: &pupper_core::robot::gains::GainsReport) -> String {
-    let mut s = String::new();
-    match (r.bandwidth_hz, r.damping) {
-        (Some(hz), Some(z)) => {
-            let _ = writeln!(
-                s,
-                "{}: gains for a {hz} Hz bandwidth at damping {z} (timestep {} s)",
-                r.model, r.timestep
-            );
-        }
-        _ => {
-            let _ = writeln!(
-                s,
-                "{}: what the gains give (timestep {} s{})",
-                r.model,
-                r.timestep,
-                if r.implicit_damping {
-                    ", damping integrated implicitly"
-                } else {
-                    ""
-                }
-            );
-        }
-    }
-    let looped = r.feedback.is_some();
-    // a calibrated model's motors deliver other gains than they are told
-    let scaled = r.joints.iter().any(|j| j.figures.delivered.is_some());
-    let mut head = format!("{:<16} {:>12} {:>10} {:>10}", "", "inertia", "kp", "kd");
-    if scaled {
-        head.push_str(&format!(" {:>10} {:>10}", "motor kp", "motor kd"));
-    }
-    head.push_str(&format!(
-        " {:>11} {:>9} {:>10}",
-        "natural_hz", "damping", "stability"
-    ));
-    if looped {
-        head.push_str(&format!(" {:>9} {:>9}", "PM deg", "GM dB"));
-    }
-    let _ = writeln!(s, "{}", head.trim_end());
-    // the loop's margins, when a firmware is given: below 0 deg is unstable
-    let flag = |m: f64| {
-        if m >= 1.0 {
-            format!("{} PAST", Sig(m))
-        } else {
-            format!("{}", Sig(m))
-        }
-    };
-    let row = |label: String, f: &pupper_core::robot::gains::Figures| {
-        let [dkp, dkd] = f.delivered();
-        format!(
-            "{:<16} {:>12} {:>10} {:>10}{} {:>11} {:>9} {:>10}{}",
-            label,
-            format!("{:.3e}", f.inertia),
-            Sig(f.kp).to_string(),
-            Sig(f.kd).to_string(),
-            if scaled {
-                format!(" {:>10} {:>10}", Sig(dkp).to_string(), Sig(dkd).to_string())
-            } else {
-                String::new()
-            },
-            Sig(f.natural_hz).to_string(),
-            Sig(f.damping_ratio).to_string(),
-            flag(f.stability_margin),
-            if looped {
-                margins(f.phase_margin_deg, f.gain_margin_db)
-            } else {
-                String::new()
-            }
-        )
-    };
-    for g in &r.groups {
-        let _ = writeln!(
-            s,
-            "{}",
-            row(format!("{} ({})", g.group, g.joints), &g.figures)
-        );
-    }
-    let _ = writeln!(s);
-    for j in &r.joints {
-        let _ = writeln!(s, "{}", row(j.actuator.clone(), &j.figures));
-    }
-    let _ = writeln!(
-        s,
-        "inertia: kg·m² (armature included); stability: 1 or more is past the explicit PD's bound (see --help)"
-    );
-    if scaled {
-        let _ = writeln!(
-            s,
-            "kp, kd: what to command; motor kp, motor kd: what the motor delivers of them (the model's gain scales, pupper:kp_scale/kd_scale, a fit's); every other figure is of the delivered gains"
-        );
-    }
-    if let Some(fb) = &r.feedback {
-        let _ = writeln!(
-            s,
-            "PM/GM: phase and gain margin of the loop the firmware closes: {} ms of feedback latency{}{} (see --help)",
-            Sig(fb.latency * 1000.0),
-            fb.filter_hz
-                .map(|f| format!(", derivative filtered at {} Hz", Sig(f)))
-                .unwrap_or_default(),
-            if fb.derivative_delay > 0.0 {
-                format!(
-                    ", derivative differenced over a period (+{} ms)",
-                    Sig(fb.derivative_delay * 1000.0)
-                )
-            } else {
-                String::new()
-            }
-        );
-    }
     s
 }

@@ -1,6 +1,7 @@
 //! Layer 2, what to run: grids of cells, the schedule, the population of
 //! replicates, the backend, shards, and the config that holds them all.
 
+pub mod axis;
 pub mod backend;
 pub mod config;
 pub mod experiment;

@@ -155,6 +155,85 @@ fn number(spec: &str, q: Quantity, t: &str) -> Result<f64> {
         })
 }
 
+/// `±P%`: a spread relative to the nominal value, under 100 %.
+fn relative(spec: &str, q: Quantity, t: &str) -> Result<Dist> {
+    let body = t
+        .strip_prefix('±')
+        .or_else(|| t.strip_prefix("+-"))
+        .and_then(|r| r.strip_suffix('%'))
+        .ok_or_else(|| bad(spec, Some(q), "not a relative spread"))?;
+    let p = number(spec, q, body)?;
+    if !(0.0..100.0).contains(&p) {
+        return Err(bad(
+            spec,
+            Some(q),
+            "the spread must be at least 0% and under 100%",
+        ));
+    }
+    Ok(Dist::Relative(p / 100.0))
+}
+
+/// `N(MEAN,SIGMA)`: a Gaussian.
+fn gaussian(spec: &str, q: Quantity, t: &str) -> Result<Dist> {
+    let inner = t
+        .strip_prefix("N(")
+        .and_then(|r| r.strip_suffix(')'))
+        .ok_or_else(|| bad(spec, Some(q), "not a Gaussian N(MEAN,SIGMA)"))?;
+    let Some((m, s)) = inner.split_once(',') else {
+        return Err(bad(spec, Some(q), "N() needs a mean and a sigma"));
+    };
+    let (m, s) = (number(spec, q, m)?, number(spec, q, s)?);
+    if s < 0.0 {
+        return Err(bad(spec, Some(q), "sigma is negative"));
+    }
+    Ok(Dist::Normal(m, s))
+}
+
+/// `LOW:HIGH` in whole steps.
+fn steps(spec: &str, q: Quantity, t: &str) -> Result<Dist> {
+    let (lo, hi) = t
+        .split_once(':')
+        .ok_or_else(|| bad(spec, Some(q), "not a range"))?;
+    let whole = |v: &str| {
+        v.trim().parse::<u32>().map_err(|_| {
+            bad(
+                spec,
+                Some(q),
+                &format!("'{}' is not a whole number >= 0", v.trim()),
+            )
+        })
+    };
+    let (lo, hi) = (whole(lo)?, whole(hi)?);
+    if lo > hi {
+        return Err(bad(spec, Some(q), "LOW is above HIGH"));
+    }
+    Ok(Dist::Steps(lo, hi))
+}
+
+/// `LOW:HIGH` drawn uniformly, inside what makes sense for the quantity.
+fn uniform(spec: &str, q: Quantity, t: &str) -> Result<Dist> {
+    let (lo, hi) = t
+        .split_once(':')
+        .ok_or_else(|| bad(spec, Some(q), "not a range"))?;
+    let (lo, hi) = (number(spec, q, lo)?, number(spec, q, hi)?);
+    if lo > hi {
+        return Err(bad(spec, Some(q), "LOW is above HIGH"));
+    }
+    let positive = matches!(
+        q,
+        Quantity::Friction | Quantity::MotorFilter | Quantity::MotorNoload
+    );
+    let nonnegative = matches!(q, Quantity::PushAt | Quantity::MotorDelay);
+    if (positive && lo <= 0.0) || (nonnegative && lo < 0.0) {
+        return Err(bad(
+            spec,
+            Some(q),
+            "the range reaches values that make no sense",
+        ));
+    }
+    Ok(Dist::Uniform(lo, hi))
+}
+
 impl Randomize {
     /// Parses `QUANTITY=DISTRIBUTION`.
     pub fn parse(spec: &str) -> Result<Randomize> {
@@ -171,82 +250,15 @@ impl Randomize {
         };
         let t = text.trim();
         let dist = match q {
-            Quantity::TorsoMass | Quantity::LegMass | Quantity::MotorGain => {
-                let body = t
-                    .strip_prefix('±')
-                    .or_else(|| t.strip_prefix("+-"))
-                    .and_then(|r| r.strip_suffix('%'))
-                    .ok_or_else(|| bad(spec, Some(q), "not a relative spread"))?;
-                let p = number(spec, q, body)?;
-                if !(0.0..100.0).contains(&p) {
-                    return Err(bad(
-                        spec,
-                        Some(q),
-                        "the spread must be at least 0% and under 100%",
-                    ));
-                }
-                Dist::Relative(p / 100.0)
-            }
-            Quantity::QNoise => {
-                let inner = t
-                    .strip_prefix("N(")
-                    .and_then(|r| r.strip_suffix(')'))
-                    .ok_or_else(|| bad(spec, Some(q), "not a Gaussian N(MEAN,SIGMA)"))?;
-                let Some((m, s)) = inner.split_once(',') else {
-                    return Err(bad(spec, Some(q), "N() needs a mean and a sigma"));
-                };
-                let (m, s) = (number(spec, q, m)?, number(spec, q, s)?);
-                if s < 0.0 {
-                    return Err(bad(spec, Some(q), "sigma is negative"));
-                }
-                Dist::Normal(m, s)
-            }
-            Quantity::Delay => {
-                let (lo, hi) = t
-                    .split_once(':')
-                    .ok_or_else(|| bad(spec, Some(q), "not a range"))?;
-                let whole = |v: &str| {
-                    v.trim().parse::<u32>().map_err(|_| {
-                        bad(
-                            spec,
-                            Some(q),
-                            &format!("'{}' is not a whole number >= 0", v.trim()),
-                        )
-                    })
-                };
-                let (lo, hi) = (whole(lo)?, whole(hi)?);
-                if lo > hi {
-                    return Err(bad(spec, Some(q), "LOW is above HIGH"));
-                }
-                Dist::Steps(lo, hi)
-            }
+            Quantity::TorsoMass | Quantity::LegMass | Quantity::MotorGain => relative(spec, q, t)?,
+            Quantity::QNoise => gaussian(spec, q, t)?,
+            Quantity::Delay => steps(spec, q, t)?,
             Quantity::Friction
             | Quantity::PushForce
             | Quantity::PushAt
             | Quantity::MotorDelay
             | Quantity::MotorFilter
-            | Quantity::MotorNoload => {
-                let (lo, hi) = t
-                    .split_once(':')
-                    .ok_or_else(|| bad(spec, Some(q), "not a range"))?;
-                let (lo, hi) = (number(spec, q, lo)?, number(spec, q, hi)?);
-                if lo > hi {
-                    return Err(bad(spec, Some(q), "LOW is above HIGH"));
-                }
-                let positive = matches!(
-                    q,
-                    Quantity::Friction | Quantity::MotorFilter | Quantity::MotorNoload
-                );
-                let nonnegative = matches!(q, Quantity::PushAt | Quantity::MotorDelay);
-                if (positive && lo <= 0.0) || (nonnegative && lo < 0.0) {
-                    return Err(bad(
-                        spec,
-                        Some(q),
-                        "the range reaches values that make no sense",
-                    ));
-                }
-                Dist::Uniform(lo, hi)
-            }
+            | Quantity::MotorNoload => uniform(spec, q, t)?,
         };
         Ok(Randomize { quantity: q, dist })
     }

@@ -108,35 +108,8 @@ pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<
             rule.max_saturation
         )));
     }
-    // a figure of one joint group (a response's `rise_time_s.kfe`) is
-    // judged by that group's status and saturation
-    let group = rule
-        .metric
-        .split_once('.')
-        .map(|(_, g)| g)
-        .filter(|g| column(header, &format!("status.{g}")).is_some());
-    let status = match group {
-        Some(g) => column(header, &format!("status.{g}")),
-        None => column(header, "status"),
-    };
-    let failures = column(header, "failure_fraction");
-    let saturation = match group {
-        Some(g) => column(header, &format!("saturation_frac.{g}")),
-        None => column(header, "saturation_frac").or_else(|| column(header, "p95:saturation_frac")),
-    };
-    let tolerance = if rule.metric.ends_with("_mm") {
-        TIE_MM
-    } else {
-        0.0
-    };
-    // the dip of the same statistic breaks ties
-    let (stat, name) = match rule.metric.split_once(':') {
-        Some((s, m)) => (format!("{s}:"), m),
-        None => (String::new(), rule.metric.as_str()),
-    };
-    let dip = (name != "push_dip_mm")
-        .then(|| column(header, &format!("{stat}push_dip_mm")))
-        .flatten();
+    let (status, failures, saturation) = judged_by(header, rule);
+    let (tolerance, dip) = ties(header, rule);
     let number = |r: &Vec<String>, c: usize| r[c].parse::<f64>().unwrap_or(f64::NAN);
     // each group's eligible cells, in grid order
     let mut groups: Vec<(Vec<String>, Group, Eligible)> = Vec::new();
@@ -183,6 +156,47 @@ pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<
         .into_iter()
         .map(|(_, g, eligible)| decide.group(g, &eligible, &number))
         .collect())
+}
+
+/// The columns a cell is judged by for `rule`: its status, its replicates'
+/// failures, its saturation (of the metric's joint group, if it has one).
+fn judged_by(header: &[String], rule: &Rule) -> (Option<usize>, Option<usize>, Option<usize>) {
+    // a figure of one joint group (a response's `rise_time_s.kfe`) is
+    // judged by that group's status and saturation
+    let group = rule
+        .metric
+        .split_once('.')
+        .map(|(_, g)| g)
+        .filter(|g| column(header, &format!("status.{g}")).is_some());
+    let status = match group {
+        Some(g) => column(header, &format!("status.{g}")),
+        None => column(header, "status"),
+    };
+    let failures = column(header, "failure_fraction");
+    let saturation = match group {
+        Some(g) => column(header, &format!("saturation_frac.{g}")),
+        None => column(header, "saturation_frac").or_else(|| column(header, "p95:saturation_frac")),
+    };
+    (status, failures, saturation)
+}
+
+/// What counts as a tie for `rule` (mm for a metric in mm) and the column
+/// that breaks it: the push dip of the same statistic.
+fn ties(header: &[String], rule: &Rule) -> (f64, Option<usize>) {
+    let tolerance = if rule.metric.ends_with("_mm") {
+        TIE_MM
+    } else {
+        0.0
+    };
+    // the dip of the same statistic breaks ties
+    let (stat, name) = match rule.metric.split_once(':') {
+        Some((s, m)) => (format!("{s}:"), m),
+        None => (String::new(), rule.metric.as_str()),
+    };
+    let dip = (name != "push_dip_mm")
+        .then(|| column(header, &format!("{stat}push_dip_mm")))
+        .flatten();
+    (tolerance, dip)
 }
 
 /// The column `rule` ranks by: a numeric column of the table (a

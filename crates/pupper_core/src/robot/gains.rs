@@ -146,6 +146,82 @@ pub enum Ask {
     Gains { kp: f64, kd: f64 },
 }
 
+/// Actuator `a`'s joint group ("other" where the model names none).
+fn group_of(info: &ModelInfo, a: usize) -> String {
+    info.actuator_group(a).unwrap_or("other").to_string()
+}
+
+/// What actuator `a`'s motor delivers of a commanded kp and kd.
+fn gain_scale(info: &ModelInfo, a: usize) -> [f64; 2] {
+    info.actuators.get(a).map_or([1.0, 1.0], |x| x.gain_scale)
+}
+
+/// The model's joint groups in the order of `JOINT_GROUPS` (others last).
+fn group_names(info: &ModelInfo) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    for a in 0..info.nu {
+        if !names.contains(&group_of(info, a)) {
+            names.push(group_of(info, a));
+        }
+    }
+    let order = |g: &String| {
+        crate::robot::model::JOINT_GROUPS
+            .iter()
+            .position(|x| x == g)
+            .unwrap_or(usize::MAX)
+    };
+    names.sort_by_key(order);
+    names
+}
+
+/// Group `g`'s row: its gains (for the bandwidth, or as given) on its mean
+/// joint, its stability margin that of its first joint past the bound.
+fn group_row(
+    info: &ModelInfo,
+    inertia: &[f64],
+    g: &str,
+    ask: Ask,
+    timestep: f64,
+    implicit: bool,
+) -> GroupGains {
+    let group = |a: usize| group_of(info, a);
+    let scale = |a: usize| gain_scale(info, a);
+    let bound = |i: f64| move |kp: f64, kd: f64| pd_margin(i, kp, kd, timestep, implicit);
+    let members: Vec<usize> = (0..info.nu).filter(|&a| group(a) == g).collect();
+    let n = members.len().max(1) as f64;
+    let i = members.iter().map(|&a| inertia[a]).sum::<f64>() / n;
+    // the group's mean scale: its row is on its mean joint
+    let s = [0, 1].map(|k| members.iter().map(|&a| scale(a)[k]).sum::<f64>() / n);
+    let s = if members.is_empty() { [1.0, 1.0] } else { s };
+    let (kp, kd) = match ask {
+        Ask::Bandwidth { hz, zeta } => {
+            let (kp, kd) = gains_for(i, hz, zeta);
+            (kp / s[0], kd / s[1])
+        }
+        Ask::Gains { kp, kd } => (kp, kd),
+    };
+    let mut figures = Figures::new(i, kp, kd, s, bound(i));
+    // the group's gains on each of its joints as it delivers them:
+    // the lightest, or the most scaled, is the first past the bound
+    figures.stability_margin = members
+        .iter()
+        .map(|&a| {
+            pd_margin(
+                inertia[a],
+                kp * scale(a)[0],
+                kd * scale(a)[1],
+                timestep,
+                implicit,
+            )
+        })
+        .fold(0.0, f64::max);
+    GroupGains {
+        group: g.to_string(),
+        joints: members.len(),
+        figures,
+    }
+}
+
 /// The report for `inertia` (one per actuator, in ctrl order) on `info`;
 /// `implicit` when the integrator takes the damping implicitly. Given
 /// gains are what to command; a bandwidth's are too, divided by what the
@@ -158,59 +234,12 @@ pub fn report(
     ask: Ask,
     implicit: bool,
 ) -> GainsReport {
-    let group = |a: usize| info.actuator_group(a).unwrap_or("other").to_string();
-    let scale = |a: usize| info.actuators.get(a).map_or([1.0, 1.0], |x| x.gain_scale);
+    let group = |a: usize| group_of(info, a);
+    let scale = |a: usize| gain_scale(info, a);
     let bound = |i: f64| move |kp: f64, kd: f64| pd_margin(i, kp, kd, timestep, implicit);
-    let mut names: Vec<String> = Vec::new();
-    for a in 0..info.nu {
-        if !names.contains(&group(a)) {
-            names.push(group(a));
-        }
-    }
-    let order = |g: &String| {
-        crate::robot::model::JOINT_GROUPS
-            .iter()
-            .position(|x| x == g)
-            .unwrap_or(usize::MAX)
-    };
-    names.sort_by_key(order);
-    let groups = names
+    let groups = group_names(info)
         .iter()
-        .map(|g| {
-            let members: Vec<usize> = (0..info.nu).filter(|&a| &group(a) == g).collect();
-            let n = members.len().max(1) as f64;
-            let i = members.iter().map(|&a| inertia[a]).sum::<f64>() / n;
-            // the group's mean scale: its row is on its mean joint
-            let s = [0, 1].map(|k| members.iter().map(|&a| scale(a)[k]).sum::<f64>() / n);
-            let s = if members.is_empty() { [1.0, 1.0] } else { s };
-            let (kp, kd) = match ask {
-                Ask::Bandwidth { hz, zeta } => {
-                    let (kp, kd) = gains_for(i, hz, zeta);
-                    (kp / s[0], kd / s[1])
-                }
-                Ask::Gains { kp, kd } => (kp, kd),
-            };
-            let mut figures = Figures::new(i, kp, kd, s, bound(i));
-            // the group's gains on each of its joints as it delivers them:
-            // the lightest, or the most scaled, is the first past the bound
-            figures.stability_margin = members
-                .iter()
-                .map(|&a| {
-                    pd_margin(
-                        inertia[a],
-                        kp * scale(a)[0],
-                        kd * scale(a)[1],
-                        timestep,
-                        implicit,
-                    )
-                })
-                .fold(0.0, f64::max);
-            GroupGains {
-                group: g.clone(),
-                joints: members.len(),
-                figures,
-            }
-        })
+        .map(|g| group_row(info, inertia, g, ask, timestep, implicit))
         .collect::<Vec<_>>();
     let joints = (0..info.nu)
         .map(|a| {

@@ -171,16 +171,13 @@ pub fn leg_length(info: &ModelInfo) -> Option<f64> {
         .map(|l| norm(sub(l.knee, l.hip)) + norm(sub(l.foot, l.knee)))
 }
 
-/// The stand pose of a compiled body; `leg_scale` scales the target depth,
-/// unless `depth` (m below the hips) is given.
-pub fn stand_pose(info: &ModelInfo, leg_scale: f64, depth: Option<f64>) -> Result<StandPose> {
-    let Some(first) = info.legs.first() else {
-        return Err(Error::Model(format!(
-            "model '{}' has no legs pupper can pose (a chain of abduction, hip and knee hinges under the base ending in a colliding foot): give --pose angles instead of auto",
-            info.name
-        )));
-    };
-    let (ref_hip, ref_knee) = (first.hip_axis, first.knee_axis);
+/// The hip and knee angles inside every leg's joint ranges, in the
+/// convention of the first leg (whose axes are `ref_hip`, `ref_knee`).
+fn shared_ranges(
+    info: &ModelInfo,
+    ref_hip: [f64; 3],
+    ref_knee: [f64; 3],
+) -> Result<([f64; 2], [f64; 2])> {
     let mut hr = [f64::NEG_INFINITY, f64::INFINITY];
     let mut kr = hr;
     for leg in &info.legs {
@@ -201,6 +198,20 @@ pub fn stand_pose(info: &ModelInfo, leg_scale: f64, depth: Option<f64>) -> Resul
             info.name
         )));
     }
+    Ok((hr, kr))
+}
+
+/// The stand pose of a compiled body; `leg_scale` scales the target depth,
+/// unless `depth` (m below the hips) is given.
+pub fn stand_pose(info: &ModelInfo, leg_scale: f64, depth: Option<f64>) -> Result<StandPose> {
+    let Some(first) = info.legs.first() else {
+        return Err(Error::Model(format!(
+            "model '{}' has no legs pupper can pose (a chain of abduction, hip and knee hinges under the base ending in a colliding foot): give --pose angles instead of auto",
+            info.name
+        )));
+    };
+    let (ref_hip, ref_knee) = (first.hip_axis, first.knee_axis);
+    let (hr, kr) = shared_ranges(info, ref_hip, ref_knee)?;
     let leg_length = norm(sub(first.knee, first.hip)) + norm(sub(first.foot, first.knee));
     let (target_z, depth_from) = match depth {
         Some(d) => (-d, "given"),

@@ -68,6 +68,53 @@ impl JointProbe {
         self.diverged = true;
     }
 
+    /// The signal's figures in `m` from the excited joint's angle: a
+    /// step's rise and settling, a sine's gain and phase, a chirp's
+    /// bandwidth; the Bode points a sine or a chirp gives.
+    fn measure(&self, ex: &Excitation, duration: f64, m: &mut JointMetrics) -> Vec<Bode> {
+        let mut bode = Vec::new();
+        let t0 = self.t[0];
+        let s: Vec<f64> = self.t.iter().map(|t| t - t0).collect();
+        let amplitude = ex.signal.amplitude();
+        match ex.signal {
+            Signal::Step { .. } => {
+                let i = resp::step_info(&s, &self.y, amplitude);
+                m.rise_time_s = i.rise_time;
+                m.settling_time_s = i.settling_time;
+                m.overshoot_pct = i.overshoot_pct;
+                m.peak_time_s = i.peak_time;
+                m.ss_error_rad = i.ss_error;
+                m.ss_error_pct = i.ss_error_pct;
+            }
+            Signal::Sine { hz, .. } => {
+                // the second half of the window: past the start's transient
+                let from = s.len() / 2;
+                let phase: Vec<f64> = s[from..]
+                    .iter()
+                    .map(|t| 2.0 * std::f64::consts::PI * hz * t)
+                    .collect();
+                let (g, p) = resp::sine_fit(&phase, &self.y[from..], amplitude);
+                m.gain_db = 20.0 * g.log10();
+                m.phase_deg = p.to_degrees();
+                bode.push(Bode {
+                    hz,
+                    gain_db: m.gain_db,
+                    phase_deg: m.phase_deg,
+                });
+            }
+            Signal::Chirp { f0, f1, .. } => {
+                let window = ex.window(duration);
+                let band = (f0, f1, window);
+                bode = resp::chirp_response(&s, &self.y, amplitude, band, CHIRP_POINTS);
+                let (bw, ph, peak) = resp::chirp_bandwidth(&s, &self.y, amplitude, band, &bode);
+                m.bandwidth_hz = bw;
+                m.phase_at_bw_deg = ph;
+                m.resonance_db = peak;
+            }
+        }
+        bode
+    }
+
     pub fn finish(self, ex: &Excitation, duration: f64, trace_every: usize) -> JointResult {
         let nan = f64::NAN;
         let mut m = JointMetrics {
@@ -91,45 +138,7 @@ impl JointProbe {
         if self.diverged || self.t.len() < 10 {
             m.status = Status::Diverged;
         } else {
-            let t0 = self.t[0];
-            let s: Vec<f64> = self.t.iter().map(|t| t - t0).collect();
-            let amplitude = ex.signal.amplitude();
-            match ex.signal {
-                Signal::Step { .. } => {
-                    let i = resp::step_info(&s, &self.y, amplitude);
-                    m.rise_time_s = i.rise_time;
-                    m.settling_time_s = i.settling_time;
-                    m.overshoot_pct = i.overshoot_pct;
-                    m.peak_time_s = i.peak_time;
-                    m.ss_error_rad = i.ss_error;
-                    m.ss_error_pct = i.ss_error_pct;
-                }
-                Signal::Sine { hz, .. } => {
-                    // the second half of the window: past the start's transient
-                    let from = s.len() / 2;
-                    let phase: Vec<f64> = s[from..]
-                        .iter()
-                        .map(|t| 2.0 * std::f64::consts::PI * hz * t)
-                        .collect();
-                    let (g, p) = resp::sine_fit(&phase, &self.y[from..], amplitude);
-                    m.gain_db = 20.0 * g.log10();
-                    m.phase_deg = p.to_degrees();
-                    bode.push(Bode {
-                        hz,
-                        gain_db: m.gain_db,
-                        phase_deg: m.phase_deg,
-                    });
-                }
-                Signal::Chirp { f0, f1, .. } => {
-                    let window = ex.window(duration);
-                    let band = (f0, f1, window);
-                    bode = resp::chirp_response(&s, &self.y, amplitude, band, CHIRP_POINTS);
-                    let (bw, ph, peak) = resp::chirp_bandwidth(&s, &self.y, amplitude, band, &bode);
-                    m.bandwidth_hz = bw;
-                    m.phase_at_bw_deg = ph;
-                    m.resonance_db = peak;
-                }
-            }
+            bode = self.measure(ex, duration, &mut m);
             if m.saturation_frac >= SATURATED {
                 m.status = Status::Saturated;
             }

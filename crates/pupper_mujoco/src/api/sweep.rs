@@ -10,11 +10,13 @@ use pupper_core::error::{Error, Result};
 use pupper_core::plan::backend::Backend;
 use pupper_core::plan::config::SweepConfig;
 use pupper_core::plan::grid::Cell;
+use pupper_core::plan::shard::Shard;
 use pupper_core::request::spec::Sweep;
 use pupper_core::results::output::{Manifest, ModelRecord, ShardRecord, Trace};
 use pupper_core::results::rundir::RunWriter;
 use pupper_core::robot::model::ModelInfo;
 use pupper_core::sim::cluster::{self, Address, Job};
+use pupper_core::sim::physics::Physics;
 use pupper_core::sim::runner::{self, CellResult, Hooks, RunOptions};
 
 use super::SweepUi;
@@ -111,12 +113,7 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
     } = &req.sweep;
     cfg.validate()?;
     // a shard runs its part of the grid; the manifest keeps the whole grid
-    let cells: Vec<Cell> = cfg
-        .grid
-        .cells()
-        .into_iter()
-        .filter(|c| shard.is_none_or(|s| s.holds(c.index)))
-        .collect();
+    let cells = shard_cells(cfg, shard.as_ref());
     let started = std::time::Instant::now();
     bridge::with_config_model(cfg, |model| {
         let info = model.info();
@@ -133,20 +130,16 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
         cfg.check_motor(info)?;
         // Warp and its device are checked before anything is written; on
         // Ray the workers run the physics
-        let physics = match ray {
-            None => Some(bridge::physics(model, &cfg.backend)?),
-            Some(_) => None,
-        };
+        let physics = ray
+            .is_none()
+            .then(|| bridge::physics(model, &cfg.backend))
+            .transpose()?;
         let manifest = manifest_of(req, cfg, model, cells.len())?;
         let mut writer = RunWriter::new(out.as_deref(), *existing, manifest)?;
-        let done: Vec<usize> = writer.done().collect();
-        let todo: Vec<Cell> = cells
-            .into_iter()
-            .filter(|c| !done.contains(&c.index))
-            .collect();
+        let todo = still_to_do(cells, &writer);
         // every timestep's plan is checked before anything is created
         let (steps_at, total) = planned_steps(cfg, info, &todo)?;
-        let dt_of = |c: &Cell| dt_bits(cfg, info, c);
+        let steps_of = |c: &Cell| steps_at.get(&dt_bits(cfg, info, c)).copied().unwrap_or(0);
         // the cluster last: the user's own mistakes (grid, run directory)
         // are named first, and a stop while connecting writes nothing
         let mut cluster = match ray {
@@ -166,37 +159,65 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
                 steps: Default::default(),
                 bound: mark.as_ref().map(|m| m as &dyn Fn(&mut CellResult)),
             };
-            let r = match (&physics, &mut cluster) {
-                (Some(physics), _) => {
-                    runner::run_cells(physics.as_ref(), cfg, &todo, *options, &mut hooks).map(drop)
-                }
-                (None, Some((cluster, job))) => cluster::run_cells(
-                    cluster,
-                    job,
-                    &todo,
-                    options.chunk_cells,
-                    &|c| steps_at.get(&dt_of(c)).copied().unwrap_or(0),
-                    &mut hooks,
-                ),
-                (None, None) => Err(Error::Internal(
-                    "a sweep with neither physics nor cluster".into(),
-                )),
-            };
+            let r = run_todo(
+                &mut hooks,
+                physics.as_ref().map(|p| p.as_ref()),
+                cluster.as_mut(),
+                cfg,
+                &todo,
+                options,
+                &steps_of,
+            );
             (r, hooks.steps)
         };
         // disconnects from Ray (the tasks of a stop are cancelled already)
         drop(cluster);
         finish(&mut writer, log, result)?;
         ui.finish();
-        let notes = note
-            .into_iter()
-            .chain(push)
-            .chain(unclipped(cfg, info))
-            .chain(unstable)
-            .chain(advice(cfg))
-            .collect();
+        let warned = [push, unclipped(cfg, info), unstable].into_iter().flatten();
+        let notes = note.into_iter().chain(warned).chain(advice(cfg)).collect();
         Ok(outcome_of(&writer, &steps, todo.len(), started, notes))
     })
+}
+
+/// The cells of the grid a run of `shard` holds (all without one).
+fn shard_cells(cfg: &SweepConfig, shard: Option<&Shard>) -> Vec<Cell> {
+    cfg.grid
+        .cells()
+        .into_iter()
+        .filter(|c| shard.is_none_or(|s| s.holds(c.index)))
+        .collect()
+}
+
+/// The cells not yet in the run directory (a resume skips the others).
+fn still_to_do(cells: Vec<Cell>, writer: &RunWriter) -> Vec<Cell> {
+    let done: Vec<usize> = writer.done().collect();
+    cells
+        .into_iter()
+        .filter(|c| !done.contains(&c.index))
+        .collect()
+}
+
+/// Runs the cells still to do through `hooks`: on this host's physics, or
+/// as tasks of the Ray cluster (`steps_of`: a cell's steps, for progress).
+fn run_todo(
+    hooks: &mut WriterHooks<'_>,
+    physics: Option<&(dyn Physics + '_)>,
+    cluster: Option<&mut (RayCluster<'_>, Job)>,
+    cfg: &SweepConfig,
+    todo: &[Cell],
+    options: &RunOptions,
+    steps_of: &dyn Fn(&Cell) -> u64,
+) -> Result<()> {
+    match (physics, cluster) {
+        (Some(physics), _) => runner::run_cells(physics, cfg, todo, *options, hooks).map(drop),
+        (None, Some((cluster, job))) => {
+            cluster::run_cells(cluster, job, todo, options.chunk_cells, steps_of, hooks)
+        }
+        (None, None) => Err(Error::Internal(
+            "a sweep with neither physics nor cluster".into(),
+        )),
+    }
 }
 
 /// The manifest of a run about to start on `model` (nothing done yet).

@@ -321,34 +321,10 @@ impl<'py> Mujoco<'py> {
             |b: usize| -> Vec<usize> { (1..nbody).filter(|&c| parent[c] == b).collect() };
         let mut legs = Vec::new();
         for first in children(1) {
-            let mut hinges: Vec<usize> = Vec::new();
-            let mut b = first;
-            loop {
-                // mjJNT_HINGE is 3
-                hinges.extend((0..jbody.len()).filter(|&j| jbody[j] == b && jtype[j] == 3));
-                match children(b)[..] {
-                    [only] => b = only,
-                    _ => break,
-                }
-            }
-            if hinges.len() < 3 {
-                continue;
-            }
-            // By their axes, not their order: abduction turns about the
-            // body's forward (x) axis, hip flexion and knee about its side (y).
-            let Some(haa) = hinges
-                .iter()
-                .copied()
-                .max_by(|&a, &c| axis[a][0].abs().total_cmp(&axis[c][0].abs()))
-            else {
+            let (hinges, b) = chain_hinges(first, &children, &jbody, jtype);
+            let Some([haa, hfe, kfe]) = leg_joints(&hinges, &axis) else {
                 continue;
             };
-            let pitch: Vec<usize> = hinges
-                .iter()
-                .copied()
-                .filter(|&j| j != haa && axis[j][1].abs() > 0.9)
-                .collect();
-            let [hfe, kfe, ..] = pitch[..] else { continue };
             // the foot: the last body's colliding geom furthest from the knee
             // (a calf may collide along its length too)
             let from_knee = |g: usize| -> f64 {
@@ -382,6 +358,49 @@ impl<'py> Mujoco<'py> {
         }
         Ok(legs)
     }
+}
+
+/// The hinges down the chain of bodies from `first` while each body has
+/// one child (`children`), and the chain's last body.
+fn chain_hinges(
+    first: usize,
+    children: &dyn Fn(usize) -> Vec<usize>,
+    jbody: &[usize],
+    jtype: &[i64],
+) -> (Vec<usize>, usize) {
+    let mut hinges: Vec<usize> = Vec::new();
+    let mut b = first;
+    loop {
+        // mjJNT_HINGE is 3
+        hinges.extend((0..jbody.len()).filter(|&j| jbody[j] == b && jtype[j] == 3));
+        match children(b)[..] {
+            [only] => b = only,
+            _ => break,
+        }
+    }
+    (hinges, b)
+}
+
+/// A leg's abduction, hip and knee among its `hinges`, by their axes, not
+/// their order: abduction turns about the body's forward (x) axis, hip
+/// flexion and knee about its side (y). None: not a leg.
+fn leg_joints(hinges: &[usize], axis: &[[f64; 3]]) -> Option<[usize; 3]> {
+    if hinges.len() < 3 {
+        return None;
+    }
+    let haa = hinges
+        .iter()
+        .copied()
+        .max_by(|&a, &c| axis[a][0].abs().total_cmp(&axis[c][0].abs()))?;
+    let pitch: Vec<usize> = hinges
+        .iter()
+        .copied()
+        .filter(|&j| j != haa && axis[j][1].abs() > 0.9)
+        .collect();
+    let [hfe, kfe, ..] = pitch[..] else {
+        return None;
+    };
+    Some([haa, hfe, kfe])
 }
 
 /// Each geom's body, contype and conaffinity (MuJoCo's contact filter).

@@ -71,6 +71,31 @@ pub fn start_stance(
     Ok(StartStates::new(owner, std::slice::from_ref(cell), initial)?.stance[0])
 }
 
+/// Each cell's start from the stand pose searched on its body (`depth`
+/// below the hips, or its scaled default): one search per body, not per
+/// cell.
+fn searched_starts(
+    owner: &LoadedModel<'_>,
+    cells: &[CellSetup],
+    depth: Option<f64>,
+) -> Result<Vec<Start>> {
+    let mut poses: Vec<((u64, u64), Start)> = Vec::new();
+    let mut starts = Vec::with_capacity(cells.len());
+    for c in cells {
+        let key = (c.leg_scale.to_bits(), c.torso_mass_scale.to_bits());
+        let start = match poses.iter().find(|(k, _)| *k == key) {
+            Some((_, s)) => s.clone(),
+            None => {
+                let p = owner.stand_pose(c.leg_scale, c.torso_mass_scale, depth)?;
+                poses.push((key, (p.targets, Some(p.base_z))));
+                poses[poses.len() - 1].1.clone()
+            }
+        };
+        starts.push(start);
+    }
+    Ok(starts)
+}
+
 impl StartStates {
     pub fn new(
         owner: &LoadedModel<'_>,
@@ -93,24 +118,7 @@ impl StartStates {
         };
         // each simulation's start: joint angles (also its targets), base height
         let starts: Vec<Start> = match (initial.auto_depth(), &pose, key) {
-            (Some(depth), _, _) => {
-                // one search per body, not per cell
-                let mut poses: Vec<((u64, u64), Start)> = Vec::new();
-                let mut starts = Vec::with_capacity(n);
-                for c in cells {
-                    let key = (c.leg_scale.to_bits(), c.torso_mass_scale.to_bits());
-                    let start = match poses.iter().find(|(k, _)| *k == key) {
-                        Some((_, s)) => s.clone(),
-                        None => {
-                            let p = owner.stand_pose(c.leg_scale, c.torso_mass_scale, depth)?;
-                            poses.push((key, (p.targets, Some(p.base_z))));
-                            poses[poses.len() - 1].1.clone()
-                        }
-                    };
-                    starts.push(start);
-                }
-                starts
-            }
+            (Some(depth), _, _) => searched_starts(owner, cells, depth)?,
             (_, Some(p), _) => vec![(p.clone(), None); n],
             (_, None, Some(k)) => {
                 let kf = &info.keyframes[k];
