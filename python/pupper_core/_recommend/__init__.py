@@ -23,6 +23,7 @@ from typing import Any
 from pupper_core._rundir import printing
 from pupper_core._recommend.card import card_of, in_use, print_card, write_outputs, write_trials
 from pupper_core._types import exported_from
+from pupper_core._recommend.fits import SCRATCH, FitRuns
 from pupper_core._recommend.inputs import plan as make_plan
 from pupper_core._recommend.plan import Plan, RecommendError
 from pupper_core._recommend.search import best_of, robot_model_files, windows
@@ -43,7 +44,7 @@ def recommend(
     # the robots, their firmware and their push
     seconds: float = 4.0, push_force: float | None = None, motor: str | None = None,
     sensing_delay: float | None = None,
-    command_delay: float = 0.0, spread: Sequence[str] | None = None, from_fit: str | os.PathLike[str] | None = None,
+    command_delay: float = 0.0, spread: Sequence[str] | None = None, from_fit: FitRuns = None,
     # the constraints and the motors' limits
     min_phase_margin: float = 30.0, min_gain_margin: float = 6.0, max_saturation: float = 0.05, max_sag: float = 0.1,
     kp_max: float | None = None, kd_max: float | None = None, current: Sequence[float] | str | None = None,
@@ -75,8 +76,8 @@ def recommend(
     (default ``DEFAULT_SPREAD``: torso ±15 %, legs ±10 %, motor gains
     ±10 %, floor friction 0.6-1.2, 1 mrad encoder noise); ``from_fit``: a
     `pupper fit` run directory whose calibrated model is the robot and whose
-    intervals are the spread (8 joint models drawn inside them, the gain
-    scales and the fitted delay drawn per robot). The search's best then
+    intervals are the spread (8 joint models drawn inside them, the gain scales and the fitted
+    delay per robot), or several runs merged (``fits``; out/calibrated.xml). The search's best then
     moves to a better neighbour (a group's kp or kd ×/÷ 1.25, or its kp
     with kd along its margin window) up to ``polish`` times. The search
     starts from each group as stiff as its margins allow. It spans each
@@ -157,9 +158,9 @@ def _run_in(p: Plan, out_dir: Path, force: bool, say: Callable[[str], None]) -> 
         raise
 
 
-#: What a recommend run writes in its directory (robots/ too, with --from-fit).
+#: What a recommend run writes in its directory (robots/ too, with --from-fit; calibrated.xml with several).
 OUTPUTS = ("recommend.csv", "trials.csv", "tradeoffs.csv", "recommended.yaml", "recommended.xml", "manifest.json",
-           "report.html")
+           "report.html", "calibrated.xml")
 
 
 def _clear(d: Path) -> None:
@@ -179,6 +180,8 @@ def _clear(d: Path) -> None:
 def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommendation:
     """The search, the polish, the card and the files."""
     started = time.time()
+    if p.merged_xml:
+        _keep_merged(p, d)
     models = robot_model_files(p, d / "robots")
     wins = windows(p)
     every = search_candidates(p, models, say, lambda cands: write_trials(d, p, cands) if keep else None, wins)
@@ -196,6 +199,22 @@ def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommenda
     return rec
 
 
+def _keep_merged(p: Plan, d: Path) -> None:
+    """The model merged from several fit runs, into the run directory
+    (calibrated.xml): the robots, the exports and the manifest read it
+    there, where the run keeps it."""
+    import shutil
+
+    from pupper_core._rundir import atomic_write_text
+
+    scratch = Path(p.model)
+    d.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(d / "calibrated.xml", p.merged_xml)
+    p.model = os.fspath(d / "calibrated.xml")
+    if scratch.name == "calibrated.xml" and scratch.parent.name.startswith(SCRATCH):
+        shutil.rmtree(scratch.parent, ignore_errors=True)
+
+
 def _cli(args_json: str) -> list[str]:
     """`pupper recommend`: the CLI's parsed flags as JSON; prints the card."""
     a = json.loads(args_json)
@@ -207,5 +226,6 @@ def _cli(args_json: str) -> list[str]:
         print_card(rec)
     if rec.out is None:
         return []
-    return [str(rec.out / f) for f in ("recommend.csv", "trials.csv", "tradeoffs.csv", "recommended.yaml",
+    merged = ("calibrated.xml",) if rec.plan.merged_xml else ()
+    return [str(rec.out / f) for f in (*merged, "recommend.csv", "trials.csv", "tradeoffs.csv", "recommended.yaml",
                                        "recommended.xml", "report.html") if (rec.out / f).exists()]

@@ -126,12 +126,14 @@ def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], 
     step = _step_response(plan, xml)
     warnings += _headroom(plan, pick)
     cards = []
+    # where some group's motors deliver other gains (a fit of some motors), every group says what it delivers
+    scaled = any(g.scaled for g in plan.groups)
     for g in plan.groups:
         kp, kd = pick.gains[g.name]
         lim = g.torque_limit
         # the nominal motor: the middle of its scales (one value where the fit found one)
         mkp, mkd = (kp * math.sqrt(g.kp_scale[0] * g.kp_scale[1]), kd * math.sqrt(g.kd_scale[0] * g.kd_scale[1])
-                    ) if g.scaled else (None, None)
+                    ) if scaled else (None, None)
         cards.append(Card(g.name, kp, kd, pick.phase_deg[g.name], pick.gain_db[g.name],
                           step[g.name]["rise_time_s"], step[g.name]["overshoot_pct"],
                           step[g.name]["settling_time_s"], pick.p95_dip_mm,
@@ -398,6 +400,8 @@ def print_card(rec: Recommendation) -> None:
         print("".join(f"{v:>12}" for v in vals))
     print(f"kp, kd: the gains to command (recommended.yaml's kps, kds){_delivered_note(plan)}"
           + ("; the margins are of the delivered gains (motor kp, motor kd)" if scaled else ""))
+    if plan.fit_runs:
+        print(fits_line(plan))
     if plan.latency_from:
         print(plan.latency_from)
     c0 = rec.cards[0]
@@ -422,6 +426,12 @@ def print_card(rec: Recommendation) -> None:
     polished = sum(1 for c in ran if c.stage == "polish")
     print(f"{len(ran)} candidates on the robots ({len(rec.candidates)} asked, {polished} of them neighbours "
           f"in the polish), {steps} cell-steps")
+
+
+def fits_line(plan: Plan) -> str:
+    """Where a model merged from several fit runs came from."""
+    return (f"robot: the fit runs {', '.join(str(d) for d in plan.fit_runs)} merged into one model ({plan.model}): "
+            "each actuator's calibrated parameters from the run that fitted it")
 
 
 def in_use_line(plan: Plan, c: Candidate) -> str:

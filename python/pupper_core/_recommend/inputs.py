@@ -5,7 +5,6 @@ intervals), the firmware, the constraints."""
 
 from __future__ import annotations
 
-import csv
 import math
 import os
 import re
@@ -13,6 +12,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from pupper_core._recommend.fits import FitRuns, actuators, fit_runs, kind, robot_of
 from pupper_core._recommend.plan import DEFAULT_MOTOR, DEFAULT_SPREAD, FIT_MODELS, Group, Plan, RecommendError
 from pupper_core._recommend.robot_config import config_gains, current_gains, joint_order_of, read_robot_config
 
@@ -140,9 +140,9 @@ def _latency(rows: Sequence[Mapping[str, str]], given: float | None) -> tuple[fl
     oldest measurements the logs allow) unless --sensing-delay is given."""
     if not rows:
         return (SENSING_DELAY if given is None else given), ""
-    lat = [(float(r["fitted"]), *_interval(r)) for r in rows if r.get("parameter") == "latency"]
+    lat = [(float(r["fitted"]), *_interval(r)) for r in rows if kind(r) == "latency"]
     # an interval the logs could not bound places no latency
-    unplaced = [r for r in rows if r.get("parameter") == "latency"
+    unplaced = [r for r in rows if kind(r) == "latency"
                 and not all(math.isfinite(float(r[k] or "nan")) for k in ("low95", "high95"))]
     if given is not None:
         said = f"{given:g} s, given by --sensing-delay"
@@ -158,20 +158,11 @@ def _latency(rows: Sequence[Mapping[str, str]], given: float | None) -> tuple[fl
         said = (f"{sensing:g} s, the default: the fit could not bound its feedback latency (add a log at "
                 "another kp)" if unplaced else
                 f"{sensing:g} s, the default: the fit measured no feedback latency (fit it: --params ...,latency)")
-    delays = [(float(r["fitted"]), *_interval(r)) for r in rows if r.get("parameter") == "delay"]
-    command = ("command delay " + ", ".join(f"{a:.3g} to {b:.3g} s" for _, a, b in delays)
+    delays = [(float(r["fitted"]), *_interval(r)) for r in rows if kind(r) == "delay"]
+    command = ("command delay " + ", ".join(dict.fromkeys(f"{a:.3g} to {b:.3g} s" for _, a, b in delays))
                + " drawn per robot, the fit's delay interval (fit.csv: delay)" if delays and
                max(b for _, _, b in delays) > 1e-9 else "no command delay (the fit found none)")
     return sensing, f"latency assumed: sensing (feedback) {said}; {command}"
-
-
-def _fit_rows(d: Path) -> list[dict[str, str]]:
-    f = d / "fit.csv"
-    if not (f.is_file() and (d / "calibrated.xml").is_file()):
-        raise RecommendError(f"--from-fit {d}: no fit there (fit.csv and calibrated.xml): give a `pupper fit` "
-                             "run directory")
-    with open(f, newline="") as fh:
-        return list(csv.DictReader(fh))
 
 
 def _interval(r: Mapping[str, str], floor: float = 0.0) -> tuple[float, float]:
@@ -191,7 +182,7 @@ def _scale_factors(rows: Sequence[Mapping[str, str]], parameter: str) -> tuple[f
     model's fitted scale: the widest interval over the fit's rows."""
     lo, hi = 1.0, 1.0
     for r in rows:
-        if r.get("parameter") == parameter:
+        if kind(r) == parameter:
             a, b = _interval(r, 1e-6)
             v = float(r["fitted"])
             lo, hi = min(lo, a / v), max(hi, b / v)
@@ -199,8 +190,7 @@ def _scale_factors(rows: Sequence[Mapping[str, str]], parameter: str) -> tuple[f
 
 
 def _actuators_of(r: Mapping[str, str], names: Sequence[str]) -> list[str]:
-    listed = [a for a in re.split(r"[ ;|]+", r.get("actuators", "").strip()) if a]
-    return [a for a in listed if a in names] or list(names)
+    return [a for a in actuators(r) if a in names] or list(names)
 
 
 def _fit_draws(rows: Sequence[Mapping[str, str]], names: Sequence[str],
@@ -214,9 +204,9 @@ def _fit_draws(rows: Sequence[Mapping[str, str]], names: Sequence[str],
         rng = np.random.default_rng([seed, k])
         one = []
         for r in rows:
-            if r.get("parameter") in ("armature", "damping", "frictionloss"):
+            if kind(r) in ("armature", "damping", "frictionloss"):
                 a, b = _interval(r)
-                one.append((str(r["parameter"]), _actuators_of(r, names), float(rng.uniform(a, b))))
+                one.append((kind(r), _actuators_of(r, names), float(rng.uniform(a, b))))
         draws.append(one)
     return draws
 
@@ -225,7 +215,7 @@ def _armature_low(rows: Sequence[Mapping[str, str]], names: Sequence[str]) -> di
     """By how much each actuator's armature may lie below its fitted value."""
     out: dict[str, float] = {}
     for r in rows:
-        if r.get("parameter") == "armature":
+        if kind(r) == "armature":
             a, _ = _interval(r)
             for n in _actuators_of(r, names):
                 out[n] = max(out.get(n, 0.0), float(r["fitted"]) - a)
@@ -234,7 +224,7 @@ def _armature_low(rows: Sequence[Mapping[str, str]], names: Sequence[str]) -> di
 
 def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int, seed: int, seconds: float,
          push_force: float | None, motor: str | None, sensing_delay: float | None, command_delay: float,
-         spread: Sequence[str] | None, from_fit: str | os.PathLike[str] | None, min_phase_margin: float,
+         spread: Sequence[str] | None, from_fit: FitRuns, min_phase_margin: float,
          min_gain_margin: float, max_saturation: float, kp_max: float | None, kd_max: float | None,
          joint_order: Sequence[str] | str | None, controller: str, polish: int, max_sag: float,
          current: Sequence[float] | str | None, robot_config: str | os.PathLike[str] | None) -> Plan:
@@ -247,12 +237,10 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
                    sensing_delay=sensing_delay, command_delay=command_delay, min_phase_margin=min_phase_margin,
                    min_gain_margin=min_gain_margin, max_sag=max_sag, max_saturation=max_saturation, kp_max=kp_max,
                    kd_max=kd_max)
-    fit_dir = None if from_fit is None else Path(from_fit)
-    rows: list[dict[str, str]] = []
-    if fit_dir is not None:
-        rows = _fit_rows(fit_dir)
-        model = fit_dir / "calibrated.xml"
-    model = os.fspath(model)
+    runs = fit_runs(from_fit)
+    fit_dir = runs[0] if len(runs) == 1 else None
+    rows, merged_xml, fitted = robot_of(runs)
+    model = os.fspath(fitted or model)
     base = list(DEFAULT_SPREAD if spread is None else spread)
     g, leg = _relative(base, "motor_gain"), _relative(base, "leg_mass")
     kp_f, kd_f = _scale_factors(rows, "kp_scale"), _scale_factors(rows, "kd_scale")
@@ -263,7 +251,7 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
         if w > 1e-4:
             base.append(f"motor_gain=±{100 * w:.4g}%")
         g = 0.0
-        delays = [_interval(r) for r in rows if r.get("parameter") == "delay"]
+        delays = [_interval(r) for r in rows if kind(r) == "delay"]
         # a delay interval of round-off around 0 (a noise-free fit) is no delay
         if delays and max(b for _, b in delays) > 1e-9:
             base.append(f"motor_delay={min(a for a, _ in delays):.6g}:{max(b for _, b in delays):.6g}")
@@ -305,6 +293,7 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
                 push_force=push_force, min_phase_margin=min_phase_margin, min_gain_margin=min_gain_margin,
                 max_saturation=max_saturation, joint_order=order, controller=controller, polish=polish,
                 max_sag=max_sag, stance=stance(model=model), from_fit=fit_dir, fit_rows=rows,
+                fit_runs=runs if merged_xml else [], merged_xml=merged_xml,
                 fit_draws=_fit_draws(rows, names, seed) if rows else [], current=now, current_from=now_from,
                 caps=capped, latency_from=latency_from)
 
@@ -369,9 +358,12 @@ def _check_types(kw: Mapping[str, Any]) -> None:
     for n in ("motor", "controller"):
         if not (isinstance(kw[n], str) or (n == "motor" and kw[n] is None)):
             raise bad(n, "a string")
-    for n in ("model", "from_fit"):
-        if not (isinstance(kw[n], (str, os.PathLike)) or (n == "from_fit" and kw[n] is None)):
-            raise bad(n, "a path")
+    if not isinstance(kw["model"], (str, os.PathLike)):
+        raise bad("model", "a path")
+    f = kw["from_fit"]
+    if not (f is None or isinstance(f, (str, os.PathLike))
+            or (isinstance(f, Sequence) and f and all(isinstance(x, (str, os.PathLike)) for x in f))):
+        raise bad("from_fit", "a path, or a list of paths")
     for n in ("spread", "joint_order"):
         v = kw[n]
         if v is None or isinstance(v, str):

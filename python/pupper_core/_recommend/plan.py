@@ -127,6 +127,10 @@ class Plan:
     caps: bool = False
     #: with a fit: which latencies the margins and robots assumed, and where each came from
     latency_from: str = ""
+    #: several fit runs merged into one model (``fits.merged``): the runs, and the model's MJCF, which the
+    #: run directory keeps as calibrated.xml (``model`` is that file once the run starts)
+    fit_runs: list[Path] = field(default_factory=list)
+    merged_xml: str = ""
 
     def sags(self, height: float) -> bool:
         """Whether a robot whose lowest final base height is `height` (m)
@@ -160,7 +164,8 @@ class Plan:
             "max_sag": self.max_sag, "stance_m": self.stance,
             "ranges": {g.name: {"kp": list(g.kp_range), "kd": list(g.kd_range)} for g in self.groups},
             "joint_order": self.joint_order, "controller": self.controller, "polish": self.polish,
-            "from_fit": None if self.from_fit is None else os.fspath(self.from_fit),
+            "from_fit": ([os.fspath(d) for d in self.fit_runs] if self.fit_runs else
+                         None if self.from_fit is None else os.fspath(self.from_fit)),
             "fit_draws": [[[p, a, v] for p, a, v in d] for d in self.fit_draws],
             # what the motors deliver of a commanded gain, per group: the loop is closed on it
             "delivered": {g.name: {"kp": [self.kp_factors[0] * g.kp_scale[0], self.kp_factors[1] * g.kp_scale[1]],

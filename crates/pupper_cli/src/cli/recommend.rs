@@ -37,6 +37,8 @@ floor friction 0.6-1.2, 1 mrad of encoder noise, 0 to --sensing-delay of sensing
 candidate meets the same robots (common draws), so the card's numbers are reproduced by the sweep
 the manifest names. With --from-fit DIR the robot is the fit's calibrated model and the spread is
 its 95 % intervals: 8 joint models drawn inside them, the gain scales and the delay per robot.
+With several runs (--from-fit A B, e.g. per-joint fits of different motors) the robot is one model
+of what each fitted, written to the run directory as calibrated.xml.
 
 Writes, in the run directory: recommend.csv (a card per group: gains, margins, predicted step
 response, p95 push dip, torque headroom), trials.csv (every candidate), tradeoffs.csv (those no
@@ -97,9 +99,12 @@ pub(super) struct RecommendArgs {
     #[serde(serialize_with = "pyargs::none_if_empty")]
     spread: Vec<String>,
     /// A `pupper fit` run directory: its calibrated model is the robot, its intervals the spread.
-    #[arg(long, value_name = "DIR")]
-    #[serde(serialize_with = "pyargs::opt_path")]
-    from_fit: Option<PathBuf>,
+    /// Several (repeat the flag, or list them after it) merge into one model, each actuator's
+    /// calibrated parameters from the run that fitted it; two runs that calibrate one actuator's
+    /// parameter to different values are refused.
+    #[arg(long, value_name = "DIR", num_args = 1..)]
+    #[serde(serialize_with = "pyargs::paths_or_none")]
+    from_fit: Vec<PathBuf>,
     /// Least phase margin of every group's loop on every robot (degrees).
     #[arg(long, default_value_t = 30.0, value_name = "DEG", allow_negative_numbers = true, value_parser = finite)]
     min_phase_margin: f64,
