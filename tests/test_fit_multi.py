@@ -197,3 +197,15 @@ def test_two_runs_that_disagree_on_a_motor_are_refused(runs):
     # the same run twice is no merge either
     p = pupper("recommend", "--from-fit", "hip", "hip/", "-o", "rec_twice", check=2)
     assert "twice" in p.stderr and not (d / "rec_twice").exists()
+
+
+def test_every_kind_of_parameter_is_the_motors_or_the_links():
+    """A fit of several motors shares what the motor-type warning compares
+    (judge.MOTOR_KINDS) and keeps the rest per joint (cover.LINK_KINDS): a
+    new kind must be one or the other."""
+    from pupper_core._fit.cover import LINK_KINDS
+    from pupper_core._fit.judge import MOTOR_KINDS
+    from pupper_core._fit.terms import PARAMS
+
+    assert set(LINK_KINDS).isdisjoint(MOTOR_KINDS)
+    assert set(LINK_KINDS) | set(MOTOR_KINDS) == set(PARAMS)

@@ -39,7 +39,8 @@ def fit_runs(from_fit: FitRuns) -> list[Path]:
     for d in runs:
         key = d.resolve()
         if key in seen:
-            raise RecommendError(f"--from-fit names {seen[key]} twice ({d}): give each fit run once")
+            also = f" (as {d})" if str(d) != str(seen[key]) else ""
+            raise RecommendError(f"--from-fit names {seen[key]} twice{also}: give each fit run once")
         seen[key] = d
     return runs
 
