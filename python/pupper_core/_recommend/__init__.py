@@ -190,6 +190,7 @@ def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommenda
         rec.searched = pick
         rec.current = in_use(p, models, say)
         rec.cards, rec.neighbours, rec.warnings, rec.pick = card_of(p, pick, near, d, say)
+        p.task.after(rec, models, say, wins)
     if keep:
         write_trials(d, p, every)
     rec.yaml, rec.mjcf = write_outputs(rec, d, keep, time.time() - started)

@@ -13,8 +13,30 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from pupper_core._recommend.plan import DEFAULT_MOTOR, DEFAULT_SPREAD, FIT_MODELS, Group, Plan, RecommendError
+from pupper_core._recommend.plan import DEFAULT_MOTOR, DEFAULT_SPREAD, FIT_MODELS, Group, Plan, RecommendError, Task
 from pupper_core._recommend.robot_config import config_gains, current_gains, joint_order_of, read_robot_config
+from pupper_core._recommend.stand import Stand
+
+#: The registry: what the gains can be ranked for (`--task NAME`), each a
+#: `plan.Task` in a module of its own.
+TASKS: dict[str, type[Task]] = {
+    "stand": Stand,
+}
+
+
+def task_of(name: str, options: Mapping[str, Any]) -> Task:
+    """The task --task names, set by its keywords (None: not given); a
+    keyword of another task's is refused, naming the task it sets."""
+    if name not in TASKS:
+        said = " or ".join(f"{n} ({t.about})" for n, t in TASKS.items())
+        raise RecommendError(f"--task {name!r} is not a task: use {said}")
+    given = {k: v for k, v in options.items() if v is not None}
+    for k in given:
+        if k not in TASKS[name].options:
+            owner = next(n for n, t in TASKS.items() if k in t.options)
+            raise RecommendError(f"--{k.replace('_', '-')} sets the {owner} the gains are ranked on: add --task "
+                                 f"{owner}, or drop it")
+    return TASKS[name].of(given)
 
 
 def _positive(name: str, v: float, flag: str, *, zero: bool = False) -> float:
@@ -243,10 +265,11 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
     _check_types(dict(locals()))
     if isinstance(spread, str):
         spread = [spread]  # one spec (a spec may hold a comma: N(0,0.001))
+    task = task_of("stand", {})
     _check_numbers(robots=robots, trials=trials, batch=batch, polish=polish, seconds=seconds,
                    sensing_delay=sensing_delay, command_delay=command_delay, min_phase_margin=min_phase_margin,
                    min_gain_margin=min_gain_margin, max_sag=max_sag, max_saturation=max_saturation, kp_max=kp_max,
-                   kd_max=kd_max)
+                   kd_max=kd_max, task=task, push_force=push_force)
     fit_dir = None if from_fit is None else Path(from_fit)
     rows: list[dict[str, str]] = []
     if fit_dir is not None:
@@ -299,27 +322,31 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
         now, now_from = config_gains(config, names, groups, Path(robot_config or ""))
     else:
         now, now_from = current_gains(current, inf, groups)
-    return Plan(model=model, actuators=names, groups=groups, timestep=dt, motor=motor_spec,
+    p = Plan(model=model, actuators=names, groups=groups, timestep=dt, motor=motor_spec,
                 sensing_delay=sensing_delay, command_delay=command_delay, spread=drawn, kp_factors=kp_factors,
                 kd_factors=kd_factors, robots=robots, trials=trials, batch=batch, seed=seed, seconds=seconds,
                 push_force=push_force, min_phase_margin=min_phase_margin, min_gain_margin=min_gain_margin,
                 max_saturation=max_saturation, joint_order=order, controller=controller, polish=polish,
                 max_sag=max_sag, stance=stance(model=model), from_fit=fit_dir, fit_rows=rows,
                 fit_draws=_fit_draws(rows, names, seed) if rows else [], current=now, current_from=now_from,
-                caps=capped, latency_from=latency_from)
+                caps=capped, latency_from=latency_from, task=task)
+    task.check(p)
+    return p
 
 
 def _check_numbers(*, robots: int, trials: int, batch: int, polish: int, seconds: float,
                    sensing_delay: float | None,
                    command_delay: float, min_phase_margin: float, min_gain_margin: float, max_sag: float,
-                   max_saturation: float, kp_max: float | None, kd_max: float | None) -> None:
-    """Each number in its range, or one line naming the flag and a value."""
+                   max_saturation: float, kp_max: float | None, kd_max: float | None, task: Task,
+                   push_force: float | None) -> None:
+    """Each number in its range, or one line naming the flag and a value
+    (the run's length and push as the task needs them)."""
     if robots < 1 or trials < 1 or batch < 1:
         raise RecommendError(f"robots {robots}, trials {trials}, batch {batch}: each must be a whole number >= 1")
     if polish < 0:
         raise RecommendError(f"--polish {polish} must be a whole number >= 0 (0: the search's pick, unmoved)")
     _positive("the simulated seconds per robot, e.g. 4", seconds, "--seconds")
-    _reaches_the_push(seconds)
+    task.check_run(seconds, push_force)
     if sensing_delay is not None:
         _positive("seconds of feedback latency, e.g. 0.002", sensing_delay, "--sensing-delay", zero=True)
     _positive("seconds of command delay, e.g. 0.01", command_delay, "--command-delay", zero=True)
@@ -378,19 +405,6 @@ def _check_types(kw: Mapping[str, Any]) -> None:
             continue
         if not isinstance(v, Sequence) or not all(isinstance(x, str) for x in v):
             raise bad(n, "a string or a list of strings")
-
-
-def _reaches_the_push(seconds: float) -> None:
-    """A run that ends before the push's dip is known measures no push dip,
-    so no candidate could hold: said before anything runs."""
-    from pupper_core._native import DIP_AFTER, sweep_defaults
-
-    d = sweep_defaults()
-    need = float(d["push_at"]) + float(d["push_duration"]) + DIP_AFTER
-    if seconds < need - 1e-9:
-        raise RecommendError(f"--seconds {seconds:g} ends before the push (at {d['push_at']:g} s, for "
-                             f"{d['push_duration']:g} s) and the {DIP_AFTER:g} s after it, where its dip is measured, "
-                             f"are over: give --seconds {need:g} or more")
 
 
 def _servo_delay(spec: str) -> None:
