@@ -16,7 +16,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from pupper_core._report import fit, lab, recommend, response, sweep, tune
+from pupper_core._report import fit, lab, recommend, response, sweep, tune, walk
 from pupper_core._report import page as kit
 from pupper_core._report.page import SCRIPT, STYLE, Page, Sections, inputs_html, read_table
 
@@ -28,6 +28,7 @@ SECTIONS: dict[str, Sections] = {
     "lab": lab.sections,
     "response": response.sections,
     "hold": sweep.sections,
+    "walk": walk.sections,
     "tune": tune.sections,
     "fit": fit.sections,
     "recommend": recommend.sections,

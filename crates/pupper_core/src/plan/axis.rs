@@ -87,6 +87,11 @@ axes! {
     KdHaa = "kd.haa", "kdhaa", None, GAIN;
     KdHfe = "kd.hfe", "kdhfe", None, GAIN;
     KdKfe = "kd.kfe", "kdkfe", None, GAIN;
+    /// A walk's gait: cycles per second (Hz), commanded forward speed (m/s), duty factor, step height (m).
+    Frequency = "frequency", "f", Some("walk"), |v| (!(v > 0.0 && v <= 20.0)).then_some("frequency must be in (0, 20] Hz");
+    Speed = "speed", "v", Some("walk"), |v| (v.abs() > 5.0).then_some("speed must be in [-5, 5] m/s");
+    Duty = "duty", "duty", Some("walk"), |v| (!(0.05..=0.95).contains(&v)).then_some("duty must be in [0.05, 0.95]");
+    StepHeight = "step_height", "step", Some("walk"), |v| (!(0.0..=1.0).contains(&v)).then_some("step_height must be in [0, 1] m");
 }
 
 impl Axis {

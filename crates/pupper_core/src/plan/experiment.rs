@@ -87,6 +87,8 @@ kinds! {
     /// The robot stands under a load ramped onto its base, then is shoved
     /// sideways: `pupper hold`.
     Hold(Load) = hold;
+    /// The robot walks a gait, open loop at the kinematic level: `pupper walk`.
+    Walk(crate::plan::walk::Walk) = walk;
 }
 
 impl Experiment {

@@ -192,6 +192,7 @@ fn probe(cfg: &SweepConfig, s: &Start<'_>) -> Box<dyn Probe> {
             s.schedule,
             s.dt,
         )),
+        (Experiment::Walk(w), _) => Box::new(crate::sim::walk::WalkProbe::new(s, w)),
         _ => Box::new(StandProbe::new(Recorder::new(s.schedule, s.dt, s.stance))),
     }
 }
