@@ -16,11 +16,13 @@ from typing import Any
 from pupper_core._recommend.plan import DEFAULT_MOTOR, DEFAULT_SPREAD, FIT_MODELS, Group, Plan, RecommendError, Task
 from pupper_core._recommend.robot_config import config_gains, current_gains, joint_order_of, read_robot_config
 from pupper_core._recommend.stand import Stand
+from pupper_core._recommend.walk import WalkTask
 
 #: The registry: what the gains can be ranked for (`--task NAME`), each a
 #: `plan.Task` in a module of its own.
 TASKS: dict[str, type[Task]] = {
     "stand": Stand,
+    "walk": WalkTask,
 }
 
 
@@ -254,22 +256,24 @@ def _armature_low(rows: Sequence[Mapping[str, str]], names: Sequence[str]) -> di
     return out
 
 
-def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int, seed: int, seconds: float,
+def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int, seed: int, seconds: float | None,
          push_force: float | None, motor: str | None, sensing_delay: float | None, command_delay: float,
          spread: Sequence[str] | None, from_fit: str | os.PathLike[str] | None, min_phase_margin: float,
          min_gain_margin: float, max_saturation: float, kp_max: float | None, kd_max: float | None,
          joint_order: Sequence[str] | str | None, controller: str, polish: int, max_sag: float,
-         current: Sequence[float] | str | None, robot_config: str | os.PathLike[str] | None) -> Plan:
+         current: Sequence[float] | str | None, robot_config: str | os.PathLike[str] | None, task: str,
+         gait: str | None, speed: float | None, frequency: float | None, max_tilt: float | None) -> Plan:
     """Every input checked, the model read; one line per mistake. (No
     defaults here: `pupper_core.recommend` declares them, once.)"""
     _check_types(dict(locals()))
     if isinstance(spread, str):
         spread = [spread]  # one spec (a spec may hold a comma: N(0,0.001))
-    task = task_of("stand", {})
+    ranked = task_of(task, {"gait": gait, "speed": speed, "frequency": frequency, "max_tilt": max_tilt})
+    seconds = ranked.seconds if seconds is None else seconds
     _check_numbers(robots=robots, trials=trials, batch=batch, polish=polish, seconds=seconds,
                    sensing_delay=sensing_delay, command_delay=command_delay, min_phase_margin=min_phase_margin,
                    min_gain_margin=min_gain_margin, max_sag=max_sag, max_saturation=max_saturation, kp_max=kp_max,
-                   kd_max=kd_max, task=task, push_force=push_force)
+                   kd_max=kd_max, task=ranked, push_force=push_force)
     fit_dir = None if from_fit is None else Path(from_fit)
     rows: list[dict[str, str]] = []
     if fit_dir is not None:
@@ -329,8 +333,8 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
                 max_saturation=max_saturation, joint_order=order, controller=controller, polish=polish,
                 max_sag=max_sag, stance=stance(model=model), from_fit=fit_dir, fit_rows=rows,
                 fit_draws=_fit_draws(rows, names, seed) if rows else [], current=now, current_from=now_from,
-                caps=capped, latency_from=latency_from, task=task)
-    task.check(p)
+                caps=capped, latency_from=latency_from, task=ranked)
+    ranked.check(p)
     return p
 
 
@@ -385,16 +389,17 @@ def _check_types(kw: Mapping[str, Any]) -> None:
     if not 0 <= kw["seed"] < 2**64:
         raise bad("seed", "a whole number from 0 to 2**64 - 1")
     for n in ("seconds", "sensing_delay", "command_delay", "min_phase_margin", "min_gain_margin", "max_saturation",
-              "max_sag", "push_force", "kp_max", "kd_max"):
+              "max_sag", "push_force", "kp_max", "kd_max", "speed", "frequency", "max_tilt"):
         v = kw[n]
-        if v is None and n in ("push_force", "kp_max", "kd_max", "sensing_delay"):
+        if v is None and n in ("seconds", "push_force", "kp_max", "kd_max", "sensing_delay", "speed", "frequency",
+                               "max_tilt"):
             continue
         if isinstance(v, bool) or not isinstance(v, numbers.Real):
             raise bad(n, "a number")
     if kw["push_force"] is not None and not math.isfinite(kw["push_force"]):
         raise bad("push_force", "a finite number of newtons")
-    for n in ("motor", "controller"):
-        if not (isinstance(kw[n], str) or (n == "motor" and kw[n] is None)):
+    for n in ("motor", "controller", "task", "gait"):
+        if not (isinstance(kw[n], str) or (n in ("motor", "gait") and kw[n] is None)):
             raise bad(n, "a string")
     for n in ("model", "from_fit"):
         if not (isinstance(kw[n], (str, os.PathLike)) or (n == "from_fit" and kw[n] is None)):

@@ -8,6 +8,7 @@ import html
 import math
 from typing import Any
 
+from pupper_core._report import walk
 from pupper_core._report.page import Page, TaskWords, read_table, table
 from pupper_core._report.svg import bars, num, scatter
 
@@ -19,6 +20,7 @@ STAND = TaskWords("p95_push_dip_mm", "p95 push dip", "mm", lambda inputs, rule: 
 #: it (a task of its own writes `task`; the stand's runs write none).
 TASKS: dict[str, TaskWords] = {
     "stand": STAND,
+    "walk": walk.RECOMMEND,
 }
 
 def sections(page: Page) -> list[str]:

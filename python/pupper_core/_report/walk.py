@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import html
 import math
+from typing import Any
 
-from pupper_core._report.page import Page, edge_of, numbers, read_table, status_warnings, table, z_figure, z_traces
+from pupper_core._report.page import Page, TaskWords, edge_of, numbers, read_table, status_warnings, table, z_figure, z_traces
 from pupper_core._report.svg import bars, heatmap, lines, num, rounded
 
 #: The gait axes a grid may vary (the Rust core's axes the walk kind owns, axis.rs).
@@ -127,3 +128,31 @@ def _speed_figure(page: Page, gait: list[str], gains: list[str], picked: set[str
     return bars([r["id"] for r in rows], {col: [num(r.get(col)) for r in rows],
                                            "commanded": [_commanded(page, r) for r in rows]},
                 f"speed achieved ({col}) beside the speed commanded, m/s (orange: a pick)", bi, " m/s")
+
+
+def recommend_walk_rule(inp: dict[str, Any], stand_rule: str) -> str:
+    """`recommend --task walk`'s rule, in words: the stand rule's
+    constraints, ranked by the walk's speed error instead of the push dip."""
+    head, _, rest = stand_rule.partition(" among gains that hold on every one: ")
+    constraints = rest.rsplit("; push dips within", 1)[0]
+    return (f"the lowest p95 speed error of a {inp.get('gait')} at {inp.get('frequency')} Hz and {inp.get('speed')} "
+            f"m/s over {inp.get('robots')} drawn robots among gains that hold on every one while walking: "
+            f"{constraints}, roll and pitch RMS under {inp.get('max_tilt_deg')}°; speed errors within 2 % tie, won by "
+            "the faster slowest group")
+
+
+def _recommend_quoted(inp: dict[str, Any], cards: list[dict[str, str]]) -> str:
+    """What the answer quotes of `recommend --task walk`'s card."""
+    return (f"p95 speed error {num(cards[0].get('p95_speed_error_pct', 'nan')):.4g} % over them at a "
+            f"{inp.get('gait')} of {inp.get('frequency')} Hz and {inp.get('speed')} m/s")
+
+
+def _recommend_shown(manifest: dict[str, Any]) -> str:
+    """The pick beside `--task stand`'s, as the card printed it."""
+    lines = manifest.get("compared")
+    return "<pre>" + html.escape("\n".join(lines)) + "</pre>" if lines else ""
+
+
+#: `recommend --task walk`'s words (the recommend page's registry holds them).
+RECOMMEND = TaskWords("p95_speed_error_pct", "p95 speed error", "%", recommend_walk_rule, _recommend_quoted,
+                      _recommend_shown, "the walk")

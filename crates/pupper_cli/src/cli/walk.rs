@@ -10,7 +10,9 @@ use pupper_core::request::spec::SweepSpec;
 use pupper_core::request::walk::{WalkInput, best_by, seconds, spec};
 use pupper_core::results::{best, output};
 
-use super::args::{GridArg, OutputArgs, PopulationArgs, RunnerArgs, SimArgs};
+use serde::Serialize;
+
+use super::args::{GridArg, OutputArgs, PopulationArgs, RunnerArgs, SimArgs, finite};
 use super::sweep::{Job, run_job};
 
 #[derive(Args, Debug)]
@@ -175,4 +177,23 @@ pub(super) fn run(a: WalkArgs, stop: &'static AtomicBool) -> Result<u8> {
         },
         stop,
     )
+}
+
+/// `recommend --task walk`'s gait: the walk each candidate makes on the
+/// drawn robots (`pupper walk`'s, and its defaults, where not given).
+#[derive(Args, Debug, Serialize)]
+pub(super) struct WalkTaskArgs {
+    /// With --task walk: the gait (trot, walk, pace or bound) [default: a trot]
+    #[arg(long, value_name = "GAIT")]
+    gait: Option<String>,
+    /// With --task walk: the commanded forward speed (m/s) [default: 0.25 m/s]
+    #[arg(long, value_name = "M_S", allow_negative_numbers = true, value_parser = finite)]
+    speed: Option<f64>,
+    /// With --task walk: gait cycles per second (Hz) [default: 2 Hz]
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true, value_parser = finite)]
+    frequency: Option<f64>,
+    /// With --task walk: the most roll or pitch RMS any robot may keep while walking (degrees)
+    /// [default: 10 degrees]
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true, value_parser = finite)]
+    max_tilt: Option<f64>,
 }
