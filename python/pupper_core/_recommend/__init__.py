@@ -42,13 +42,14 @@ def recommend(
     # the search
     robots: int = 32, trials: int = 48, batch: int = 16, seed: int = 0, polish: int = 4,
     # the robots, their firmware and their push
-    seconds: float = 4.0, push_force: float | None = None, motor: str | None = None,
+    seconds: float | None = None, push_force: float | None = None, motor: str | None = None,
     sensing_delay: float | None = None,
     command_delay: float = 0.0, spread: Sequence[str] | None = None, from_fit: FitRuns = None,
-    # the constraints and the motors' limits
+    # the constraints, the motors' limits, the gains in use; what the gains are ranked for (standing, walking)
     min_phase_margin: float = 30.0, min_gain_margin: float = 6.0, max_saturation: float = 0.05, max_sag: float = 0.1,
     kp_max: float | None = None, kd_max: float | None = None, current: Sequence[float] | str | None = None,
-    robot_config: str | os.PathLike[str] | None = None,
+    robot_config: str | os.PathLike[str] | None = None, task: str = "stand",
+    gait: str | None = None, speed: float | None = None, frequency: float | None = None, max_tilt: float | None = None,
     # the exports and the run directory
     joint_order: Sequence[str] | str | None = None, controller: str = "neural_controller",
     out: str | os.PathLike[str] | None = None, force: bool = False, progress: bool | Callable[[str], None] = True,
@@ -99,23 +100,30 @@ def recommend(
     dip, tracking speed and stand height; recommended.yaml: a ROS 2 parameter file with ``kps`` and
     ``kds`` for ``controller`` in ``joint_order``; recommended.xml: the
     model with the gains in its actuators; report.html; manifest.json).
+
+    ``task="walk"``: the lowest p95 speed error of `pupper walk` at ``gait``, ``frequency`` and ``speed``, every
+    robot's roll and pitch RMS under ``max_tilt``°; the card sets it beside ``task="stand"``'s (docs/recommend.md).
     """
     say = sayer(progress)
-    try:
-        import optuna  # noqa: F401  (the search's sampler)
-    except ImportError:
-        raise RecommendError("pupper recommend needs Optuna: install the extra with `make setup PUPPER_EXTRAS=tune` "
-                             "(or pip install 'pupper_core[tune]')") from None
+    _need_optuna()
     p = make_plan(model, robots=robots, trials=trials, batch=batch, seed=seed, polish=polish, seconds=seconds,
                   push_force=push_force, motor=motor, sensing_delay=sensing_delay, command_delay=command_delay,
                   spread=spread, from_fit=from_fit, min_phase_margin=min_phase_margin,
                   min_gain_margin=min_gain_margin, max_saturation=max_saturation, max_sag=max_sag, kp_max=kp_max,
                   kd_max=kd_max, current=current, robot_config=robot_config, joint_order=joint_order,
-                  controller=controller)
+                  controller=controller, task=task, gait=gait, speed=speed, frequency=frequency, max_tilt=max_tilt)
     if out is None:
         with tempfile.TemporaryDirectory(prefix="pupper-recommend-") as tmp, stop_on_signals("recommend"):
             return _run(p, Path(tmp), say, keep=False)
     return _run_in(p, Path(out), force, say)
+
+
+def _need_optuna() -> None:
+    try:
+        import optuna  # noqa: F401  (the search's sampler)
+    except ImportError:
+        raise RecommendError("pupper recommend needs Optuna: install the extra with `make setup PUPPER_EXTRAS=tune` "
+                             "(or pip install 'pupper_core[tune]')") from None
 
 
 def plan_for(model: str | os.PathLike[str] = "pupper_v3", **changes: Any) -> Plan:
@@ -193,6 +201,7 @@ def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommenda
         rec.searched = pick
         rec.current = in_use(p, models, say)
         rec.cards, rec.neighbours, rec.warnings, rec.pick = card_of(p, pick, near, d, say)
+        p.task.after(rec, models, say, wins)
     if keep:
         write_trials(d, p, every)
     rec.yaml, rec.mjcf = write_outputs(rec, d, keep, time.time() - started)

@@ -13,8 +13,32 @@ from pathlib import Path
 from typing import Any
 
 from pupper_core._recommend.fits import FitRuns, actuators, fit_runs, kind, robot_of
-from pupper_core._recommend.plan import DEFAULT_MOTOR, DEFAULT_SPREAD, FIT_MODELS, Group, Plan, RecommendError
+from pupper_core._recommend.plan import DEFAULT_MOTOR, DEFAULT_SPREAD, FIT_MODELS, Group, Plan, RecommendError, Task
 from pupper_core._recommend.robot_config import config_gains, current_gains, joint_order_of, read_robot_config
+from pupper_core._recommend.stand import Stand
+from pupper_core._recommend.walk import WalkTask
+
+#: The registry: what the gains can be ranked for (`--task NAME`), each a
+#: `plan.Task` in a module of its own.
+TASKS: dict[str, type[Task]] = {
+    "stand": Stand,
+    "walk": WalkTask,
+}
+
+
+def task_of(name: str, options: Mapping[str, Any]) -> Task:
+    """The task --task names, set by its keywords (None: not given); a
+    keyword of another task's is refused, naming the task it sets."""
+    if name not in TASKS:
+        said = " or ".join(f"{n} ({t.about})" for n, t in TASKS.items())
+        raise RecommendError(f"--task {name!r} is not a task: use {said}")
+    given = {k: v for k, v in options.items() if v is not None}
+    for k in given:
+        if k not in TASKS[name].options:
+            owner = next(n for n, t in TASKS.items() if k in t.options)
+            raise RecommendError(f"--{k.replace('_', '-')} sets the {owner} the gains are ranked on: add --task "
+                                 f"{owner}, or drop it")
+    return TASKS[name].of(given)
 
 
 def _positive(name: str, v: float, flag: str, *, zero: bool = False) -> float:
@@ -222,21 +246,24 @@ def _armature_low(rows: Sequence[Mapping[str, str]], names: Sequence[str]) -> di
     return out
 
 
-def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int, seed: int, seconds: float,
+def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int, seed: int, seconds: float | None,
          push_force: float | None, motor: str | None, sensing_delay: float | None, command_delay: float,
          spread: Sequence[str] | None, from_fit: FitRuns, min_phase_margin: float,
          min_gain_margin: float, max_saturation: float, kp_max: float | None, kd_max: float | None,
          joint_order: Sequence[str] | str | None, controller: str, polish: int, max_sag: float,
-         current: Sequence[float] | str | None, robot_config: str | os.PathLike[str] | None) -> Plan:
+         current: Sequence[float] | str | None, robot_config: str | os.PathLike[str] | None, task: str,
+         gait: str | None, speed: float | None, frequency: float | None, max_tilt: float | None) -> Plan:
     """Every input checked, the model read; one line per mistake. (No
     defaults here: `pupper_core.recommend` declares them, once.)"""
     _check_types(dict(locals()))
     if isinstance(spread, str):
         spread = [spread]  # one spec (a spec may hold a comma: N(0,0.001))
+    ranked = task_of(task, {"gait": gait, "speed": speed, "frequency": frequency, "max_tilt": max_tilt})
+    seconds = ranked.seconds if seconds is None else seconds
     _check_numbers(robots=robots, trials=trials, batch=batch, polish=polish, seconds=seconds,
                    sensing_delay=sensing_delay, command_delay=command_delay, min_phase_margin=min_phase_margin,
                    min_gain_margin=min_gain_margin, max_sag=max_sag, max_saturation=max_saturation, kp_max=kp_max,
-                   kd_max=kd_max)
+                   kd_max=kd_max, task=ranked, push_force=push_force)
     runs = fit_runs(from_fit)
     fit_dir = runs[0] if len(runs) == 1 else None
     rows, merged_xml, fitted = robot_of(runs)
@@ -287,7 +314,7 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
         now, now_from = config_gains(config, names, groups, Path(robot_config or ""))
     else:
         now, now_from = current_gains(current, inf, groups)
-    return Plan(model=model, actuators=names, groups=groups, timestep=dt, motor=motor_spec,
+    p = Plan(model=model, actuators=names, groups=groups, timestep=dt, motor=motor_spec,
                 sensing_delay=sensing_delay, command_delay=command_delay, spread=drawn, kp_factors=kp_factors,
                 kd_factors=kd_factors, robots=robots, trials=trials, batch=batch, seed=seed, seconds=seconds,
                 push_force=push_force, min_phase_margin=min_phase_margin, min_gain_margin=min_gain_margin,
@@ -295,20 +322,24 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
                 max_sag=max_sag, stance=stance(model=model), from_fit=fit_dir, fit_rows=rows,
                 fit_runs=runs if merged_xml else [], merged_xml=merged_xml,
                 fit_draws=_fit_draws(rows, names, seed) if rows else [], current=now, current_from=now_from,
-                caps=capped, latency_from=latency_from)
+                caps=capped, latency_from=latency_from, task=ranked)
+    ranked.check(p)
+    return p
 
 
 def _check_numbers(*, robots: int, trials: int, batch: int, polish: int, seconds: float,
                    sensing_delay: float | None,
                    command_delay: float, min_phase_margin: float, min_gain_margin: float, max_sag: float,
-                   max_saturation: float, kp_max: float | None, kd_max: float | None) -> None:
-    """Each number in its range, or one line naming the flag and a value."""
+                   max_saturation: float, kp_max: float | None, kd_max: float | None, task: Task,
+                   push_force: float | None) -> None:
+    """Each number in its range, or one line naming the flag and a value
+    (the run's length and push as the task needs them)."""
     if robots < 1 or trials < 1 or batch < 1:
         raise RecommendError(f"robots {robots}, trials {trials}, batch {batch}: each must be a whole number >= 1")
     if polish < 0:
         raise RecommendError(f"--polish {polish} must be a whole number >= 0 (0: the search's pick, unmoved)")
     _positive("the simulated seconds per robot, e.g. 4", seconds, "--seconds")
-    _reaches_the_push(seconds)
+    task.check_run(seconds, push_force)
     if sensing_delay is not None:
         _positive("seconds of feedback latency, e.g. 0.002", sensing_delay, "--sensing-delay", zero=True)
     _positive("seconds of command delay, e.g. 0.01", command_delay, "--command-delay", zero=True)
@@ -347,16 +378,17 @@ def _check_types(kw: Mapping[str, Any]) -> None:
     if not 0 <= kw["seed"] < 2**64:
         raise bad("seed", "a whole number from 0 to 2**64 - 1")
     for n in ("seconds", "sensing_delay", "command_delay", "min_phase_margin", "min_gain_margin", "max_saturation",
-              "max_sag", "push_force", "kp_max", "kd_max"):
+              "max_sag", "push_force", "kp_max", "kd_max", "speed", "frequency", "max_tilt"):
         v = kw[n]
-        if v is None and n in ("push_force", "kp_max", "kd_max", "sensing_delay"):
+        if v is None and n in ("seconds", "push_force", "kp_max", "kd_max", "sensing_delay", "speed", "frequency",
+                               "max_tilt"):
             continue
         if isinstance(v, bool) or not isinstance(v, numbers.Real):
             raise bad(n, "a number")
     if kw["push_force"] is not None and not math.isfinite(kw["push_force"]):
         raise bad("push_force", "a finite number of newtons")
-    for n in ("motor", "controller"):
-        if not (isinstance(kw[n], str) or (n == "motor" and kw[n] is None)):
+    for n in ("motor", "controller", "task", "gait"):
+        if not (isinstance(kw[n], str) or (n in ("motor", "gait") and kw[n] is None)):
             raise bad(n, "a string")
     if not isinstance(kw["model"], (str, os.PathLike)):
         raise bad("model", "a path")
@@ -370,19 +402,6 @@ def _check_types(kw: Mapping[str, Any]) -> None:
             continue
         if not isinstance(v, Sequence) or not all(isinstance(x, str) for x in v):
             raise bad(n, "a string or a list of strings")
-
-
-def _reaches_the_push(seconds: float) -> None:
-    """A run that ends before the push's dip is known measures no push dip,
-    so no candidate could hold: said before anything runs."""
-    from pupper_core._native import DIP_AFTER, sweep_defaults
-
-    d = sweep_defaults()
-    need = float(d["push_at"]) + float(d["push_duration"]) + DIP_AFTER
-    if seconds < need - 1e-9:
-        raise RecommendError(f"--seconds {seconds:g} ends before the push (at {d['push_at']:g} s, for "
-                             f"{d['push_duration']:g} s) and the {DIP_AFTER:g} s after it, where its dip is measured, "
-                             f"are over: give --seconds {need:g} or more")
 
 
 def _servo_delay(spec: str) -> None:
