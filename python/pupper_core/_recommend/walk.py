@@ -133,7 +133,7 @@ def compare(task: WalkTask, plan: Plan, pick: Candidate, models: Sequence[str], 
     every = search(sp, models, say, lambda _: None, wins)
     best = best_of(sp, every)
     if best is None:
-        return Comparison(None, None, None, [f"--task stand finds no gains that hold under its push on these "
+        return Comparison(None, None, None, ["--task stand finds no gains that hold under its push on these "
                                              "robots: the walk's pick has nothing to differ from"])
     stand, _ = polish(sp, best, models, say, every, wins)
     same = gains_key(stand.gains) == gains_key(pick.gains)
