@@ -124,12 +124,16 @@ pupper walk --model tests/models/trotter15.xml --grid kp=5,50 --grid speed=0.25,
 def test_a_third_party_quadruped_walks_on_its_own_legs_gains_and_limits(run, tmp_path):
     (tmp_path / "tests").symlink_to(REPO / "tests")
     out = tmp_path / "trot"
-    run(*shlex.split(TROTTER_EXAMPLE)[1:], "-q", "-o", out, check=0)
+    said = run(*shlex.split(TROTTER_EXAMPLE)[1:], "-q", "-o", out, check=0).stdout
     _, rows = read_csv(out / "summary.csv")
     r = by_id(rows)
     # its own gains (kp 50, +-24 N.m): up, forward, faster when told
     own, faster = r["kp50_v0.25"], r["kp50_v0.4"]
     assert own["status"] == faster["status"] == "ok"
+    # the pick is on the grid's edge (kp 50 is the largest searched): the table says so where it names it
+    best = read_csv(out / "best.csv")[1][0]["id"]
+    assert best.startswith("kp50_")
+    assert "the best-walking cell lies on the edge of the searched range (kp 50, the largest" in said
     assert 0.02 < num(own, "speed_ms") < num(faster, "speed_ms")
     assert num(own, "peak_torque") <= 24 + 1e-9
     # a tenth of them does not carry 15 kg

@@ -5,7 +5,7 @@ use std::fmt::Write;
 
 use pupper_mujoco::api::SweepOutcome;
 
-use super::{Sig, counts, footer, short};
+use super::{Sig, counts, edges, footer, short};
 
 /// The columns shown (summary.csv's name, the heading), in this order.
 const SHOWN: [(&str, &str); 11] = [
@@ -80,7 +80,9 @@ pub(super) fn table(o: &SweepOutcome) -> String {
 const NOT_WALKING: f64 = 50.0;
 
 /// A line when the closest walker of the whole table is still far off the
-/// commanded velocity: the gains carry the robot but do not walk.
+/// commanded velocity (the gains carry the robot but do not walk), and one
+/// when it lies on the edge of the searched grid: the pick is advice, and
+/// a better one may lie beyond.
 fn not_walking(s: &mut String, o: &SweepOutcome, replicated: bool) {
     let metric = match replicated {
         true => "p95:speed_error_pct",
@@ -102,4 +104,5 @@ fn not_walking(s: &mut String, o: &SweepOutcome, replicated: bool) {
             o.rows[i][1]
         );
     }
+    edges(s, o, i, "best-walking");
 }
