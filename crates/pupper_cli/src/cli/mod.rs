@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 
 use clap::{Parser, Subcommand};
-use pupper_core::{Error, Result};
+use pupper_core::Result;
 
 const ABOUT: &str = "Physics experiments on the Pupper v3 quadruped in MuJoCo: inspect the robot, \
 make it stand, sweep PD gains, measure how well each setting stands and rejects a push.";
@@ -26,39 +26,10 @@ const AFTER: &str = "Examples:
 Exit status: 0 success, 2 bad input (one line on stderr says what and how to fix it),
 130 interrupted (finished cells are kept), 1 internal error.";
 
-/// Writes to standard output. A stdout that cannot take the text (a full
-/// disk) is a one-line error, never a panic; a closed pipe (`| head`) just
-/// ends the output.
-fn out(text: &str) -> Result<()> {
-    use std::io::Write;
-    let mut o = std::io::stdout().lock();
-    match o.write_all(text.as_bytes()).and_then(|()| o.flush()) {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        r => r.map_err(|source| Error::Io {
-            action: "write to",
-            path: PathBuf::from(pupper_core::error::STDOUT),
-            source,
-        }),
-    }
-}
+// first: textual scope, so every command's module has its macros
+#[macro_use]
+mod console;
 
-/// `print!` through [`out`].
-macro_rules! outp {
-    ($($t:tt)*) => { $crate::cli::out(&format!($($t)*))? };
-}
-
-/// `println!` through [`out`].
-macro_rules! outln {
-    ($($t:tt)*) => { $crate::cli::out(&format!("{}\n", format_args!($($t)*)))? };
-}
-
-/// `eprintln!` that never panics: a line stderr cannot take is dropped
-/// (see [`crate::say`]).
-macro_rules! errln {
-    ($($t:tt)*) => { $crate::say(&format!($($t)*)) };
-}
-
-// after the macros: textual scope, so every command's module has them
 mod args;
 mod fit;
 mod gains;

@@ -339,7 +339,7 @@ fn show(a: &Job, outcome: &SweepOutcome, dir: &Path) -> Result<Option<Error>> {
     let mut printed: Result<()> = Ok(());
     let mut put = |text: &str| {
         if printed.is_ok() {
-            printed = super::out(text);
+            printed = super::console::out(text);
         }
     };
     if !a.json && !a.lab {

@@ -1,10 +1,9 @@
 //! `pupper hold`'s table: a row per cell with the hold's own figures.
 
-use std::fmt::Write;
-
 use pupper_mujoco::api::SweepOutcome;
 
-use super::{Sig, counts, edges, footer, short};
+use super::figures::{Figures, best_row};
+use super::{counts, edges, footer};
 
 /// The columns shown, by prefix, in this order (the torque and copper
 /// columns are the model's own joint groups).
@@ -33,41 +32,16 @@ pub(super) fn table(o: &SweepOutcome, metric: &str) -> String {
             }
         }
     }
-    let status = col("status");
-    let mut s = String::new();
-    let mut head = String::new();
-    for &i in &axes {
-        let _ = write!(head, "{:>8} ", o.header[i]);
+    let mut s = Figures {
+        axes,
+        cols,
+        width: 12,
+        last: ("status", col("status")),
     }
-    for (_, label) in &cols {
-        let _ = write!(head, "{label:>12} ");
-    }
-    let _ = write!(head, "{:>10}", "status");
-    let _ = writeln!(s, "{}", head.trim_end());
-    for r in &o.rows {
-        let mut line = String::new();
-        for &i in &axes {
-            let _ = write!(line, "{:>8} ", short(&r[i]));
-        }
-        for (i, _) in &cols {
-            let text = match r[*i].parse::<f64>() {
-                Ok(v) if v.is_finite() => format!("{}", Sig(v)),
-                _ => "-".into(),
-            };
-            let _ = write!(line, "{text:>12} ");
-        }
-        let _ = write!(line, "{:>10}", status.map_or("", |i| r[i].as_str()));
-        let _ = writeln!(s, "{}", line.trim_end());
-    }
+    .rows(o);
     // the stiffest cell on the edge of the searched gains says so
-    let rule = pupper_core::results::best::Rule::new(metric, &[]);
-    if let Some(i) = pupper_core::results::best::best(&o.header, &o.rows, &rule)
-        .ok()
-        .and_then(|g| g.first().and_then(|g| g.best))
-    {
-        let mut edge = String::new();
-        edges(&mut edge, o, i, "stiffest");
-        s.push_str(&edge);
+    if let Some(i) = best_row(o, metric) {
+        edges(&mut s, o, i, "stiffest");
     }
     counts(&mut s, o);
     footer(&mut s, o);

@@ -1,5 +1,6 @@
 //! Text and JSON for the terminal.
 
+mod figures;
 mod gains;
 mod hold;
 mod model;

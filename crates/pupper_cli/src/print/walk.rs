@@ -5,7 +5,8 @@ use std::fmt::Write;
 
 use pupper_mujoco::api::SweepOutcome;
 
-use super::{Sig, counts, edges, footer, short};
+use super::figures::{Figures, best_row};
+use super::{counts, edges, footer};
 
 /// The columns shown (summary.csv's name, the heading), in this order.
 const SHOWN: [(&str, &str); 11] = [
@@ -38,37 +39,17 @@ pub(super) fn table(o: &SweepOutcome) -> String {
             true => col(&format!("p95:{name}")).map(|i| (i, format!("p95 {label}"))),
         })
         .collect();
-    let last = if replicated { "failed" } else { "status" };
-    let last_col = col(if replicated {
-        "failure_fraction"
-    } else {
-        "status"
-    });
-    let mut s = String::new();
-    let mut head = String::new();
-    for &i in &axes {
-        let _ = write!(head, "{:>8} ", o.header[i]);
+    let last = match replicated {
+        true => ("failed", col("failure_fraction")),
+        false => ("status", col("status")),
+    };
+    let mut s = Figures {
+        axes,
+        cols,
+        width: 10,
+        last,
     }
-    for (_, label) in &cols {
-        let _ = write!(head, "{label:>10} ");
-    }
-    let _ = write!(head, "{last:>10}");
-    let _ = writeln!(s, "{}", head.trim_end());
-    for r in &o.rows {
-        let mut line = String::new();
-        for &i in &axes {
-            let _ = write!(line, "{:>8} ", short(&r[i]));
-        }
-        for (i, _) in &cols {
-            let text = match r[*i].parse::<f64>() {
-                Ok(v) if v.is_finite() => format!("{}", Sig(v)),
-                _ => "-".into(),
-            };
-            let _ = write!(line, "{text:>10} ");
-        }
-        let _ = write!(line, "{:>10}", last_col.map_or("", |i| r[i].as_str()));
-        let _ = writeln!(s, "{}", line.trim_end());
-    }
+    .rows(o);
     not_walking(&mut s, o, replicated);
     counts(&mut s, o);
     footer(&mut s, o);
@@ -88,12 +69,7 @@ fn not_walking(s: &mut String, o: &SweepOutcome, replicated: bool) {
         true => "p95:speed_error_pct",
         false => "speed_error_pct",
     };
-    let rule = pupper_core::results::best::Rule::new(metric, &[]);
-    let Some((i, c)) = pupper_core::results::best::best(&o.header, &o.rows, &rule)
-        .ok()
-        .and_then(|g| g.first().and_then(|g| g.best))
-        .zip(o.header.iter().position(|h| h == metric))
-    else {
+    let Some((i, c)) = best_row(o, metric).zip(o.header.iter().position(|h| h == metric)) else {
         return;
     };
     let error: f64 = o.rows[i][c].parse().unwrap_or(f64::NAN);
