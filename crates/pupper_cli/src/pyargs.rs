@@ -29,7 +29,9 @@ pub fn to_text<T: Serialize>(args: &T) -> serde_json::Result<String> {
     Ok(PyArgs { literals }.text(&value?))
 }
 
-/// Serializes a path as [`PyArgs::path`] does (for `serialize_with`).
+/// Serializes a path (for `serialize_with`): a string when it is UTF-8, else a
+/// placeholder that [`to_text`] swaps for its escaped literal (NUL cannot
+/// be in an argument or a path: no flag can spell one).
 pub fn path<P: AsRef<OsStr>, S: Serializer>(p: &P, s: S) -> Result<S::Ok, S::Error> {
     let bytes = p.as_ref().as_bytes();
     if let Ok(text) = std::str::from_utf8(bytes) {
@@ -89,33 +91,15 @@ pub fn none_if_empty<T: Serialize, S: Serializer>(v: &[T], s: S) -> Result<S::Ok
     }
 }
 
-/// Builds the JSON text of a command's flags, paths included.
-#[derive(Debug, Default)]
-pub struct PyArgs {
+/// The JSON text of serialized flags, their non-UTF-8 paths put back.
+struct PyArgs {
     /// The JSON literal of each path that is not UTF-8, by placeholder index.
     literals: Vec<String>,
 }
 
 impl PyArgs {
-    pub fn new() -> PyArgs {
-        PyArgs::default()
-    }
-
-    /// A path as a JSON value: a string when it is UTF-8 (the JSON is then
-    /// what it always was), else a placeholder that [`PyArgs::text`] swaps
-    /// for its escaped literal.
-    pub fn path(&mut self, path: impl AsRef<OsStr>) -> serde_json::Value {
-        let bytes = path.as_ref().as_bytes();
-        if let Ok(text) = std::str::from_utf8(bytes) {
-            return serde_json::Value::String(text.to_string());
-        }
-        self.literals.push(escaped(bytes));
-        // NUL cannot be in an argument or a path: no flag can spell this
-        serde_json::Value::String(format!("\0{}\0", self.literals.len() - 1))
-    }
-
     /// The JSON text of `args`, every placeholder replaced by its path.
-    pub fn text(&self, args: &serde_json::Value) -> String {
+    fn text(&self, args: &serde_json::Value) -> String {
         let mut text = args.to_string();
         for (i, literal) in self.literals.iter().enumerate() {
             text = text.replace(&format!("\"\\u0000{i}\\u0000\""), literal);
@@ -145,23 +129,38 @@ mod tests {
     use std::ffi::OsString;
     use std::os::unix::ffi::OsStringExt;
 
+    #[derive(Serialize)]
+    struct Out<'a> {
+        #[serde(serialize_with = "path")]
+        out: &'a OsStr,
+        #[serde(serialize_with = "path")]
+        b: &'a OsStr,
+    }
+
     #[test]
     fn a_utf8_path_is_a_plain_string() {
-        let mut a = PyArgs::new();
-        let v = serde_json::json!({"out": a.path("runs/a \"b\"")});
-        assert_eq!(a.text(&v), r#"{"out":"runs/a \"b\""}"#);
+        let v = Out {
+            out: OsStr::new("runs/a \"b\""),
+            b: OsStr::new("b"),
+        };
+        assert_eq!(to_text(&v).unwrap(), r#"{"out":"runs/a \"b\"","b":"b"}"#);
     }
 
     #[test]
     fn other_bytes_cross_as_surrogate_escapes() {
-        let mut a = PyArgs::new();
         let odd = OsString::from_vec(b"r\xffun/\xe9\"x".to_vec());
-        let v = serde_json::json!({"out": a.path(&odd), "b": a.path("b")});
-        assert_eq!(a.text(&v), r#"{"out":"r\udcffun/\udce9\"x","b":"b"}"#);
+        let v = Out {
+            out: &odd,
+            b: OsStr::new("b"),
+        };
+        assert_eq!(
+            to_text(&v).unwrap(),
+            r#"{"out":"r\udcffun/\udce9\"x","b":"b"}"#
+        );
     }
 
     #[test]
-    fn serialized_args_carry_their_paths_as_the_builder_does() {
+    fn serialized_args_carry_every_kind_of_path() {
         #[derive(Serialize)]
         struct Args {
             #[serde(serialize_with = "paths")]

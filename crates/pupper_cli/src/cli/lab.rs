@@ -5,14 +5,14 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 
 use clap::Args;
-use pupper_core::Result;
 use pupper_core::request::spec::{self, SweepSpec};
 use pupper_core::results::best;
+use pupper_core::{Error, Result};
 
 use super::args::{BackendArgs, GridArg, ModelArg, PopulationArgs, rundir_name};
 use super::python::python_command;
 use super::sweep::{Job, run_job};
-use crate::pyargs::PyArgs;
+use crate::pyargs;
 use pupper_mujoco::bridge::calls;
 
 #[derive(Args, Debug)]
@@ -141,26 +141,49 @@ pub(super) fn run(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
 
 /// `pupper lab --tune`: a study per body, in Python.
 fn tune(a: &LabArgs, sine: [f64; 2]) -> Result<u8> {
-    let out = a.out.clone().unwrap_or_else(|| rundir_name("lab-tune"));
-    let mut py = PyArgs::new();
-    let mut args = serde_json::json!({
-        "variants": a.variants,
-        "objective": a.rank.clone().unwrap_or_else(|| pupper_core::results::best::DEFAULT_METRIC.into()),
-        "trials": a.trials,
-        "batch": a.batch,
-        "seed": a.population.seed,
-        "out": py.path(&out),
-        "force": a.force,
-        "progress": !a.quiet,
-        "seconds": a.seconds,
-        "sine": sine,
-        "model": a.model.model,
-        "threads": a.threads,
-        "replicates": a.population.replicates,
-        "randomize": a.population.randomize,
-    });
-    if let (Some(d), Some(m)) = (a.depth, args.as_object_mut()) {
-        m.insert("depth".into(), serde_json::json!(d));
-    }
-    python_command(&calls::LAB_TUNE, &py.text(&args))
+    let call = TuneCall {
+        variants: &a.variants,
+        objective: a
+            .rank
+            .clone()
+            .unwrap_or_else(|| pupper_core::results::best::DEFAULT_METRIC.into()),
+        trials: a.trials,
+        batch: a.batch,
+        seed: a.population.seed,
+        out: a.out.clone().unwrap_or_else(|| rundir_name("lab-tune")),
+        force: a.force,
+        progress: !a.quiet,
+        seconds: a.seconds,
+        sine,
+        model: &a.model.model,
+        threads: a.threads,
+        replicates: a.population.replicates,
+        randomize: &a.population.randomize,
+        depth: a.depth,
+    };
+    let text = pyargs::to_text(&call).map_err(|e| Error::Internal(e.to_string()))?;
+    python_command(&calls::LAB_TUNE, &text)
+}
+
+/// What `pupper_core._tune._lab_cli` is given: `lab_tune`'s keywords.
+#[derive(serde::Serialize)]
+struct TuneCall<'a> {
+    variants: &'a [String],
+    objective: String,
+    trials: u64,
+    batch: u64,
+    seed: u64,
+    #[serde(serialize_with = "pyargs::path")]
+    out: PathBuf,
+    force: bool,
+    progress: bool,
+    seconds: f64,
+    sine: [f64; 2],
+    model: &'a str,
+    threads: usize,
+    replicates: u32,
+    randomize: &'a [String],
+    /// left out when not given: lab_tune's own default
+    #[serde(skip_serializing_if = "Option::is_none")]
+    depth: Option<f64>,
 }
