@@ -34,8 +34,16 @@ test: setup test-rust test-python
 test-rust:
 	cargo test --workspace --release
 
+# pytest-xdist (the dev extra) runs the tests on every core: most of them
+# wait on one single-threaded process. Tests sharing a module's fixture stay
+# on one worker (tests/conftest.py). PUPPER_TEST_WORKERS=N sets the workers,
+# 0 runs them all in one process, as does a venv without xdist. (Expanded
+# when the recipe runs, after setup has installed the extras.)
+PUPPER_TEST_WORKERS ?= auto
+XDIST = $(shell [ "$(PUPPER_TEST_WORKERS)" != 0 ] && $(PY) -c 'import xdist' 2>/dev/null \
+	  && echo "--numprocesses $(PUPPER_TEST_WORKERS) --dist loadgroup")
 test-python:
-	PUPPER_BIN=$(ROOT)/$(PUPPER) $(PY) -m pytest tests
+	PUPPER_BIN=$(ROOT)/$(PUPPER) $(PY) -m pytest $(XDIST) tests
 
 wheel: setup
 	cd python && ../.venv/bin/maturin build --release -o ../dist

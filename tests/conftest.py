@@ -26,7 +26,27 @@ REFERENCE_XML = (
 #: Environment variables that would tell the binary which Python to use: the
 #: binary must find the project's venv by itself.
 SCRUBBED_ENV = ("VIRTUAL_ENV", "PYTHONHOME", "PUPPER_PYTHON")
-TIMEOUT_S = 240
+# a bound on hangs, not a speed check: under `make test` two tests share the
+# 2 cores of CI, and a fit through the firmware took 240 s with other work
+# on the machine
+TIMEOUT_S = 480
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Under pytest-xdist (`make test` runs `-n 2 --dist loadgroup`), the
+    tests that share a module- or session-scoped fixture of their own
+    module (a sweep, a fit, a wheel, a Ray cluster) run on one worker, so
+    that fixture runs once rather than once per worker; every other test
+    goes to whichever worker is free."""
+    for item in items:
+        module = getattr(item, "module", None)
+        info = getattr(item, "_fixtureinfo", None)
+        if module is None or info is None:
+            continue
+        shared = any(d.scope != "function" and getattr(d.func, "__module__", None) == module.__name__
+                     for defs in info.name2fixturedefs.values() for d in defs)
+        if shared:
+            item.add_marker(pytest.mark.xdist_group(module.__name__))
 
 
 def clean_env(**extra: str) -> dict[str, str]:

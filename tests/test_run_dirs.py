@@ -64,15 +64,36 @@ def same_bytes(got: Path, want: Path) -> None:
 # ---------------------------------------------------------------- kills
 
 
+def took_the_directory(out: Path, pid: int) -> bool:
+    """Whether process `pid` holds the run directory: its lock names it."""
+    try:
+        return (out / ".pupper.lock").read_text().startswith(f"pid {pid} ")
+    except (FileNotFoundError, UnicodeDecodeError):
+        return False
+
+
 def test_twenty_random_kills_then_resume_equal_one_run(pupper_bin, tmp_path, traced_reference):
     rng = random.Random(20261123)
     out = tmp_path / "run"
-    kills = 0
+    kills = mid_run = 0
     finished = False
     while kills < 20 and not finished:
         args = TRACED + (["--resume", out] if out.exists() else ["-o", out])
         proc = start(pupper_bin, args, tmp_path)
-        time.sleep(rng.uniform(0.05, 0.6))
+        # A quarter of the kills land while it starts up (before, while or
+        # just after it creates the directory); the rest at a random moment
+        # after it took the directory, timed from then: on a loaded machine
+        # start-up alone can outlast any fixed delay, and every kill would
+        # land before the directory exists.
+        starting = rng.random() < 0.25
+        if starting:
+            time.sleep(rng.uniform(0.05, 0.6))
+        else:
+            deadline = time.monotonic() + 120
+            while proc.poll() is None and not took_the_directory(out, proc.pid):
+                assert time.monotonic() < deadline, "no start-up in 120 s"
+                time.sleep(0.005)
+            time.sleep(rng.uniform(0.0, 0.5))
         if proc.poll() is not None:
             so, se = proc.communicate()
             assert proc.returncode == 0, f"exit {proc.returncode}: {se}"
@@ -82,6 +103,7 @@ def test_twenty_random_kills_then_resume_equal_one_run(pupper_bin, tmp_path, tra
         proc.send_signal(sig)
         so, se = proc.communicate(timeout=30)
         kills += 1
+        mid_run += not starting
         if sig == signal.SIGKILL:
             # nothing of pupper's prints after a SIGKILL, but one that lands
             # while mujoco imports pyGLFW orphans the child python it asks
@@ -96,13 +118,46 @@ def test_twenty_random_kills_then_resume_equal_one_run(pupper_bin, tmp_path, tra
             assert m["cells_done"] <= rows, (m["cells_done"], rows, sig)
             assert m["complete"] is False or rows == m["cells_total"]
     assert kills >= 10, f"the run finished after {kills} kills: make it longer"
-    p = subprocess.run([str(pupper_bin), *TRACED, "--resume", str(out)], cwd=tmp_path,
+    assert mid_run >= 5, f"only {mid_run} of {kills} kills landed after the run took its directory"
+    # the same command again: --resume where a run made the directory (a
+    # path no run created is nothing to resume, and is refused)
+    again = ["--resume", str(out)] if out.exists() else ["-o", str(out)]
+    p = subprocess.run([str(pupper_bin), *TRACED, *again], cwd=tmp_path,
                        env=clean_env(), capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     same_bytes(out, traced_reference)
     assert temp_files(out) == []
     m = json.loads((out / "manifest.json").read_text())
     assert m["complete"] is True and m["cells_done"] == m["cells_total"] == 64
+
+
+def test_a_directory_left_by_a_kill_at_its_creation_resumes_afresh(pupper_bin, run, tmp_path):
+    """What a kill while the run creates its directory leaves (the
+    directory alone; its lock; a table's temporary file; the tables'
+    headers without the manifest), resumed with the full command, equals
+    one run; a path no run made is refused in one line, nothing written."""
+    args = ["sweep", "--grid", "kp=5,30", "--seconds", "1", "--trace", "-q"]
+    run(*args, "-o", tmp_path / "one", check=0)
+    one = tmp_path / "one"
+    header = {n: (one / n).read_text().split("\n", 1)[0] + "\n" for n in ("summary.csv", "traces.csv")}
+    left = {
+        "bare": {},
+        "locked": {".pupper.lock": ""},
+        "temp": {".pupper.lock": "", ".traces.csv.tmp4242": "id,t"},
+        "headers": {".pupper.lock": "", **header, ".manifest.json.tmp4242": "{"},
+    }
+    for name, files in left.items():
+        d = tmp_path / name
+        d.mkdir()
+        for f, text in files.items():
+            (d / f).write_text(text)
+        run(*args, "--resume", d, check=0)
+        same_bytes(d, one)
+        assert temp_files(d) == [], name
+        assert json.loads((d / "manifest.json").read_text())["complete"] is True, name
+    p = run(*args, "--resume", tmp_path / "never", check=2)
+    assert len(p.stderr.strip().splitlines()) == 1 and "never" in p.stderr, p.stderr
+    assert not (tmp_path / "never").exists()
 
 
 def test_ctrl_c_then_resume_keeps_every_trace(pupper_bin, tmp_path, traced_reference):

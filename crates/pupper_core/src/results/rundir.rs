@@ -885,6 +885,71 @@ mod tests {
         assert_eq!(names(&dir), [LOCK, MANIFEST, SUMMARY, TRACES]);
     }
 
+    /// What a kill at each step of [`RunWriter::create`] leaves, in its
+    /// order: the directory made, its lock taken and signed, each table
+    /// through its temporary file, then the manifest's temporary file. Each
+    /// is resumed with the full command into exactly what one run writes.
+    #[test]
+    fn a_run_killed_at_any_step_of_creating_its_directory_resumes_afresh() {
+        let tmp = tempfile::tempdir().unwrap();
+        let c = cfg("kp=1,2,3", true);
+        let cells: Vec<CellResult> = c.grid.cells().into_iter().map(result).collect();
+        let whole = |dir: &Path, existing: Existing| {
+            let mut w = RunWriter::new(Some(dir), existing, manifest(c.clone())).unwrap();
+            assert_eq!(w.done().count(), 0, "{}", dir.display());
+            w.add(&cells).unwrap();
+            w.finish(true).unwrap();
+        };
+        let want = tmp.path().join("one-run");
+        whole(&want, Existing::Refuse);
+        let header = |name: &str| {
+            let text = std::fs::read_to_string(want.join(name)).unwrap();
+            text.lines().next().unwrap().to_string() + "\n"
+        };
+        let steps: [&[(&str, String)]; 7] = [
+            &[],
+            &[(LOCK, String::new())],
+            &[(LOCK, "pid 1 on host, since unix time 0".into())],
+            &[(LOCK, String::new()), (".traces.csv.tmp77", "id,t".into())],
+            &[(LOCK, String::new()), (TRACES, header(TRACES))],
+            &[
+                (LOCK, String::new()),
+                (TRACES, header(TRACES)),
+                (".summary.csv.tmp77", header(SUMMARY)),
+            ],
+            &[
+                (LOCK, String::new()),
+                (TRACES, header(TRACES)),
+                (SUMMARY, header(SUMMARY)),
+                (".manifest.json.tmp77", "{".into()),
+            ],
+        ];
+        for (k, files) in steps.iter().enumerate() {
+            let dir = tmp.path().join(format!("killed-{k}"));
+            std::fs::create_dir(&dir).unwrap();
+            for (name, text) in files.iter() {
+                std::fs::write(dir.join(name), text).unwrap();
+            }
+            whole(&dir, Existing::Resume);
+            for name in [SUMMARY, TRACES] {
+                assert_eq!(
+                    std::fs::read(dir.join(name)).unwrap(),
+                    std::fs::read(want.join(name)).unwrap(),
+                    "step {k}: {name}"
+                );
+            }
+            assert!(read_manifest(&dir).unwrap().complete, "step {k}");
+            assert_eq!(names(&dir), [LOCK, MANIFEST, SUMMARY, TRACES], "step {k}");
+        }
+        // a path no run ever created is nothing to resume: refused, naming it
+        let never = tmp.path().join("never-made");
+        let e = RunWriter::new(Some(&never), Existing::Resume, manifest(c.clone()))
+            .err()
+            .unwrap();
+        assert!(e.to_string().contains("never-made"), "{e}");
+        assert!(!never.exists());
+    }
+
     #[test]
     fn rows_of_another_grid_are_refused_with_their_line() {
         let tmp = tempfile::tempdir().unwrap();
