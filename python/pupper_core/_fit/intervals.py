@@ -20,12 +20,12 @@ and the fit says so.
 Segments of one log share its gains: a model that bends differently at
 other gains (on the real hip, a delay 1 ms longer and a kp scale 8 %
 lower at kp 7.5 than at 5) shows it only between logs. Where several logs
-are fitted together, each one's own fit is run from the fit's end on its
-rows alone (``judge._own_shifts``); where they disagree by at least
-MODEL_RATIO times the noise interval, each interval is widened to hold
-every log's own fit. (A single Gauss–Newton step from the fit's end,
-along the directions each log alone places, fell short of them: the
-real hip's kp 5 log's own delay lay 5 % of the width past its interval.)"""
+are fitted together, each one's own optimum is found from the fit's end
+on its rows alone (``judge._own_shifts``), in the directions it places
+alone (``placed``); where they
+disagree by at least MODEL_RATIO times the noise interval, each interval
+is widened to hold every log's own fit. (One step alone fell short: the
+real hip's kp 5 log's own delay lay 5 % of the width past the interval.)"""
 
 from __future__ import annotations
 
@@ -39,6 +39,8 @@ SEGMENT_S = 1.0
 MIN_SEGMENTS = 8
 #: The sandwich must exceed the noise interval by this factor for some parameter to call the residual structure.
 MODEL_RATIO = 2.0
+#: A log alone places a direction where it holds at least this share of all the logs' information.
+LOG_SHARE = 0.05
 
 
 def segments(times: list[np.ndarray], signals: int, period: float, tau: float) -> np.ndarray | None:
@@ -94,3 +96,31 @@ def model_error(noise: np.ndarray, model: np.ndarray) -> bool:
 def ratio(noise: np.ndarray, model: np.ndarray) -> float:
     ok = np.isfinite(noise) & np.isfinite(model) & (noise > 0)
     return float(np.max(model[ok] / noise[ok])) if np.any(ok) else math.nan
+
+
+def placed(jac: np.ndarray, sizes: list[int]) -> list[np.ndarray] | None:
+    """Per log, the projection onto the directions it places alone (a
+    parameters x parameters matrix): a shift of its own fit along any other
+    is the optimizer's wandering in a valley the log does not see; None with
+    one log or rows that do not match."""
+    if len(sizes) < 2 or jac is None or sum(sizes) != jac.shape[0]:
+        return None
+    # whitened by the whole fit's information H: in those coordinates each
+    # log's own information H_i has eigenvalues in [0, 1], its share of what
+    # all logs together know along each direction
+    w, v = np.linalg.eigh(jac.T @ jac)
+    if not np.all(np.isfinite(w)) or w[-1] <= 0:
+        return None
+    keep = w > w[-1] * 1e-12
+    white, unwhite = v[:, keep] / np.sqrt(w[keep]), (v[:, keep] * np.sqrt(w[keep])).T
+    out, start = [], 0
+    for n in sizes:
+        j = jac[start:start + n] @ white
+        start += n
+        share, u = np.linalg.eigh(j.T @ j)
+        # a log alone places only the directions it knows a share of: along
+        # one it hardly sees (damping against kd's scale at its one kd) its
+        # "own optimum" is anywhere, and the other logs place it (no shift)
+        seen = u[:, share >= LOG_SHARE]
+        out.append(white @ seen @ seen.T @ unwhite)
+    return out if all(np.all(np.isfinite(m)) for m in out) else None

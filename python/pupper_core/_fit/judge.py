@@ -69,7 +69,8 @@ def _intervals(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any, res: Any, w
         corr[loose, loose] = 1.0
     source = "floored" if floored else "noise"
     if not floored:
-        half, source = _model_error(pb, res.jac, r_star, ended, tau, half, _own_shifts(sysid, pb, opt, weights))
+        half, source = _model_error(pb, res.jac, r_star, ended, tau, half,
+                                    _own_shifts(sysid, pb, opt, res, r_star, weights))
     return half, (corr if np.all(np.isfinite(corr)) else None), source, tau
 
 
@@ -99,30 +100,37 @@ def _model_error(pb: _Problem, jac: np.ndarray, r_star: list[np.ndarray], ended:
 
 
 #: The iterations of each log's own fit (``_own_shifts``): it starts at the fit's end, a few steps away.
-OWN_ITERS = 10
+OWN_ITERS = 4
 
 
 
-def _own_shifts(sysid: Any, pb: _Problem, opt: Any, weights: np.ndarray | None) -> np.ndarray | None:
+def _own_shifts(sysid: Any, pb: _Problem, opt: Any, res: Any, r_star: list[np.ndarray],
+                weights: np.ndarray | None) -> np.ndarray | None:
     """Where each log alone takes the fit, less where the logs together
-    took it (logs, parameters); None with one log. Each log's own fit
-    runs from the fit's end on its rows alone (Levenberg–Marquardt until
-    flat, at most OWN_ITERS iterations): segments of one log share its
-    gains, and a model that bends differently at other gains (on the real
-    hip, a delay 1 ms longer and a kp scale 8 % lower at kp 7.5 than at 5)
-    shows it only between logs. (A first-order step from the fit's end,
-    restricted to what each log alone places, fell short: a log's own fit
-    lay past the interval widened by it.)"""
+    took it, along the directions it places alone (logs, parameters); None
+    with one log. Segments of one log share its gains, and a model that
+    bends differently at other gains (on the real hip, a delay 1 ms longer
+    and a kp scale 8 % lower at kp 7.5 than at 5) shows it only between
+    logs. Each log's own fit runs from the fit's end on its rows alone
+    (Levenberg–Marquardt until flat, at most OWN_ITERS iterations), and
+    its shift is kept in the directions the log places alone
+    (``intervals.placed``): along a valley it does not see (damping
+    against kd's scale at its one kd) it wanders, and the other logs place
+    that. A first-order step instead (one Gauss–Newton step on the fit's
+    Jacobian) fell short of the logs' own fits, and they lay past the
+    intervals it widened."""
     import dataclasses
     import io
 
+    from pupper_core._fit import intervals as fi
     from pupper_core._fit.solve import _optimize
 
-    if len(pb.logs) < 2:
+    keep = fi.placed(res.jac, [int(np.size(r)) for r in r_star])
+    if keep is None:
         return None
     x = opt.as_vector()
     out = []
-    for i in range(len(pb.logs)):
+    for i, proj in enumerate(keep):
         one = dataclasses.replace(pb, logs=[pb.logs[i]], sequences=[pb.sequences[i]])
         fn = _residual_fn(sysid, one.sequences, one.enabled(sysid), weights, pb.firmware)
         try:
@@ -130,7 +138,7 @@ def _own_shifts(sysid: Any, pb: _Problem, opt: Any, weights: np.ndarray | None) 
         except FitError:
             # a log alone whose linear algebra fails places nothing of its own
             return None
-        out.append(own.as_vector() - x)
+        out.append(proj @ (own.as_vector() - x))
     shifts = np.array(out)
     return shifts if np.all(np.isfinite(shifts)) else None
 
