@@ -80,9 +80,9 @@ def command(t: np.ndarray, amplitude: float = AMPLITUDE, freqs: tuple[float, ...
     return out
 
 
-def hardware(kp: float, kd: float, truth: dict[str, float]) -> mujoco.MjModel:
+def hardware(kp: float, kd: float, truth: dict[str, float], motor_name: str = MOTOR) -> mujoco.MjModel:
     """The stand: every motor a servo at the log's gains (times the truth's
-    scales), the logged one a plain torque motor its loop drives."""
+    scales), the logged one (``motor_name``) a plain torque motor its loop drives."""
     spec = mujoco.MjSpec.from_file(str(SCENE))
     for j in [j for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]:
         spec.delete(j)
@@ -96,7 +96,7 @@ def hardware(kp: float, kd: float, truth: dict[str, float]) -> mujoco.MjModel:
     for a in spec.actuators:
         g, d = kp * truth["kp_scale"], kd * truth["kd_scale"]
         a.gainprm[0], a.biasprm[1], a.biasprm[2] = g, -g, -d
-    motor = spec.actuator(MOTOR)
+    motor = spec.actuator(motor_name)
     motor.biastype = mujoco.mjtBias.mjBIAS_NONE
     motor.gainprm[0] = 1.0
     motor.biasprm[:] = 0.0
@@ -121,17 +121,19 @@ def stamps(seconds: float, seed: int, start: float, clock: bool = True) -> tuple
 def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, float] = TRUTH,
               start: float = 1732600000.25, noise: float = 1e-3, held_columns: bool = False,
               clock: bool = True, velocity_lag: float = VELOCITY_LAG, amplitude: float = AMPLITUDE,
-              gzip: bool = False, freqs: tuple[float, ...] = FREQS) -> Path:
+              gzip: bool = False, freqs: tuple[float, ...] = FREQS, motor_name: str = MOTOR,
+              prefix: str = "fr_knee") -> Path:
     """Plays the stepped sine on the stand and writes the loop's log (no
     header lines: the gains are the command line's to give). ``truth``:
     the stand's values (TRUTH's keys; ``lag`` and ``latency`` default 0);
     ``clock``: rows on time, stamps late (else each row at its stamp);
     ``amplitude``: the sine's (rad); ``gzip``: compressed as the bench's tool does (``gzip -n -9``);
-    ``freqs``: the stepped sine's frequencies (Hz; fewer make a shorter log)."""
+    ``freqs``: the stepped sine's frequencies (Hz; fewer make a shorter log);
+    ``motor_name``: the motor on the stand, its columns named ``prefix``_cmd, ``prefix``_pos, ...."""
     truth = {"lag": 0.0, "latency": 0.0, **truth}
-    m = hardware(kp, kd, truth)
+    m = hardware(kp, kd, truth, motor_name)
     d = mujoco.MjData(m)
-    motor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, MOTOR)
+    motor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, motor_name)
     qadr = m.jnt_qposadr[m.actuator_trnid[motor, 0]]
     vadr = m.jnt_dofadr[m.actuator_trnid[motor, 0]]
     seconds = segments(freqs)[-1][1] + 0.3
@@ -165,8 +167,7 @@ def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, f
     with io.StringIO(newline="") as f:
         w = csv.writer(f, lineterminator="\n")
         extra = ["fr_hip_cmd", "fr_hip_pos", "fr_hip_vel"] if held_columns else []
-        w.writerow(["fr_knee_cmd", "fr_knee_kp", "fr_knee_kd", "fr_knee_pos", "fr_knee_vel", "fr_knee_effort",
-                    *extra, "stamp"])
+        w.writerow([f"{prefix}_{c}" for c in ("cmd", "kp", "kd", "pos", "vel", "effort")] + [*extra, "stamp"])
         for i in range(len(ts)):
             row = [repr(float(cmd[i])), repr(kp), repr(kd), repr(float(q[i])), repr(float(qd[i])), "nan"]
             row += ["0.0", "0.0", "0.0"] if held_columns else []

@@ -194,13 +194,20 @@ def test_excite_for_a_test_stand_writes_one_motor_at_its_rate(tmp_path, run):
         assert not (tmp_path / "x.csv").exists()
 
 
-def test_logs_of_different_joints_fit_what_they_share(tmp_path):
-    """A joint one log covers and another does not is left out, and said."""
+def test_logs_of_different_joints_fit_together(tmp_path):
+    """A joint one log covers and another does not is fitted from the log
+    that covers it (issue 47: it was left out); each log is compared on its
+    own joints, and the fit says so."""
     a = Path(pc.excite(out=tmp_path / "a.csv", joints="kfe", seconds=0.6, hold=0.2, rate=250))
     b = Path(pc.excite(out=tmp_path / "b.csv", joints=MOTOR, seconds=0.6, hold=0.2, rate=250, seed=1))
     res = pc.fit([a, b], params="kp_scale", max_iters=2, progress=False)
-    assert res.actuators == [MOTOR]
-    assert any("leg_front_l_3 is logged in a.csv but not in b.csv" in w for w in res.warnings), res.warnings
+    knees = ["leg_front_r_3", "leg_front_l_3", "leg_back_r_3", "leg_back_l_3"]
+    assert sorted(res.actuators) == sorted(knees) and res.actuators_of("b.csv") == [MOTOR]
+    assert sorted(res.actuators_of("a.csv")) == sorted(knees) and len(res.rms_after["a.csv"]) == 4
+    assert not any("left out" in w for w in res.warnings), res.warnings
+    assert any(n.startswith("the logs cover different actuators") and f"{MOTOR} in 2" in n for n in res.notes)
+    # the nominal model's own responses: its gains are the nominal ones
+    assert res.value("kp_scale") == pytest.approx(1.0, abs=0.01)
 
 
 def test_three_delay_starts_give_one_answer(bench):

@@ -20,7 +20,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from pupper_core import _native
-from pupper_core._run import gains, hold, info, lab, load_run, merge, pose, report, response, stand, sweep
+from pupper_core._run import gains, hold, info, lab, load_run, merge, pose, report, response, stand, sweep, walk
 from pupper_core._native import (
     ClusterError,
     ConfigError,
@@ -73,6 +73,7 @@ __all__ = [
     "lab",
     "response",
     "hold",
+    "walk",
     "tune",
     "recommend",
     "excite",

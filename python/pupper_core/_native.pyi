@@ -229,6 +229,22 @@ def hold(
     **options: Any,
 ) -> SweepResult: ...
 
+def walk(
+    grid: Any = ...,
+    *,
+    out: str | PathLike[str] | None = ...,
+    progress: Callable[[int, int], None] | None = ...,
+    gait: str = ...,
+    frequency: float = ...,
+    speed: float = ...,
+    sideways: float = ...,
+    yaw_rate: float = ...,
+    duty: float | None = ...,
+    step_height: float | None = ...,
+    height: float | None = ...,
+    **options: Any,
+) -> SweepResult: ...
+
 def lab(
     variants: Sequence[str] | None = ...,
     grid: Sequence[str] | None = ...,

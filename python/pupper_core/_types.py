@@ -102,6 +102,8 @@ class LegInfo(TypedDict):
     knee_axis: list[float]
     hip_to_foot: float
     foot_radius: float
+    abduction: list[float]
+    abduction_axis: list[float]
 
 
 class SimOptions(TypedDict, total=False):

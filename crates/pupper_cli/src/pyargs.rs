@@ -71,6 +71,15 @@ impl Serialize for PathOf<'_> {
     }
 }
 
+/// Paths as a list, or null when none is given (a repeatable path flag left out).
+pub fn paths_or_none<P: AsRef<OsStr>, S: Serializer>(ps: &[P], s: S) -> Result<S::Ok, S::Error> {
+    if ps.is_empty() {
+        s.serialize_none()
+    } else {
+        paths(ps, s)
+    }
+}
+
 /// A repeatable flag given no times is the keyword left out: null.
 pub fn none_if_empty<T: Serialize, S: Serializer>(v: &[T], s: S) -> Result<S::Ok, S::Error> {
     if v.is_empty() {

@@ -64,6 +64,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(lab::lab, m)?)?;
     m.add_function(wrap_pyfunction!(response::response, m)?)?;
     m.add_function(wrap_pyfunction!(hold::hold, m)?)?;
+    m.add_function(wrap_pyfunction!(commands::walk::walk, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::check_axes, m)?)?;
     m.add_class::<result::SweepResult>()?;
     m.add_function(wrap_pyfunction!(record::record, m)?)?;

@@ -183,7 +183,7 @@ def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Ma
             sol = _solve(sysid, pb, max_iters, begin, _Progress(progress))
             val = validate_logs(sysid, pb, sol, held_out, names, per) if held_out else None
         result = _result(pb, sol, out_dir, time.perf_counter() - started, val, per)
-        result.notes = notes
+        result.notes = notes + pb.notes
         result.delay_scan = sol.scan
         if out_dir is not None:
             _write_run(out_dir, result, pb, sol, model, names, per, force, plot, val)
@@ -221,6 +221,9 @@ def _result(pb: _Problem, sol: _Solution, out_dir: Path | None, seconds: float,
                     [pb.robot.actuators[k] for k in kept], floored=sol.floored, correlation_time=sol.tau,
                     interval_source=sol.source,
                     validation=val.rows if val else [], bode=val.bode if val else [])
+    if pb.by_log:
+        res.log_actuators = {lg.path.name: [pb.robot.actuators[k] for k in pb.kept_of(i)]
+                             for i, lg in enumerate(pb.logs)}
     # per joint or group, motors of one type get a value each: they should agree
     res.warnings += disagreements(fit_entries(res), motor_types(pb.robot.full))
     return res
@@ -241,7 +244,7 @@ def _cli_fit(args_json: str) -> list[str]:
             print(f"{r['parameter']:<{width}}  {r['nominal']:>10.4g}  {r['fitted']:>10.4g}  {interval}  {r['unit']}")
         for name in res.rms_before:
             b, f = np.mean(res.rms_before[name]) * 1e3, np.mean(res.rms_after[name]) * 1e3
-            n = len(res.actuators)
+            n = len(res.actuators_of(name))
             print(f"{name}: RMS angle error {b:.3f} -> {f:.3f} mrad (mean over {n} joint{'s' if n > 1 else ''})")
         if res.validation:
             print_table(res.validation)

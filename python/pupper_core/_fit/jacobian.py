@@ -62,15 +62,15 @@ def jacobian_fn(residual_fn: Any, params: Any, pb: _Problem, eps: float = float(
         return None
     nu = len(pb.robot.actuators)
     legs = pb.robot.legs
-    # each residual row's signal: every log's block is its samples times the signals, signal fastest
-    signal_leg = np.array([legs[s % nu] for s in pb.sensors])
+    # each residual row's signal: every log's block is its samples times its signals, signal fastest
+    signal_leg = [np.array([legs[s % nu] for s in pb.sensors_of(i)]) for i in range(len(pb.logs))]
     param_leg = [_leg(pb, members) for _, _, members, _ in pb.labels]
     lo, hi = (np.asarray(b, dtype=float).reshape(-1, 1) for b in params.get_bounds())
     start = params.copy()
 
-    def residual(x: np.ndarray) -> np.ndarray:
+    def residual(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r, _, _ = residual_fn(x, start)
-        return np.concatenate(r)
+        return np.concatenate(r), np.concatenate([np.resize(sl, len(ri)) for sl, ri in zip(signal_leg, r)])
 
     def jacobian(x: np.ndarray, r: np.ndarray) -> np.ndarray:
         n = x.shape[0]
@@ -79,8 +79,7 @@ def jacobian_fn(residual_fn: Any, params: Any, pb: _Problem, eps: float = float(
         for c, members in enumerate(groups):
             xh[members, c] += step[members, 0]
         np.clip(xh, lo, hi, out=xh)
-        rh = residual(xh)
-        rows = np.resize(signal_leg, r.shape[0])
+        rh, rows = residual(xh)
         jac = np.zeros((r.shape[0], n))
         for c, members in enumerate(groups):
             d = rh[:, c] - r[:, 0]

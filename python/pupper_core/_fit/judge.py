@@ -12,13 +12,8 @@ import numpy as np
 
 from pupper_core._fit.problem import FitResult, _Problem, _Solution
 from pupper_core._fit.robot import Robot
-from pupper_core._fit.sysid import (
-    Predictions,
-    _correlation_time,
-    _information_shares,
-    _interval_residuals,
-    _residual_fn,
-)
+from pupper_core._fit.cover import row_segments
+from pupper_core._fit.sysid import Predictions, _correlation_time, _information_shares, _interval_residuals
 from pupper_core._fit.terms import CONFOUNDED, PARAMS, FitError
 
 
@@ -36,17 +31,18 @@ def _intervals(sysid: Any, pb: _Problem, residual_fn: Any, opt: Any, res: Any, w
     if res is None or ended is None:
         return np.full(n, math.nan), None, "none", 1.0
     r_star, _, _ = residual_fn(opt.as_vector(), opt.copy())
-    r_iv, floored = _interval_residuals(r_star, ended, weights, pb.sensors, len(pb.robot.actuators))
+    by_log = [pb.sensors_of(i) for i in range(len(pb.logs))]
+    r_iv, floored = _interval_residuals(r_star, ended, weights, pb.sensors, by_log, len(pb.robot.actuators))
     try:
         cov, half = sysid.calculate_intervals(r_iv, res.jac, alpha=0.05)
     except (np.linalg.LinAlgError, ValueError):
         return np.full(n, math.inf), None, "floored" if floored else "noise", 1.0
     # a noise-free log's residual is round-off, not noise: its floor stands for independent noise
     nu = len(pb.robot.actuators)
-    kinds = [s // nu for s in pb.sensors]
+    kinds = [[s // nu for s in mine] for mine in by_log]
     # through the firmware, each kind of signal's correlation time counts by what it tells
     shares = (_information_shares(res.jac, [int(np.size(r)) for r in r_star], kinds)
-              if pb.firmware is not None and len(set(kinds)) > 1 else None)
+              if pb.firmware is not None and len({k for ks in kinds for k in ks}) > 1 else None)
     tau = 1.0 if floored else _correlation_time(ended, shares, kinds)
     half = np.where(np.isnan(half), math.inf, half * math.sqrt(tau))
     if pb.firmware is not None and pb.firmware.noise and not floored:
@@ -86,7 +82,10 @@ def _model_error(pb: _Problem, jac: np.ndarray, r_star: list[np.ndarray], ended:
 
     noise, source = half, "noise"
     period = float(np.mean([np.mean(np.diff(t)) for t, _, _ in ended]))
-    seg = fi.segments([t for t, _, _ in ended], len(pb.sensors), period, tau)
+    counts = [len(pb.sensors_of(i)) for i in range(len(pb.logs))]
+    times = [t for t, _, _ in ended]
+    seg = (fi.segments(times, counts[0], period, tau) if len(set(counts)) == 1
+           else row_segments(fi.segments, times, counts, period, tau))
     got = fi.sandwich(jac, np.concatenate(r_star), seg) if seg is not None else None
     if got is not None and fi.model_error(noise, got[1]):
         half, source = np.where(np.isfinite(half), np.maximum(half, got[1]), half), "model error"
@@ -131,8 +130,8 @@ def _own_shifts(sysid: Any, pb: _Problem, opt: Any, res: Any, r_star: list[np.nd
     x = opt.as_vector()
     out = []
     for i, proj in enumerate(keep):
-        one = dataclasses.replace(pb, logs=[pb.logs[i]], sequences=[pb.sequences[i]])
-        fn = _residual_fn(sysid, one.sequences, one.enabled(sysid), weights, pb.firmware)
+        one = dataclasses.replace(pb, logs=[pb.logs[i]], sequences=[pb.sequences[i]], by_log=pb.by_log[i:i + 1])
+        fn = one.residual_fn(sysid, weights)
         try:
             own, _ = _optimize(sysid, one, opt.copy(), fn, OWN_ITERS, io.StringIO())
         except FitError:
@@ -165,9 +164,8 @@ def _draw_spread(sysid: Any, pb: _Problem, opt: Any, jac: np.ndarray, r_star: li
     except np.linalg.LinAlgError:
         return None
     shifts = [-(hinv @ (jac.T @ np.concatenate(r_star)))]
-    enabled = pb.enabled(sysid)
     for seed in range(pb.firmware.seed + 1, pb.firmware.seed + 1 + DRAWS):
-        fn = _residual_fn(sysid, pb.sequences, enabled, weights, replace(pb.firmware, seed=seed))
+        fn = pb.residual_fn(sysid, weights, replace(pb.firmware, seed=seed))
         r, _, _ = fn(x, opt.copy())
         r = np.concatenate(r)
         if r.shape[0] != jac.shape[0] or not np.all(np.isfinite(r)):

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from pupper_core._rundir import refuse_non_regular
+from pupper_core._fit.cover import type_sets
 from pupper_core._fit.problem import FitResult, _Problem, _Solution
 from pupper_core._fit.robot import Robot, _history_samples
 from pupper_core._fit.sysid import _predictions
@@ -86,7 +87,7 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
             w = csv.writer(f, lineterminator="\n")
             w.writerow(["log", "actuator", "rms_before_rad", "rms_after_rad"])
             for lg in logs:
-                for k, a in enumerate(res.actuators):
+                for k, a in enumerate(res.actuators_of(lg.path.name)):
                     w.writerow([lg.path.name, a, repr(res.rms_before[lg.path.name][k]),
                                 repr(res.rms_after[lg.path.name][k])])
 
@@ -104,6 +105,8 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
         "fit": {r["parameter"]: {"nominal": r["nominal"], "fitted": r["fitted"], "low95": r["low95"],
                                  "high95": r["high95"], "unit": r["unit"]} for r in res.table},
         "rms_before_rad": res.rms_before, "rms_after_rad": res.rms_after,
+        # logs of different motors: the actuators each log's errors are of
+        **({"log_actuators": res.log_actuators} if res.log_actuators else {}),
         "warnings": res.warnings, "notes": res.notes, "delay_scan": res.delay_scan, "seconds": res.seconds,
         "validation": res.validation,
         "intervals": {"noise_floor": dict(zip(("angle_rad", "velocity_rad_s", "torque_nm"), NOISE_FLOOR)),
@@ -147,13 +150,17 @@ def _whole_labels(robot: Robot, labels: list[tuple[str, str, list[int], float]],
     joint of the whole robot it stands for, as if every leg were stepped."""
     if robot.whole is None:
         return labels
-    whole = dict(robot.full.members(per))
+    # a fit of several motors' logs shares the motor's parameters by type (``cover.type_sets``)
+    whole = {**dict(type_sets(robot.full)), **dict(robot.full.members(per))}
     return [(name, kind, whole.get(name[len(kind):], [robot.full.actuators.index(robot.actuators[i]) for i in members]),
              nom) for name, kind, members, nom in labels]
 
 
-def _calibrated_xml(robot: Robot, labels: list[tuple[str, str, list[int], float]], x: np.ndarray) -> str:
-    """The whole robot with the fitted values, written through MjSpec."""
+def _calibrated_xml(robot: Robot, labels: list[tuple[str, str, list[int], float]], x: np.ndarray,
+                    name: str = "calibrated") -> str:
+    """The whole robot with the fitted values, written through MjSpec
+    (its model name ``name`` after its own); a scale the model already
+    holds (a calibrated model's, recommend merging fits) takes the new value."""
     import mujoco
 
     spec = mujoco.MjSpec.from_file(str(robot.file))
@@ -186,9 +193,15 @@ def _calibrated_xml(robot: Robot, labels: list[tuple[str, str, list[int], float]
                 act.interp = 1
             else:
                 scales[(kind, i)] = float(v)
+    held = {n.name: n for n in spec.numerics}
     for (kind, i), v in sorted(scales.items()):
-        spec.add_numeric(name=SCALE_NUMERIC.format(kind=kind, actuator=robot.actuators[i]), data=[v])
-    spec.modelname = f"{spec.modelname}_calibrated" if spec.modelname else "calibrated"
+        numeric = SCALE_NUMERIC.format(kind=kind, actuator=robot.actuators[i])
+        if numeric in held:
+            held[numeric].data = [v]
+        else:
+            spec.add_numeric(name=numeric, data=[v])
+    if name:
+        spec.modelname = f"{spec.modelname}_{name}" if spec.modelname else name
     return str(spec.to_xml())
 
 
@@ -206,7 +219,7 @@ def _plot(out: Path, pb: _Problem, sol: _Solution) -> list[Path]:
 
     first = _predictions(sol.residual_fn, pb.pdict, pb.x_nominal)
     last = _predictions(sol.residual_fn, sol.params, sol.x)
-    names = [pb.robot.actuators[k] for k in pb.kept]
     # the predictions' first columns are the fitted joints' angles
-    return [save(fit_figure(lg.path.name, t, me, p0, p1, names), out / "plots" / f"fit_{lg.path.stem}.png")
-            for lg, (t, me, p0), (_, _, p1) in zip(pb.logs, first, last)]
+    return [save(fit_figure(lg.path.name, t, me, p0, p1, [pb.robot.actuators[k] for k in pb.kept_of(i)]),
+                 out / "plots" / f"fit_{lg.path.stem}.png")
+            for i, (lg, (t, me, p0), (_, _, p1)) in enumerate(zip(pb.logs, first, last))]

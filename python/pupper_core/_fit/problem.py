@@ -13,8 +13,9 @@ from typing import Any
 import numpy as np
 
 from pupper_core._fit.firmware import Firmware
+from pupper_core._fit.cover import differ, parameter_sets, sensors_by_log
 from pupper_core._fit.robot import Robot, initial_state, narrow, suspended_spec
-from pupper_core._fit.sysid import _held, _modifier
+from pupper_core._fit.sysid import _held, _modifier, _residual_by_log, _residual_fn
 from pupper_core._fit.terms import MAX_LOG_SECONDS, PARAMS, STILL_RAD, FitError
 from pupper_core._fit.log import JointLog, LogError, read_log
 from pupper_core._fit.columns import ColumnMap, read_map
@@ -49,6 +50,12 @@ class FitResult:
     notes: list[str] = field(default_factory=list)
     #: the delay scan the fit started from (``_fit_start``): its grid (s), costs and the starts taken
     delay_scan: dict[str, Any] = field(default_factory=dict)
+    #: where the logs cover different actuators: the ones each log's RMS errors are of (else ``actuators``)
+    log_actuators: dict[str, list[str]] = field(default_factory=dict)
+
+    def actuators_of(self, log: str) -> list[str]:
+        """The actuators log ``log``'s RMS errors are of."""
+        return self.log_actuators.get(log, self.actuators)
 
     def value(self, name: str) -> float:
         return next(float(r["fitted"]) for r in self.table if r["parameter"] == name)
@@ -75,6 +82,13 @@ class _Problem:
     warnings: list[str] = field(default_factory=list)
     #: the servo firmware the replay runs through (--motor); None: MuJoCo's servo
     firmware: Firmware | None = None
+    #: each log's compared signals where the logs cover different actuators (``cover``); empty: every
+    #: log compares ``sensors``
+    by_log: list[list[int]] = field(default_factory=list)
+    #: the parameters of a fit of several motors' logs (``cover.parameter_sets``)
+    several: bool = False
+    #: what the set-up did that the user should know (not a doubt about the fit)
+    notes: list[str] = field(default_factory=list)
 
     @property
     def kept(self) -> list[int]:
@@ -82,11 +96,33 @@ class _Problem:
         nu = len(self.robot.actuators)
         return [s for s in self.sensors if s < nu]
 
-    def enabled(self, sysid: Any) -> list[Any]:
-        """The enabled sensors as sysid's observations, in the model's order."""
+    def sensors_of(self, log: int) -> list[int]:
+        """The signals log ``log`` compares."""
+        return self.by_log[log] if self.by_log else self.sensors
+
+    def kept_of(self, log: int) -> list[int]:
+        """The actuators whose angle log ``log`` compares."""
+        nu = len(self.robot.actuators)
+        return [s for s in self.sensors_of(log) if s < nu]
+
+    def enabled(self, sysid: Any, log: int | None = None) -> list[Any]:
+        """The enabled sensors (of one log, or of all) as sysid's observations, in the model's order."""
         names = [x.name for x in self.sequences[0].spec.sensors]
+        on = self.sensors if log is None else self.sensors_of(log)
         return [(s.name, sysid.SignalType.MjSensor) for s in self.sequences[0].spec.sensors
-                if names.index(s.name) in self.sensors]
+                if names.index(s.name) in on]
+
+    def residual_fn(self, sysid: Any, weights: np.ndarray | None, firmware: Firmware | None = None) -> Any:
+        """sysid's residual over every log (``weights``: by position among
+        ``sensors``), through ``firmware`` (default the problem's): each log
+        on its own signals where they differ."""
+        fw = firmware if firmware is not None else self.firmware
+        if not self.by_log:
+            return _residual_fn(sysid, self.sequences, self.enabled(sysid), weights, fw)
+        at = {s: p for p, s in enumerate(self.sensors)}
+        own = [None if weights is None else np.asarray(weights)[[at[s] for s in mine]] for mine in self.by_log]
+        return _residual_by_log(sysid, self.sequences, [self.enabled(sysid, i) for i in range(len(self.logs))],
+                                own, fw)
 
 
 @dataclass
@@ -366,11 +402,21 @@ def _check_log(lg: JointLog, robot: Robot) -> None:
 
 
 def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], per: str,
-             firmware: Firmware | None = None) -> _Problem:
+             firmware: Firmware | None = None, several: bool | None = None) -> _Problem:
+    """The problem ``read`` sets; ``several``: the parameters of a fit of
+    several motors' logs (``cover``; default: where the logs cover
+    different actuators, as a validation of such a fit is given)."""
     nu = len(robot.actuators)
     has_tau = all(lg.tau is not None for lg in read)
     has_qd = all(lg.qd is not None for lg in read)
-    sensors, warnings = _enabled_sensors(robot, read, has_qd, has_tau)
+    by_log: list[list[int]] = []
+    notes: list[str] = []
+    if differ(read):
+        # each log on the actuators it logs
+        sensors, by_log, warnings, notes = sensors_by_log(robot, read, has_qd, has_tau)
+    else:
+        sensors, warnings = _enabled_sensors(robot, read, has_qd, has_tau)
+    several = differ(read) if several is None else several
     # one spec per gain setting: its actuators run at the logged gains
     specs: dict[tuple[bytes, bytes], Any] = {}
     gains: dict[int, tuple[np.ndarray, np.ndarray]] = {}
@@ -410,9 +456,11 @@ def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], p
         measured = sysid.TimeSeries.from_names(t, y, m)
         sequences.append(sysid.ModelSequences(f"log{li}", spec, lg.path.stem, x0, control, measured))
     kept = {s for s in sensors if s < nu}
-    pdict, labels, x_nominal = _parameters(sysid, robot, names, per, gains, kept, _logged(robot, read),
-                                           warnings, firmware is not None)
-    return _Problem(robot, read, sequences, pdict, labels, x_nominal, sensors, gains, warnings, firmware)
+    logged = _logged(robot, read, every=not by_log)
+    pdict, labels, x_nominal = _parameters(sysid, robot, names, per, gains, kept, logged, warnings,
+                                           firmware is not None, several)
+    return _Problem(robot, read, sequences, pdict, labels, x_nominal, sensors, gains, warnings, firmware, by_log,
+                    several, notes)
 
 
 #: How long (s) the joints a log does not cover settle at their targets before it starts.
@@ -452,26 +500,23 @@ def _order(lg: JointLog, robot: Robot) -> list[int]:
     return [lg.actuators.index(a) for a in robot.actuators]
 
 
-def _logged(robot: Robot, read: list[JointLog]) -> set[int]:
-    """The actuators every log covers."""
-    return {k for k, a in enumerate(robot.actuators) if all(a in lg.logged for lg in read)}
+def _logged(robot: Robot, read: list[JointLog], every: bool = True) -> set[int]:
+    """The actuators every log covers (or, not ``every``, some log)."""
+    test = all if every else any
+    return {k for k, a in enumerate(robot.actuators) if test(a in lg.logged for lg in read)}
 
 
 def _enabled_sensors(robot: Robot, read: list[JointLog], has_qd: bool,
                      has_tau: bool) -> tuple[list[int], list[str]]:
-    """The signals the fit compares: a joint whose angle never moves shows
-    nothing (and sysid, which divides each signal by its size, would divide
-    by zero), so it is left out, as is a velocity or torque column that is
-    all zero; each is said. Refuses a fit with nothing left."""
+    """The signals the fit compares, where every log covers the same
+    actuators (``cover.sensors_by_log`` where they differ): a joint whose
+    angle never moves shows nothing (and sysid, which divides each signal
+    by its size, would divide by zero), so it is left out, as is a velocity
+    or torque column that is all zero; each is said. Refuses a fit with
+    nothing left."""
     nu = len(robot.actuators)
     warnings: list[str] = []
     logged = _logged(robot, read)
-    for k, a in enumerate(robot.actuators):
-        some = [lg.path.name for lg in read if a in lg.logged]
-        if k not in logged and some:
-            miss = next(lg.path.name for lg in read if a not in lg.logged)
-            warnings.append(f"{a} is logged in {some[0]} but not in {miss}: left out of the fit (fit logs of "
-                            "the same joints together)")
     still: dict[int, JointLog] = {}
     for lg in read:
         for k, c in enumerate(_order(lg, robot)):
@@ -480,8 +525,6 @@ def _enabled_sensors(robot: Robot, read: list[JointLog], has_qd: bool,
     for k, lg in sorted(still.items()):
         warnings.append(f"{robot.actuators[k]} never moves in {lg.path.name} (its angle stays at "
                         f"{lg.q[0, _order(lg, robot)[k]]:.6g} rad): left out of the fit")
-    if not logged:
-        raise FitError("the logs cover no actuator in common: fit logs of the same joints together")
     if len(still) == len(logged):
         raise FitError(f"no joint moves in {', '.join(sorted({lg.path.name for lg in still.values()}))} "
                        "(every angle column is constant): nothing to fit; log a run where the joints "
@@ -499,17 +542,18 @@ def _enabled_sensors(robot: Robot, read: list[JointLog], has_qd: bool,
 
 
 def _parameters(sysid: Any, robot: Robot, names: list[str], per: str, gains: dict[int, tuple[np.ndarray, np.ndarray]],
-                kept: set[int], logged: set[int], warnings: list[str],
-                firmware: bool = False) -> tuple[Any, list[tuple[str, str, list[int], float]], np.ndarray]:
+                kept: set[int], logged: set[int], warnings: list[str], firmware: bool = False,
+                several: bool = False) -> tuple[Any, list[tuple[str, str, list[int], float]], np.ndarray]:
     """The parameters at their nominal values (the vector returned, before
     sysid moves those on a bound inside for its start); a set of joints no
-    log covers is not fitted, silently (the logs say what they cover)."""
+    log covers is not fitted, silently (the logs say what they cover).
+    ``several``: a fit of several motors' logs (``cover.parameter_sets``)."""
     pdict = sysid.ParameterDict()
     nominal = {"armature": robot.armature, "damping": robot.damping, "frictionloss": robot.frictionloss,
                "torque_limit": robot.limits}
     labels: list[tuple[str, str, list[int], float]] = []
     for kind in names:
-        for suffix, members in robot.members(per):
+        for suffix, members in parameter_sets(robot, kind, per, several):
             if not kept.intersection(members):
                 if not logged.intersection(members):
                     continue

@@ -20,7 +20,7 @@ from pupper_core._fit.jacobian import jacobian_fn
 from pupper_core._fit.problem import _Problem, _Solution
 from pupper_core._fit.robot import Robot, suspended_spec
 from pupper_core._fit.start import GRID, latencies, starts
-from pupper_core._fit.sysid import _predictions, _residual_fn, _rms, _whitening
+from pupper_core._fit.sysid import _predictions, _rms, _whitening
 from pupper_core._fit.terms import MEMORY_COPIES, MEMORY_FRACTION, FitError
 from pupper_core._fit.log import JointLog
 
@@ -65,12 +65,12 @@ def _solve(sysid: Any, pb: _Problem, max_iters: int, start: dict[str, float] | N
            say: _Progress | None = None) -> _Solution:
     nu = len(pb.robot.actuators)
     say = say or _Progress(False)
-    enabled = pb.enabled(sysid)
-    residual_fn = say.counting(_residual_fn(sysid, pb.sequences, enabled, None, pb.firmware), len(pb.logs))
+    by_log = [pb.sensors_of(i) for i in range(len(pb.logs))]
+    residual_fn = say.counting(pb.residual_fn(sysid, None), len(pb.logs))
     clock = time.perf_counter()
     _check_finite(residual_fn, pb)
     say.expect(time.perf_counter() - clock, pb, max_iters)
-    before = _rms(_predictions(residual_fn, pb.pdict, pb.x_nominal), pb.sensors, nu)
+    before = _rms(_predictions(residual_fn, pb.pdict, pb.x_nominal), by_log, nu)
     sink = io.StringIO()
     xs, scan = starts(residual_fn, pb, pb.pdict.as_vector(), start or {})
     if "starts_s" in scan:
@@ -85,8 +85,8 @@ def _solve(sysid: Any, pb: _Problem, max_iters: int, start: dict[str, float] | N
     if any(s >= nu for s in pb.sensors):
         # whiten: each kind of signal by its own noise, so the pooled
         # variance of the intervals means something
-        weights = _whitening(residual_fn, opt, nu, pb.sensors)
-        residual_fn = say.counting(_residual_fn(sysid, pb.sequences, enabled, weights, pb.firmware), len(pb.logs))
+        weights = _whitening(residual_fn, opt, nu, pb.sensors, by_log)
+        residual_fn = say.counting(pb.residual_fn(sysid, weights), len(pb.logs))
         say("whitened by each signal's noise: fitting on from there")
         opt, res = _optimize(sysid, pb, opt, residual_fn, max_iters, sink, say)
     opt, res = _no_delay_if_lower(sysid, pb, residual_fn, opt, res)
@@ -96,7 +96,7 @@ def _solve(sysid: Any, pb: _Problem, max_iters: int, start: dict[str, float] | N
     # the replay where the fit ended, once: its intervals' residual and the error after
     ended = None if res is None else _predictions(residual_fn, opt, x)
     half, corr, source, tau = _intervals(sysid, pb, residual_fn, opt, res, weights, ended)
-    after = before if ended is None else _rms(ended, pb.sensors, nu)
+    after = before if ended is None else _rms(ended, by_log, nu)
     return _Solution(x, half, corr, residual_fn, opt, before, after, source == "floored", warnings, tau, scan,
                      source)
 

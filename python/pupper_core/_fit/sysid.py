@@ -111,6 +111,30 @@ def _residual_fn(sysid: Any, sequences: list[Any], enabled: list[Any], weights: 
                                    enabled_observations=enabled, sensor_weights=weights)
 
 
+def _residual_by_log(sysid: Any, sequences: list[Any], enabled: list[list[Any]],
+                     weights: list[np.ndarray | None], firmware: Firmware | None = None) -> Any:
+    """The residual over logs that compare different signals (``enabled``,
+    ``weights``: each log's): sysid's residual takes one set for every
+    sequence, so the logs that share one are a residual of their own, and
+    the pieces go back in the logs' order."""
+    groups: dict[tuple[Any, ...], list[int]] = {}
+    for i, on in enumerate(enabled):
+        groups.setdefault(tuple(on), []).append(i)
+    fns = [(idx, _residual_fn(sysid, [sequences[i] for i in idx], enabled[idx[0]], weights[idx[0]], firmware))
+           for idx in groups.values()]
+
+    def residual(x: np.ndarray, params: Any, **kw: Any) -> tuple[list[Any], list[Any], list[Any]]:
+        out: list[list[Any]] = [[None] * len(sequences) for _ in range(3)]
+        for idx, fn in fns:
+            for part, got in zip(out, fn(x, params, **kw)):
+                for i, v in zip(idx, got):
+                    part[i] = v
+        # sysid leaves the predictions out unless asked for them
+        return out[0], [v for v in out[1] if v is not None], [v for v in out[2] if v is not None]
+
+    return residual
+
+
 #: Each log's replay: its times, the measured and the predicted signals.
 Predictions = list[tuple[np.ndarray, np.ndarray, np.ndarray]]
 
@@ -128,54 +152,68 @@ def _predictions(residual_fn: Any, params: Any, x: np.ndarray) -> Predictions:
     return out
 
 
-def _rms(preds: Predictions, sensors: list[int], nu: int) -> list[list[float]]:
-    """Each log's RMS angle error per fitted actuator (the predictions'
-    columns are the enabled sensors, angles first)."""
-    cols = [p for p, s in enumerate(sensors) if s < nu]
-    return [[float(v) for v in np.sqrt(np.mean((me[:, cols] - pr[:, cols]) ** 2, axis=0))]
-            for _, me, pr in preds]
+def _rms(preds: Predictions, sensors: list[list[int]], nu: int) -> list[list[float]]:
+    """Each log's RMS angle error per actuator it fits (``sensors``: each
+    log's enabled sensors, the columns of its predictions, angles first)."""
+    out = []
+    for (_, me, pr), mine in zip(preds, sensors):
+        cols = [p for p, s in enumerate(mine) if s < nu]
+        out.append([float(v) for v in np.sqrt(np.mean((me[:, cols] - pr[:, cols]) ** 2, axis=0))])
+    return out
 
 
-def _whitening(residual_fn: Any, opt: Any, nu: int, sensors: list[int]) -> np.ndarray:
+def _block_err(preds: Predictions, by_log: list[list[int]], nu: int, block: int) -> np.ndarray:
+    """Every log's residual of one kind of signal (angle, velocity, torque), flat."""
+    own = [[c for c, s in enumerate(mine) if s // nu == block] for mine in by_log]
+    return np.concatenate([(me[:, c] - pr[:, c]).ravel() for (_, me, pr), c in zip(preds, own)])
+
+
+def _whitening(residual_fn: Any, opt: Any, nu: int, sensors: list[int], by_log: list[list[int]]) -> np.ndarray:
     """Weights that make each kind of signal (angle, velocity, torque)
-    count by its own noise, estimated from the fit's residual."""
+    count by its own noise, estimated from the fit's residual (``sensors``:
+    every enabled sensor, whose order the weights take; ``by_log``: each
+    log's, the columns of its predictions)."""
     preds = _predictions(residual_fn, opt, opt.as_vector())
     # by position among the enabled sensors (a dict would be read by the
     # model's sensor index)
     weights = np.ones(len(sensors))
     for block in range(3):
-        # the predictions' columns are the enabled sensors, in order
         cols = [p for p, s in enumerate(sensors) if s // nu == block]
         if not cols:
             continue
-        err = np.concatenate([(me[:, cols] - pr[:, cols]).ravel() for _, me, pr in preds])
+        err = _block_err(preds, by_log, nu, block)
         sigma = max(float(np.std(err)), 1e-12)
         for p in cols:
             # sysid divides each column by its norm / sqrt(2): undo that, divide by sigma
-            norm = np.linalg.norm(np.concatenate([me[:, p] for _, me, _ in preds])) / np.sqrt(2)
+            s = sensors[p]
+            norm = np.linalg.norm(np.concatenate([me[:, mine.index(s)] for (_, me, _), mine in zip(preds, by_log)
+                                                  if s in mine])) / np.sqrt(2)
             weights[p] = float(norm / sigma) if norm > 0 else 1.0
     return weights
 
 
-def _interval_residuals(r_star: list[np.ndarray], preds: Predictions,
-                        weights: np.ndarray | None, sensors: list[int], nu: int) -> tuple[list[np.ndarray], bool]:
+def _interval_residuals(r_star: list[np.ndarray], preds: Predictions, weights: np.ndarray | None,
+                        sensors: list[int], by_log: list[list[int]], nu: int) -> tuple[list[np.ndarray], bool]:
     """The residual the intervals' pooled variance is taken from: sysid's
     own, unless a kind of signal's RMS error lies below its NOISE_FLOOR (a
-    noise-free log), where that kind counts at the floor instead."""
+    noise-free log), where that kind counts at the floor instead
+    (``weights``: by position among ``sensors``; ``by_log``: each log's
+    enabled sensors)."""
     low = set()
     for block in range(3):
         cols = [p for p, s in enumerate(sensors) if s // nu == block]
         if cols:
-            err = np.concatenate([(me[:, cols] - pr[:, cols]).ravel() for _, me, pr in preds])
+            err = _block_err(preds, by_log, nu, block)
             if math.sqrt(float(np.mean(err ** 2))) < NOISE_FLOOR[block]:
                 low.add(block)
     if not low:
         return r_star, False
+    at = {s: p for p, s in enumerate(sensors)}
     # sysid divides each signal by its norm / sqrt(2) and multiplies by its weight
     total = 0.0
-    for _, me, pr in preds:
-        for p, s in enumerate(sensors):
-            scale = (1.0 if weights is None else float(weights[p])) * math.sqrt(2) / float(np.linalg.norm(me[:, p]))
+    for (_, me, pr), mine in zip(preds, by_log):
+        for p, s in enumerate(mine):
+            scale = (1.0 if weights is None else float(weights[at[s]])) * math.sqrt(2) / float(np.linalg.norm(me[:, p]))
             e2 = len(me) * NOISE_FLOOR[s // nu] ** 2 if s // nu in low else float(np.sum((me[:, p] - pr[:, p]) ** 2))
             total += scale ** 2 * e2
     size = sum(int(np.size(r)) for r in r_star)
@@ -183,7 +221,7 @@ def _interval_residuals(r_star: list[np.ndarray], preds: Predictions,
 
 
 def _correlation_time(preds: Predictions, shares: dict[int, float] | None = None,
-                      kinds: list[int] | None = None) -> float:
+                      kinds: list[list[int]] | None = None) -> float:
     """The residual's integrated autocorrelation time (in samples, 1 for
     white noise), the mean over every log's compared signals: each sample
     of a residual that the replay cannot follow (a servo's own dither, a
@@ -193,7 +231,7 @@ def _correlation_time(preds: Predictions, shares: dict[int, float] | None = None
     and at most a tenth of a log.
 
     With ``shares`` (each kind of signal's share of the information,
-    ``_information_shares``; ``kinds``: each compared signal's kind), each
+    ``_information_shares``; ``kinds``: each log's compared signals' kinds), each
     kind's mean counts by its share: a kind that tells the parameters
     little does not set the widening (a firmware's torque, whose residual is
     mostly the noise of the encoder's difference velocity, white or
@@ -203,7 +241,7 @@ def _correlation_time(preds: Predictions, shares: dict[int, float] | None = None
     # in the order computed (the plain mean is summed in it), and by kind
     flat: list[float] = []
     taus: dict[int, list[float]] = {}
-    for _, me, pr in preds:
+    for li, (_, me, pr) in enumerate(preds):
         err = me - pr
         n = len(err)
         for c in range(err.shape[1]):
@@ -215,7 +253,7 @@ def _correlation_time(preds: Predictions, shares: dict[int, float] | None = None
             ac = ac / ac[0]
             stop = int(np.argmax(ac < 0)) if np.any(ac < 0) else len(ac)
             flat.append(1.0 + 2.0 * float(np.sum(ac[1:stop])))
-            taus.setdefault(0 if kinds is None else kinds[c], []).append(flat[-1])
+            taus.setdefault(0 if kinds is None else kinds[li][c], []).append(flat[-1])
     if not flat:
         return 1.0
     share = {k: (shares or {}).get(k, 0.0) if kinds is not None else 0.0 for k in taus}
@@ -225,21 +263,20 @@ def _correlation_time(preds: Predictions, shares: dict[int, float] | None = None
     return max(sum(share[k] * float(np.mean(ts)) for k, ts in taus.items()) / total, 1.0)
 
 
-def _information_shares(jac: np.ndarray, sizes: list[int], kinds: list[int]) -> dict[int, float] | None:
+def _information_shares(jac: np.ndarray, sizes: list[int], kinds: list[list[int]]) -> dict[int, float] | None:
     """Each kind of signal's share of what the logs tell the parameters:
     its rows' leverage, trace(H^-1 J_k^T J_k) over the parameters' count
     (H = J^T J: the shares sum to 1). ``sizes``: each log's residual length
-    (its samples times the signals, signal fastest); None where H is
-    singular or the rows do not match."""
-    ns = len(kinds)
-    if jac is None or sum(sizes) != jac.shape[0] or any(s % ns for s in sizes):
+    (its samples times the signals, signal fastest); ``kinds``: each log's
+    signals' kinds; None where H is singular or the rows do not match."""
+    if jac is None or sum(sizes) != jac.shape[0] or any(s % len(k) for s, k in zip(sizes, kinds)):
         return None
-    rows = np.concatenate([np.tile(np.asarray(kinds), s // ns) for s in sizes])
+    rows = np.concatenate([np.tile(np.asarray(k), s // len(k)) for s, k in zip(sizes, kinds)])
     try:
         hinv = np.linalg.pinv(jac.T @ jac)
     except np.linalg.LinAlgError:
         return None
-    lev = {k: float(np.trace(hinv @ (jac[rows == k].T @ jac[rows == k]))) for k in set(kinds)}
+    lev = {k: float(np.trace(hinv @ (jac[rows == k].T @ jac[rows == k]))) for k in sorted({k for ks in kinds for k in ks})}
     total = sum(lev.values())
     if not (math.isfinite(total) and total > 0):
         return None

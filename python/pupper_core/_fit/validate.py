@@ -23,7 +23,7 @@ import numpy as np
 
 from pupper_core._fit.freq import PHASE_AT, Response, bandwidth, delay_left, phase_at, response
 from pupper_core._fit.problem import _Problem, _problem, _Solution, narrowed
-from pupper_core._fit.sysid import _predictions, _residual_fn
+from pupper_core._fit.sysid import _predictions
 from pupper_core._fit.terms import FitError
 from pupper_core._fit.log import JointLog
 
@@ -69,17 +69,18 @@ def validate(sysid: Any, pb: _Problem, sol: _Solution, read: list[JointLog], nam
     (the fit's values; nominal where the fit left a parameter out)."""
     # the validated logs' own legs of the whole robot (they may cover others than the fit's)
     read, robot = narrowed(read, pb.robot.full)
-    vpb = _problem(sysid, robot, read, names, per, pb.firmware)
+    # the fit's parameters, whatever the validated logs cover
+    vpb = _problem(sysid, robot, read, names, per, pb.firmware, several=pb.several)
     fitted = {label[0]: float(v) for label, v in zip(pb.labels, sol.x)}
     x_cal = np.array([fitted.get(label[0], float(x0)) for label, x0 in zip(vpb.labels, vpb.x_nominal)])
-    residual_fn = _residual_fn(sysid, vpb.sequences, vpb.enabled(sysid), None, vpb.firmware)
+    residual_fn = vpb.residual_fn(sysid, None)
     nominal = _predictions(residual_fn, vpb.pdict, vpb.x_nominal)
     calibrated = _predictions(residual_fn, vpb.pdict, x_cal)
     out = Validation(warnings=[f"--validate: {w}" for w in vpb.warnings], logs=[(str(lg.path), lg.sha256) for lg in read])
-    for lg, (t, me, p0), (_, _, p1) in zip(read, nominal, calibrated):
+    for li, (lg, (t, me, p0), (_, _, p1)) in enumerate(zip(read, nominal, calibrated)):
         rel = lg.times - lg.times[0]
         held = np.clip(np.searchsorted(rel, t + 1e-12, side="right") - 1, 0, len(rel) - 1)
-        for col, k in enumerate(vpb.kept):
+        for col, k in enumerate(vpb.kept_of(li)):
             name = vpb.robot.actuators[k]
             q = {"log": me[:, col], "nominal": p0[:, col], "calibrated": p1[:, col]}
             command = lg.target[held, k]

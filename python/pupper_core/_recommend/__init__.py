@@ -23,6 +23,7 @@ from typing import Any
 from pupper_core._rundir import printing
 from pupper_core._recommend.card import card_of, in_use, print_card, write_outputs, write_trials
 from pupper_core._types import exported_from
+from pupper_core._recommend.fits import SCRATCH, FitRuns
 from pupper_core._recommend.inputs import plan as make_plan
 from pupper_core._recommend.plan import Plan, RecommendError
 from pupper_core._recommend.search import best_of, robot_model_files, windows
@@ -41,13 +42,14 @@ def recommend(
     # the search
     robots: int = 32, trials: int = 48, batch: int = 16, seed: int = 0, polish: int = 4,
     # the robots, their firmware and their push
-    seconds: float = 4.0, push_force: float | None = None, motor: str | None = None,
+    seconds: float | None = None, push_force: float | None = None, motor: str | None = None,
     sensing_delay: float | None = None,
-    command_delay: float = 0.0, spread: Sequence[str] | None = None, from_fit: str | os.PathLike[str] | None = None,
-    # the constraints and the motors' limits
+    command_delay: float = 0.0, spread: Sequence[str] | None = None, from_fit: FitRuns = None,
+    # the constraints, the motors' limits, the gains in use; what the gains are ranked for (standing, walking)
     min_phase_margin: float = 30.0, min_gain_margin: float = 6.0, max_saturation: float = 0.05, max_sag: float = 0.1,
     kp_max: float | None = None, kd_max: float | None = None, current: Sequence[float] | str | None = None,
-    robot_config: str | os.PathLike[str] | None = None,
+    robot_config: str | os.PathLike[str] | None = None, task: str = "stand",
+    gait: str | None = None, speed: float | None = None, frequency: float | None = None, max_tilt: float | None = None,
     # the exports and the run directory
     joint_order: Sequence[str] | str | None = None, controller: str = "neural_controller",
     out: str | os.PathLike[str] | None = None, force: bool = False, progress: bool | Callable[[str], None] = True,
@@ -75,8 +77,8 @@ def recommend(
     (default ``DEFAULT_SPREAD``: torso ±15 %, legs ±10 %, motor gains
     ±10 %, floor friction 0.6-1.2, 1 mrad encoder noise); ``from_fit``: a
     `pupper fit` run directory whose calibrated model is the robot and whose
-    intervals are the spread (8 joint models drawn inside them, the gain
-    scales and the fitted delay drawn per robot). The search's best then
+    intervals are the spread (8 joint models drawn inside them, the gain scales and the fitted
+    delay per robot), or several runs merged (``fits``; out/calibrated.xml). The search's best then
     moves to a better neighbour (a group's kp or kd ×/÷ 1.25, or its kp
     with kd along its margin window) up to ``polish`` times. The search
     starts from each group as stiff as its margins allow. It spans each
@@ -98,23 +100,30 @@ def recommend(
     dip, tracking speed and stand height; recommended.yaml: a ROS 2 parameter file with ``kps`` and
     ``kds`` for ``controller`` in ``joint_order``; recommended.xml: the
     model with the gains in its actuators; report.html; manifest.json).
+
+    ``task="walk"``: the lowest p95 speed error of `pupper walk` at ``gait``, ``frequency`` and ``speed``, every
+    robot's roll and pitch RMS under ``max_tilt``°; the card sets it beside ``task="stand"``'s (docs/recommend.md).
     """
     say = sayer(progress)
-    try:
-        import optuna  # noqa: F401  (the search's sampler)
-    except ImportError:
-        raise RecommendError("pupper recommend needs Optuna: install the extra with `make setup PUPPER_EXTRAS=tune` "
-                             "(or pip install 'pupper_core[tune]')") from None
+    _need_optuna()
     p = make_plan(model, robots=robots, trials=trials, batch=batch, seed=seed, polish=polish, seconds=seconds,
                   push_force=push_force, motor=motor, sensing_delay=sensing_delay, command_delay=command_delay,
                   spread=spread, from_fit=from_fit, min_phase_margin=min_phase_margin,
                   min_gain_margin=min_gain_margin, max_saturation=max_saturation, max_sag=max_sag, kp_max=kp_max,
                   kd_max=kd_max, current=current, robot_config=robot_config, joint_order=joint_order,
-                  controller=controller)
+                  controller=controller, task=task, gait=gait, speed=speed, frequency=frequency, max_tilt=max_tilt)
     if out is None:
         with tempfile.TemporaryDirectory(prefix="pupper-recommend-") as tmp, stop_on_signals("recommend"):
             return _run(p, Path(tmp), say, keep=False)
     return _run_in(p, Path(out), force, say)
+
+
+def _need_optuna() -> None:
+    try:
+        import optuna  # noqa: F401  (the search's sampler)
+    except ImportError:
+        raise RecommendError("pupper recommend needs Optuna: install the extra with `make setup PUPPER_EXTRAS=tune` "
+                             "(or pip install 'pupper_core[tune]')") from None
 
 
 def plan_for(model: str | os.PathLike[str] = "pupper_v3", **changes: Any) -> Plan:
@@ -157,9 +166,9 @@ def _run_in(p: Plan, out_dir: Path, force: bool, say: Callable[[str], None]) -> 
         raise
 
 
-#: What a recommend run writes in its directory (robots/ too, with --from-fit).
+#: What a recommend run writes in its directory (robots/ too, with --from-fit; calibrated.xml with several).
 OUTPUTS = ("recommend.csv", "trials.csv", "tradeoffs.csv", "recommended.yaml", "recommended.xml", "manifest.json",
-           "report.html")
+           "report.html", "calibrated.xml")
 
 
 def _clear(d: Path) -> None:
@@ -179,6 +188,8 @@ def _clear(d: Path) -> None:
 def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommendation:
     """The search, the polish, the card and the files."""
     started = time.time()
+    if p.merged_xml:
+        _keep_merged(p, d)
     models = robot_model_files(p, d / "robots")
     wins = windows(p)
     every = search_candidates(p, models, say, lambda cands: write_trials(d, p, cands) if keep else None, wins)
@@ -190,10 +201,27 @@ def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommenda
         rec.searched = pick
         rec.current = in_use(p, models, say)
         rec.cards, rec.neighbours, rec.warnings, rec.pick = card_of(p, pick, near, d, say)
+        p.task.after(rec, models, say, wins)
     if keep:
         write_trials(d, p, every)
     rec.yaml, rec.mjcf = write_outputs(rec, d, keep, time.time() - started)
     return rec
+
+
+def _keep_merged(p: Plan, d: Path) -> None:
+    """The model merged from several fit runs, into the run directory
+    (calibrated.xml): the robots, the exports and the manifest read it
+    there, where the run keeps it."""
+    import shutil
+
+    from pupper_core._rundir import atomic_write_text
+
+    scratch = Path(p.model)
+    d.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(d / "calibrated.xml", p.merged_xml)
+    p.model = os.fspath(d / "calibrated.xml")
+    if scratch.name == "calibrated.xml" and scratch.parent.name.startswith(SCRATCH):
+        shutil.rmtree(scratch.parent, ignore_errors=True)
 
 
 def _cli(args_json: str) -> list[str]:
@@ -207,5 +235,6 @@ def _cli(args_json: str) -> list[str]:
         print_card(rec)
     if rec.out is None:
         return []
-    return [str(rec.out / f) for f in ("recommend.csv", "trials.csv", "tradeoffs.csv", "recommended.yaml",
+    merged = ("calibrated.xml",) if rec.plan.merged_xml else ()
+    return [str(rec.out / f) for f in (*merged, "recommend.csv", "trials.csv", "tradeoffs.csv", "recommended.yaml",
                                        "recommended.xml", "report.html") if (rec.out / f).exists()]

@@ -9,7 +9,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import shlex
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
 from pathlib import Path
@@ -18,8 +17,8 @@ from typing import Any
 from pupper_core._rundir import atomic_write, atomic_write_text
 from pupper_core._recommend.plan import Plan
 from pupper_core._recommend.result import Card, Recommendation
-from pupper_core._recommend.search import (OBJECTIVE, Candidate, better, gains_key, gains_per_actuator, simulate,
-                                           slowest_hz, tradeoffs, why_lost)
+from pupper_core._recommend.search import (Candidate, better, gains_key, gains_per_actuator, simulate, slowest_hz,
+                                           tradeoffs, why_lost)
 
 
 #: Seconds at the stand pose before the predicted step (the softest gains
@@ -126,12 +125,14 @@ def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], 
     step = _step_response(plan, xml)
     warnings += _headroom(plan, pick)
     cards = []
+    # where some group's motors deliver other gains (a fit of some motors), every group says what it delivers
+    scaled = any(g.scaled for g in plan.groups)
     for g in plan.groups:
         kp, kd = pick.gains[g.name]
         lim = g.torque_limit
         # the nominal motor: the middle of its scales (one value where the fit found one)
         mkp, mkd = (kp * math.sqrt(g.kp_scale[0] * g.kp_scale[1]), kd * math.sqrt(g.kd_scale[0] * g.kd_scale[1])
-                    ) if g.scaled else (None, None)
+                    ) if scaled else (None, None)
         cards.append(Card(g.name, kp, kd, pick.phase_deg[g.name], pick.gain_db[g.name],
                           step[g.name]["rise_time_s"], step[g.name]["overshoot_pct"],
                           step[g.name]["settling_time_s"], pick.p95_dip_mm,
@@ -260,20 +261,6 @@ def _delivered_note(plan: Plan) -> str:
                                                  "the kd" for g in scaled) + " (the model's fitted gain scales)")
 
 
-def reproduce(plan: Plan, d: Path) -> str:
-    """The sweep that gives the card's push dip again, to the digit."""
-    if plan.fit_draws:
-        return ""
-    args = ["pupper", "sweep", "--model", str(d / "recommended.xml"), "--mode", "torque", "--motor", plan.motor,
-            "--seconds", f"{plan.seconds:g}", "--replicates", str(plan.robots), "--seed", str(plan.seed),
-            "--common-draws"]
-    for r in plan.spread:
-        args += ["--randomize", r]
-    if plan.push_force is not None:
-        args += ["--push-force", f"{plan.push_force:g}"]
-    return shlex.join(args)
-
-
 def _write_rows(path: Path, rows: Sequence[dict[str, Any]]) -> None:
     def write(tmp: Path) -> None:
         with open(tmp, "w", newline="") as f:
@@ -286,7 +273,7 @@ def _write_rows(path: Path, rows: Sequence[dict[str, Any]]) -> None:
 
 
 def write_trials(d: Path, plan: Plan, cands: Sequence[Candidate]) -> None:
-    rows = [c.row(plan.groups) for c in cands]
+    rows = [c.row(plan.groups, plan.task) for c in cands]
     if rows:
         _write_rows(d / "trials.csv", rows)
 
@@ -297,9 +284,9 @@ def tradeoff_rows(plan: Plan, cands: Sequence[Candidate], pick: Candidate | None
     whether it is the pick."""
     rows = []
     for c in tradeoffs(plan, cands):
-        r = c.row(plan.groups)
+        r = c.row(plan.groups, plan.task)
         rows.append({"trial": r["trial"], **{k: v for k, v in r.items() if k.startswith(("kp.", "kd."))},
-                     OBJECTIVE: c.p95_dip_mm, "slowest_hz": slowest_hz(plan, c), "min_height_m": c.min_height_m,
+                     plan.task.column: c.score, "slowest_hz": slowest_hz(plan, c), "min_height_m": c.min_height_m,
                      "p95_peak_torque": c.p95_peak_torque,
                      "pick": pick is not None and gains_key(c.gains) == gains_key(pick.gains)})
     return rows
@@ -324,7 +311,8 @@ def write_outputs(rec: Recommendation, d: Path, keep: bool, wall: float) -> tupl
     if pick:
         atomic_write_text(d / "recommended.yaml", yaml_text)
 
-        rows = [asdict(c) for c in rec.cards]
+        # a task's own columns beside each group's card
+        rows = [asdict(c) | plan.task.card_columns(plan, pick) for c in rec.cards]
         # the motors' delivered gains only where the model scales them
         names = [k for k in rows[0] if any(r[k] is not None for r in rows)]
 
@@ -347,20 +335,21 @@ def _manifest(rec: Recommendation, wall: float) -> dict[str, Any]:
 
     from pupper_core._native import __version__
 
-    pick = rec.pick
+    pick, task = rec.pick, rec.plan.task
     return {
         "kind": "recommend",
         "inputs": rec.plan.inputs(),
         "pick": None if pick is None else {g: {"kp": kp, "kd": kd} for g, (kp, kd) in pick.gains.items()},
-        OBJECTIVE: None if pick is None else pick.p95_dip_mm,
+        task.column: None if pick is None else pick.score,
         "neighbours": rec.neighbours,
         "warnings": rec.warnings,
-        "reproduce": reproduce(rec.plan, rec.out) if pick and rec.out else "",
+        "reproduce": task.reproduce(rec.plan, rec.out) if pick and rec.out else "",
         "current": None if rec.current is None else {
             "gains": {g: {"kp": kp, "kd": kd} for g, (kp, kd) in rec.current.gains.items()},
-            OBJECTIVE: rec.current.p95_dip_mm, "fell": rec.current.fell, "failed": rec.current.failed,
+            task.column: rec.current.score, "fell": rec.current.fell, "failed": rec.current.failed,
             "p95_peak_torque": rec.current.p95_peak_torque, "phase_margin_deg": rec.current.phase_deg,
             "gain_margin_db": rec.current.gain_db},
+        **task.manifest(rec),
         "candidates": len(rec.candidates),
         "cell_steps": sum(c.cell_steps for c in rec.candidates),
         "complete": True,
@@ -373,7 +362,8 @@ def _manifest(rec: Recommendation, wall: float) -> dict[str, Any]:
 def constraints_line(plan: Plan) -> str:
     sag = (f"none ends more than {100 * plan.max_sag:g} % below its {1000 * plan.stance:.1f} mm stance height, "
            if math.isfinite(plan.stance) else "")
-    return (f"none fell, saturation under {100 * plan.max_saturation:g} % of steps, {sag}phase margin >= "
+    return (f"none fell, saturation under {100 * plan.max_saturation:g} % of steps, {sag}{plan.task.constraints()}"
+            f"phase margin >= "
             f"{plan.min_phase_margin:g}°, gain margin >= {plan.min_gain_margin:g} dB (firmware {plan.motor or 'ideal'}, "
             f"sensing delay {plan.sensing_delay:g} s)")
 
@@ -386,7 +376,8 @@ def print_card(rec: Recommendation) -> None:
     if pick is None:
         print(_no_pick(rec, len(ran)))
         return
-    print(f"recommended gains, holding on each of {plan.robots} drawn robots: {constraints_line(plan)}")
+    print(f"recommended gains{plan.task.heading()}, holding on each of {plan.robots} drawn robots: "
+          f"{constraints_line(plan)}")
     scaled = any(c.motor_kp is not None for c in rec.cards)
     head = ("group", "kp", "kd", *(("motor kp", "motor kd") if scaled else ()), "phase °", "gain dB", "rise s",
             "overshoot %", "settle s")
@@ -398,13 +389,12 @@ def print_card(rec: Recommendation) -> None:
         print("".join(f"{v:>12}" for v in vals))
     print(f"kp, kd: the gains to command (recommended.yaml's kps, kds){_delivered_note(plan)}"
           + ("; the margins are of the delivered gains (motor kp, motor kd)" if scaled else ""))
+    if plan.fit_runs:
+        print(fits_line(plan))
     if plan.latency_from:
         print(plan.latency_from)
     c0 = rec.cards[0]
-    searched = rec.searched
-    also = (f" (on the exported MJCF, whose numbers MjSpec writes to six digits; {searched.p95_dip_mm:.4g} mm in "
-            "the search)" if searched and f"{searched.p95_dip_mm:.4g}" != f"{pick.p95_dip_mm:.4g}" else "")
-    print(f"p95 push dip {pick.p95_dip_mm:.4g} mm{also}; peak torque p95 {pick.p95_peak_torque:.3g} N·m of "
+    print(f"{plan.task.card_line(plan, pick, rec.searched)}; peak torque p95 {pick.p95_peak_torque:.3g} N·m of "
           f"{min(c.torque_limit for c in rec.cards):.3g} ({c0.torque_headroom_pct:.0f} % headroom); "
           "step response: the nominal robot hung in the air")
     if rec.current is not None:
@@ -417,11 +407,19 @@ def print_card(rec: Recommendation) -> None:
         print(f"warning: {w}")
     front = tradeoffs(plan, rec.candidates)
     if len(front) > 1:
-        print(f"trade-off set: {len(front)} candidates that no other beats at once on push dip, tracking speed "
-              "and stand height (tradeoffs.csv)")
+        print(f"trade-off set: {len(front)} candidates that no other beats at once on {plan.task.measure}, "
+              "tracking speed and stand height (tradeoffs.csv)")
+    for line in plan.task.lines(rec):
+        print(line)
     polished = sum(1 for c in ran if c.stage == "polish")
     print(f"{len(ran)} candidates on the robots ({len(rec.candidates)} asked, {polished} of them neighbours "
           f"in the polish), {steps} cell-steps")
+
+
+def fits_line(plan: Plan) -> str:
+    """Where a model merged from several fit runs came from."""
+    return (f"robot: the fit runs {', '.join(str(d) for d in plan.fit_runs)} merged into one model ({plan.model}): "
+            "each actuator's calibrated parameters from the run that fitted it")
 
 
 def in_use_line(plan: Plan, c: Candidate) -> str:
@@ -437,7 +435,7 @@ def in_use_line(plan: Plan, c: Candidate) -> str:
         ran = f"{c.fell} of {c.robots} robots fell, diverged or lay past the stability bound"
     else:
         head = f" ({100 * (1 - c.p95_peak_torque / lim):.0f} % headroom)" if math.isfinite(lim) else ""
-        ran = f"p95 push dip {c.p95_dip_mm:.4g} mm, peak torque p95 {c.p95_peak_torque:.3g} N·m{head}"
+        ran = f"{plan.task.says(c.score)}, peak torque p95 {c.p95_peak_torque:.3g} N·m{head}"
     held = "holds every constraint" if not c.failed else f"breaks one: {c.failed}"
     return f"in use ({plan.current_from}: {which}): {ran}; {loop}; {held}"
 

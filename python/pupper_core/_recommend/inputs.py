@@ -5,7 +5,6 @@ intervals), the firmware, the constraints."""
 
 from __future__ import annotations
 
-import csv
 import math
 import os
 import re
@@ -13,8 +12,33 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from pupper_core._recommend.plan import DEFAULT_MOTOR, DEFAULT_SPREAD, FIT_MODELS, Group, Plan, RecommendError
+from pupper_core._recommend.fits import FitRuns, actuators, fit_runs, kind, robot_of
+from pupper_core._recommend.plan import DEFAULT_MOTOR, DEFAULT_SPREAD, FIT_MODELS, Group, Plan, RecommendError, Task
 from pupper_core._recommend.robot_config import config_gains, current_gains, joint_order_of, read_robot_config
+from pupper_core._recommend.stand import Stand
+from pupper_core._recommend.walk import WalkTask
+
+#: The registry: what the gains can be ranked for (`--task NAME`), each a
+#: `plan.Task` in a module of its own.
+TASKS: dict[str, type[Task]] = {
+    "stand": Stand,
+    "walk": WalkTask,
+}
+
+
+def task_of(name: str, options: Mapping[str, Any]) -> Task:
+    """The task --task names, set by its keywords (None: not given); a
+    keyword of another task's is refused, naming the task it sets."""
+    if name not in TASKS:
+        said = " or ".join(f"{n} ({t.about})" for n, t in TASKS.items())
+        raise RecommendError(f"--task {name!r} is not a task: use {said}")
+    given = {k: v for k, v in options.items() if v is not None}
+    for k in given:
+        if k not in TASKS[name].options:
+            owner = next(n for n, t in TASKS.items() if k in t.options)
+            raise RecommendError(f"--{k.replace('_', '-')} sets the {owner} the gains are ranked on: add --task "
+                                 f"{owner}, or drop it")
+    return TASKS[name].of(given)
 
 
 def _positive(name: str, v: float, flag: str, *, zero: bool = False) -> float:
@@ -140,9 +164,9 @@ def _latency(rows: Sequence[Mapping[str, str]], given: float | None) -> tuple[fl
     oldest measurements the logs allow) unless --sensing-delay is given."""
     if not rows:
         return (SENSING_DELAY if given is None else given), ""
-    lat = [(float(r["fitted"]), *_interval(r)) for r in rows if r.get("parameter") == "latency"]
+    lat = [(float(r["fitted"]), *_interval(r)) for r in rows if kind(r) == "latency"]
     # an interval the logs could not bound places no latency
-    unplaced = [r for r in rows if r.get("parameter") == "latency"
+    unplaced = [r for r in rows if kind(r) == "latency"
                 and not all(math.isfinite(float(r[k] or "nan")) for k in ("low95", "high95"))]
     if given is not None:
         said = f"{given:g} s, given by --sensing-delay"
@@ -158,20 +182,11 @@ def _latency(rows: Sequence[Mapping[str, str]], given: float | None) -> tuple[fl
         said = (f"{sensing:g} s, the default: the fit could not bound its feedback latency (add a log at "
                 "another kp)" if unplaced else
                 f"{sensing:g} s, the default: the fit measured no feedback latency (fit it: --params ...,latency)")
-    delays = [(float(r["fitted"]), *_interval(r)) for r in rows if r.get("parameter") == "delay"]
-    command = ("command delay " + ", ".join(f"{a:.3g} to {b:.3g} s" for _, a, b in delays)
+    delays = [(float(r["fitted"]), *_interval(r)) for r in rows if kind(r) == "delay"]
+    command = ("command delay " + ", ".join(dict.fromkeys(f"{a:.3g} to {b:.3g} s" for _, a, b in delays))
                + " drawn per robot, the fit's delay interval (fit.csv: delay)" if delays and
                max(b for _, _, b in delays) > 1e-9 else "no command delay (the fit found none)")
     return sensing, f"latency assumed: sensing (feedback) {said}; {command}"
-
-
-def _fit_rows(d: Path) -> list[dict[str, str]]:
-    f = d / "fit.csv"
-    if not (f.is_file() and (d / "calibrated.xml").is_file()):
-        raise RecommendError(f"--from-fit {d}: no fit there (fit.csv and calibrated.xml): give a `pupper fit` "
-                             "run directory")
-    with open(f, newline="") as fh:
-        return list(csv.DictReader(fh))
 
 
 def _interval(r: Mapping[str, str], floor: float = 0.0) -> tuple[float, float]:
@@ -191,7 +206,7 @@ def _scale_factors(rows: Sequence[Mapping[str, str]], parameter: str) -> tuple[f
     model's fitted scale: the widest interval over the fit's rows."""
     lo, hi = 1.0, 1.0
     for r in rows:
-        if r.get("parameter") == parameter:
+        if kind(r) == parameter:
             a, b = _interval(r, 1e-6)
             v = float(r["fitted"])
             lo, hi = min(lo, a / v), max(hi, b / v)
@@ -199,8 +214,7 @@ def _scale_factors(rows: Sequence[Mapping[str, str]], parameter: str) -> tuple[f
 
 
 def _actuators_of(r: Mapping[str, str], names: Sequence[str]) -> list[str]:
-    listed = [a for a in re.split(r"[ ;|]+", r.get("actuators", "").strip()) if a]
-    return [a for a in listed if a in names] or list(names)
+    return [a for a in actuators(r) if a in names] or list(names)
 
 
 def _fit_draws(rows: Sequence[Mapping[str, str]], names: Sequence[str],
@@ -214,9 +228,9 @@ def _fit_draws(rows: Sequence[Mapping[str, str]], names: Sequence[str],
         rng = np.random.default_rng([seed, k])
         one = []
         for r in rows:
-            if r.get("parameter") in ("armature", "damping", "frictionloss"):
+            if kind(r) in ("armature", "damping", "frictionloss"):
                 a, b = _interval(r)
-                one.append((str(r["parameter"]), _actuators_of(r, names), float(rng.uniform(a, b))))
+                one.append((kind(r), _actuators_of(r, names), float(rng.uniform(a, b))))
         draws.append(one)
     return draws
 
@@ -225,34 +239,35 @@ def _armature_low(rows: Sequence[Mapping[str, str]], names: Sequence[str]) -> di
     """By how much each actuator's armature may lie below its fitted value."""
     out: dict[str, float] = {}
     for r in rows:
-        if r.get("parameter") == "armature":
+        if kind(r) == "armature":
             a, _ = _interval(r)
             for n in _actuators_of(r, names):
                 out[n] = max(out.get(n, 0.0), float(r["fitted"]) - a)
     return out
 
 
-def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int, seed: int, seconds: float,
+def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int, seed: int, seconds: float | None,
          push_force: float | None, motor: str | None, sensing_delay: float | None, command_delay: float,
-         spread: Sequence[str] | None, from_fit: str | os.PathLike[str] | None, min_phase_margin: float,
+         spread: Sequence[str] | None, from_fit: FitRuns, min_phase_margin: float,
          min_gain_margin: float, max_saturation: float, kp_max: float | None, kd_max: float | None,
          joint_order: Sequence[str] | str | None, controller: str, polish: int, max_sag: float,
-         current: Sequence[float] | str | None, robot_config: str | os.PathLike[str] | None) -> Plan:
+         current: Sequence[float] | str | None, robot_config: str | os.PathLike[str] | None, task: str,
+         gait: str | None, speed: float | None, frequency: float | None, max_tilt: float | None) -> Plan:
     """Every input checked, the model read; one line per mistake. (No
     defaults here: `pupper_core.recommend` declares them, once.)"""
     _check_types(dict(locals()))
     if isinstance(spread, str):
         spread = [spread]  # one spec (a spec may hold a comma: N(0,0.001))
+    ranked = task_of(task, {"gait": gait, "speed": speed, "frequency": frequency, "max_tilt": max_tilt})
+    seconds = ranked.seconds if seconds is None else seconds
     _check_numbers(robots=robots, trials=trials, batch=batch, polish=polish, seconds=seconds,
                    sensing_delay=sensing_delay, command_delay=command_delay, min_phase_margin=min_phase_margin,
                    min_gain_margin=min_gain_margin, max_sag=max_sag, max_saturation=max_saturation, kp_max=kp_max,
-                   kd_max=kd_max)
-    fit_dir = None if from_fit is None else Path(from_fit)
-    rows: list[dict[str, str]] = []
-    if fit_dir is not None:
-        rows = _fit_rows(fit_dir)
-        model = fit_dir / "calibrated.xml"
-    model = os.fspath(model)
+                   kd_max=kd_max, task=ranked, push_force=push_force)
+    runs = fit_runs(from_fit)
+    fit_dir = runs[0] if len(runs) == 1 else None
+    rows, merged_xml, fitted = robot_of(runs)
+    model = os.fspath(fitted or model)
     base = list(DEFAULT_SPREAD if spread is None else spread)
     g, leg = _relative(base, "motor_gain"), _relative(base, "leg_mass")
     kp_f, kd_f = _scale_factors(rows, "kp_scale"), _scale_factors(rows, "kd_scale")
@@ -263,7 +278,7 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
         if w > 1e-4:
             base.append(f"motor_gain=±{100 * w:.4g}%")
         g = 0.0
-        delays = [_interval(r) for r in rows if r.get("parameter") == "delay"]
+        delays = [_interval(r) for r in rows if kind(r) == "delay"]
         # a delay interval of round-off around 0 (a noise-free fit) is no delay
         if delays and max(b for _, b in delays) > 1e-9:
             base.append(f"motor_delay={min(a for a, _ in delays):.6g}:{max(b for _, b in delays):.6g}")
@@ -299,27 +314,32 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
         now, now_from = config_gains(config, names, groups, Path(robot_config or ""))
     else:
         now, now_from = current_gains(current, inf, groups)
-    return Plan(model=model, actuators=names, groups=groups, timestep=dt, motor=motor_spec,
+    p = Plan(model=model, actuators=names, groups=groups, timestep=dt, motor=motor_spec,
                 sensing_delay=sensing_delay, command_delay=command_delay, spread=drawn, kp_factors=kp_factors,
                 kd_factors=kd_factors, robots=robots, trials=trials, batch=batch, seed=seed, seconds=seconds,
                 push_force=push_force, min_phase_margin=min_phase_margin, min_gain_margin=min_gain_margin,
                 max_saturation=max_saturation, joint_order=order, controller=controller, polish=polish,
                 max_sag=max_sag, stance=stance(model=model), from_fit=fit_dir, fit_rows=rows,
+                fit_runs=runs if merged_xml else [], merged_xml=merged_xml,
                 fit_draws=_fit_draws(rows, names, seed) if rows else [], current=now, current_from=now_from,
-                caps=capped, latency_from=latency_from)
+                caps=capped, latency_from=latency_from, task=ranked)
+    ranked.check(p)
+    return p
 
 
 def _check_numbers(*, robots: int, trials: int, batch: int, polish: int, seconds: float,
                    sensing_delay: float | None,
                    command_delay: float, min_phase_margin: float, min_gain_margin: float, max_sag: float,
-                   max_saturation: float, kp_max: float | None, kd_max: float | None) -> None:
-    """Each number in its range, or one line naming the flag and a value."""
+                   max_saturation: float, kp_max: float | None, kd_max: float | None, task: Task,
+                   push_force: float | None) -> None:
+    """Each number in its range, or one line naming the flag and a value
+    (the run's length and push as the task needs them)."""
     if robots < 1 or trials < 1 or batch < 1:
         raise RecommendError(f"robots {robots}, trials {trials}, batch {batch}: each must be a whole number >= 1")
     if polish < 0:
         raise RecommendError(f"--polish {polish} must be a whole number >= 0 (0: the search's pick, unmoved)")
     _positive("the simulated seconds per robot, e.g. 4", seconds, "--seconds")
-    _reaches_the_push(seconds)
+    task.check_run(seconds, push_force)
     if sensing_delay is not None:
         _positive("seconds of feedback latency, e.g. 0.002", sensing_delay, "--sensing-delay", zero=True)
     _positive("seconds of command delay, e.g. 0.01", command_delay, "--command-delay", zero=True)
@@ -358,39 +378,30 @@ def _check_types(kw: Mapping[str, Any]) -> None:
     if not 0 <= kw["seed"] < 2**64:
         raise bad("seed", "a whole number from 0 to 2**64 - 1")
     for n in ("seconds", "sensing_delay", "command_delay", "min_phase_margin", "min_gain_margin", "max_saturation",
-              "max_sag", "push_force", "kp_max", "kd_max"):
+              "max_sag", "push_force", "kp_max", "kd_max", "speed", "frequency", "max_tilt"):
         v = kw[n]
-        if v is None and n in ("push_force", "kp_max", "kd_max", "sensing_delay"):
+        if v is None and n in ("seconds", "push_force", "kp_max", "kd_max", "sensing_delay", "speed", "frequency",
+                               "max_tilt"):
             continue
         if isinstance(v, bool) or not isinstance(v, numbers.Real):
             raise bad(n, "a number")
     if kw["push_force"] is not None and not math.isfinite(kw["push_force"]):
         raise bad("push_force", "a finite number of newtons")
-    for n in ("motor", "controller"):
-        if not (isinstance(kw[n], str) or (n == "motor" and kw[n] is None)):
+    for n in ("motor", "controller", "task", "gait"):
+        if not (isinstance(kw[n], str) or (n in ("motor", "gait") and kw[n] is None)):
             raise bad(n, "a string")
-    for n in ("model", "from_fit"):
-        if not (isinstance(kw[n], (str, os.PathLike)) or (n == "from_fit" and kw[n] is None)):
-            raise bad(n, "a path")
+    if not isinstance(kw["model"], (str, os.PathLike)):
+        raise bad("model", "a path")
+    f = kw["from_fit"]
+    if not (f is None or isinstance(f, (str, os.PathLike))
+            or (isinstance(f, Sequence) and f and all(isinstance(x, (str, os.PathLike)) for x in f))):
+        raise bad("from_fit", "a path, or a list of paths")
     for n in ("spread", "joint_order"):
         v = kw[n]
         if v is None or isinstance(v, str):
             continue
         if not isinstance(v, Sequence) or not all(isinstance(x, str) for x in v):
             raise bad(n, "a string or a list of strings")
-
-
-def _reaches_the_push(seconds: float) -> None:
-    """A run that ends before the push's dip is known measures no push dip,
-    so no candidate could hold: said before anything runs."""
-    from pupper_core._native import DIP_AFTER, sweep_defaults
-
-    d = sweep_defaults()
-    need = float(d["push_at"]) + float(d["push_duration"]) + DIP_AFTER
-    if seconds < need - 1e-9:
-        raise RecommendError(f"--seconds {seconds:g} ends before the push (at {d['push_at']:g} s, for "
-                             f"{d['push_duration']:g} s) and the {DIP_AFTER:g} s after it, where its dip is measured, "
-                             f"are over: give --seconds {need:g} or more")
 
 
 def _servo_delay(spec: str) -> None:

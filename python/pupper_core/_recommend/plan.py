@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -36,6 +37,102 @@ NEIGHBOUR = 1.25
 
 class RecommendError(ConfigError, ValueError):
     """Bad input to `recommend`: one line naming the problem and the fix."""
+
+
+class Task:
+    """What the gains are ranked for (`--task`), and all that changes with
+    it: the measure the rule ranks (lower wins), the run each candidate
+    makes on the robots, the words of the card. The stand task (a push,
+    its worst-side dip) is `stand.Stand`; each task is a row of
+    `inputs.TASKS`. A candidate here is a `search.Candidate`, a result a
+    `result.Recommendation` (the layers above)."""
+
+    #: its name, as --task gives it, and what it ranks by in a few words
+    name = "stand"
+    about = "a push"
+    #: what the rule ranks: in words, as trials.csv names it, and its unit
+    objective = "p95 push dip"
+    column = "p95_push_dip_mm"
+    unit = "mm"
+    #: simulated seconds per robot unless --seconds says
+    seconds = 4.0
+    #: recommend()'s keywords that set the task (one of another task's is
+    #: refused)
+    options: tuple[str, ...] = ()
+
+    @classmethod
+    def of(cls, options: Mapping[str, Any]) -> Task:
+        """The task set by its keywords (those given), each checked."""
+        return cls(**options)
+
+    def value(self, v: float) -> str:
+        """A ranked value with its unit: "2.631 mm"."""
+        return f"{v:.4g} {self.unit}"
+
+    def says(self, v: float) -> str:
+        """A ranked value, named: "p95 push dip 2.631 mm"."""
+        return f"{self.objective} {self.value(v)}"
+
+    @property
+    def measure(self) -> str:
+        """What is measured, without its statistic: "push dip"."""
+        return self.objective.removeprefix("p95 ")
+
+    def check_run(self, seconds: float, push_force: float | None) -> None:
+        """Refuses, in one line and before the model is read, a run the
+        task cannot measure: too short, or pushed when it has no push."""
+
+    def check(self, plan: Plan) -> None:
+        """Refuses, in one line, a plan the task cannot rank (once every
+        input is read)."""
+
+    def inputs(self) -> dict[str, Any]:
+        """What the manifest records of the task (beside the plan's)."""
+        return {}
+
+    def heading(self) -> str:
+        """The card's first line names what the gains hold for: "" (the
+        stand), or " for a trot at 2 Hz and 0.25 m/s"."""
+        return ""
+
+    def constraints(self) -> str:
+        """The task's own constraints, in words, as the card lists them."""
+        return ""
+
+    def simulate(self, plan: Plan, cands: Sequence[Any], robot_models: Sequence[str],
+                 say: Callable[[str], None], own_gains: bool = False) -> None:
+        """Runs the candidates on every drawn robot and judges each: its
+        score (what the rule ranks), falls, saturation, peak torque, sag."""
+        raise NotImplementedError
+
+    def row(self, c: Any) -> dict[str, Any]:
+        """A candidate's figures of the task, as trials.csv has them."""
+        raise NotImplementedError
+
+    def card_line(self, plan: Plan, pick: Any, searched: Any) -> str:
+        """The card's line of the pick's figures (before its torque)."""
+        raise NotImplementedError
+
+    def card_columns(self, plan: Plan, pick: Any) -> dict[str, Any]:
+        """The task's columns of recommend.csv, beside each group's card."""
+        return {}
+
+    def reproduce(self, plan: Plan, d: Path) -> str:
+        """The command that gives the card's figures again ("" where none
+        can: robots drawn from a fit)."""
+        raise NotImplementedError
+
+    def after(self, rec: Any, models: Sequence[str], say: Callable[[str], None], wins: Mapping[str, Any]) -> None:
+        """What the task adds once the card is made (the walk task: the
+        pick beside --task stand's)."""
+
+    def lines(self, rec: Any) -> list[str]:
+        """The card's closing lines of the task."""
+        return []
+
+    def manifest(self, rec: Any) -> dict[str, Any]:
+        """What the manifest records of the task's own findings."""
+        return {}
 
 
 @dataclass(frozen=True)
@@ -127,6 +224,12 @@ class Plan:
     caps: bool = False
     #: with a fit: which latencies the margins and robots assumed, and where each came from
     latency_from: str = ""
+    #: several fit runs merged into one model (``fits.merged``): the runs, and the model's MJCF, which the
+    #: run directory keeps as calibrated.xml (``model`` is that file once the run starts)
+    fit_runs: list[Path] = field(default_factory=list)
+    merged_xml: str = ""
+    #: what the gains are ranked for (--task)
+    task: Task = field(kw_only=True)
 
     def sags(self, height: float) -> bool:
         """Whether a robot whose lowest final base height is `height` (m)
@@ -160,7 +263,8 @@ class Plan:
             "max_sag": self.max_sag, "stance_m": self.stance,
             "ranges": {g.name: {"kp": list(g.kp_range), "kd": list(g.kd_range)} for g in self.groups},
             "joint_order": self.joint_order, "controller": self.controller, "polish": self.polish,
-            "from_fit": None if self.from_fit is None else os.fspath(self.from_fit),
+            "from_fit": ([os.fspath(d) for d in self.fit_runs] if self.fit_runs else
+                         None if self.from_fit is None else os.fspath(self.from_fit)),
             "fit_draws": [[[p, a, v] for p, a, v in d] for d in self.fit_draws],
             # what the motors deliver of a commanded gain, per group: the loop is closed on it
             "delivered": {g.name: {"kp": [self.kp_factors[0] * g.kp_scale[0], self.kp_factors[1] * g.kp_scale[1]],
@@ -168,4 +272,5 @@ class Plan:
                           for g in self.groups},
             "current": {g: list(v) for g, v in self.current.items()}, "current_from": self.current_from,
             **({"latency_from": self.latency_from} if self.latency_from else {}),
+            **self.task.inputs(),
         }

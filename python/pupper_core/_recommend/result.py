@@ -33,6 +33,9 @@ class Recommendation:
     #: the groups whose loop margins hold nowhere in their searched ranges
     #: (then no candidate is asked at all)
     no_window: list[str] = field(default_factory=list)
+    #: what the task found beside the pick (`Task.after`; the walk task:
+    #: the pick beside --task stand's); None for the stand task
+    beside: Any = None
 
     @property
     def gains(self) -> dict[str, tuple[float, float]]:
@@ -45,13 +48,13 @@ class Recommendation:
             import pandas as pd
         except ImportError as e:
             raise ImportError("Recommendation.to_pandas needs pandas: pip install pandas") from e
-        return pd.DataFrame([c.row(self.plan.groups) for c in self.candidates])
+        return pd.DataFrame([c.row(self.plan.groups, self.plan.task) for c in self.candidates])
 
     def __repr__(self) -> str:
         if not self.pick:
             return f"Recommendation(no pick over {len(self.candidates)} candidates)"
         g = ", ".join(f"{k} kp {p:.4g} kd {d:.4g}" for k, (p, d) in self.pick.gains.items())
-        return f"Recommendation({g}; p95 push dip {self.pick.p95_dip_mm:.4g} mm on {self.plan.robots} robots)"
+        return f"Recommendation({g}; {self.plan.task.says(self.pick.score)} on {self.plan.robots} robots)"
 
 
 @dataclass

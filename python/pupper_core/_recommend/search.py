@@ -2,7 +2,8 @@
 checked against the loop margins first (cheap: the linearised joint, no
 simulation), then run on every drawn robot at once (one sweep, the robots
 drawn alike for every candidate), and judged by its worst-side push dip
-under its constraints. Optuna's TPE (its constraints function, a sampler
+under its constraints (the stand task; another ranks by its own measure,
+`plan.Task`). Optuna's TPE (its constraints function, a sampler
 seeded per generation) asks; the best feasible candidate is then polished
 by its neighbours."""
 
@@ -16,13 +17,11 @@ from typing import Any
 
 import numpy as np
 
-from pupper_core._recommend.plan import NEIGHBOUR, Group, Plan
+from pupper_core._recommend.plan import NEIGHBOUR, Group, Plan, Task
 
 #: What a candidate that cannot be ranked is told.
 PENALTY = 1e6
-#: The objective: the worst-side (95th percentile) push dip over the robots.
-OBJECTIVE = "p95_push_dip_mm"
-#: Push dips within this share of each other are a tie: the candidate
+#: Scores (push dips, with the stand task) within this share of each other are a tie: the candidate
 #: whose slowest joint group tracks fastest (highest natural frequency,
 #: sqrt(kp/J)) wins, since the push barely tells some groups' gains apart.
 TIE = 0.02
@@ -51,19 +50,26 @@ class Candidate:
     number: int = -1
     #: "search" (asked by the sampler) or "polish" (a neighbour of a pick)
     stage: str = "search"
+    #: what the rule ranks, lower wins: the task's measure (the stand
+    #: task's p95 push dip)
+    score: float = math.nan
+    #: a task's own figures over the robots, each its worst side (the walk
+    #: task's), as trials.csv names them
+    figures: dict[str, float] = field(default_factory=dict)
 
     @property
     def feasible(self) -> bool:
-        return not self.failed and math.isfinite(self.p95_dip_mm)
+        return not self.failed and math.isfinite(self.score)
 
-    def row(self, groups: Sequence[Group]) -> dict[str, Any]:
+    def row(self, groups: Sequence[Group], task: Task) -> dict[str, Any]:
         out: dict[str, Any] = {"trial": self.number, "stage": self.stage}
         for g in groups:
             out[f"kp.{g.name}"], out[f"kd.{g.name}"] = self.gains[g.name]
         for g in groups:
             out[f"phase_margin_deg.{g.name}"] = self.phase_deg.get(g.name, math.nan)
             out[f"gain_margin_db.{g.name}"] = self.gain_db.get(g.name, math.nan)
-        out.update({OBJECTIVE: self.p95_dip_mm, "fell": self.fell, "robots": self.robots,
+        out.update(task.row(self))
+        out.update({"fell": self.fell, "robots": self.robots,
                     "max_saturation": self.max_saturation, "min_height_m": self.min_height_m,
                     "p95_peak_torque": self.p95_peak_torque,
                     "cell_steps": self.cell_steps, "status": "ok" if self.feasible else self.failed})
@@ -227,56 +233,27 @@ def _cell(plan: Plan, gains: Gains, name: str) -> dict[str, float | str]:
 
 def simulate(plan: Plan, cands: Sequence[Candidate], robot_models: Sequence[str],
              say: Callable[[str], None], own_gains: bool = False) -> None:
-    """Runs the candidates (margins already checked) on every drawn robot:
-    one sweep per joint model, the robots drawn alike for every candidate.
-    Fills each one's p95 dip, falls, saturation and peak torque."""
-    import warnings
+    """Runs the candidates (margins already checked) on every drawn robot,
+    the robots drawn alike for every candidate, as the task runs them (the
+    stand task: one sweep per joint model, the push): fills each one's
+    score, falls, saturation and peak torque, and judges it."""
+    plan.task.simulate(plan, cands, robot_models, say, own_gains)
 
-    from pupper_core._run import sweep
 
-    if not cands:
-        return
-    # own_gains: one candidate, the gains its model's actuators hold (an export)
-    cells: Any = None if own_gains else [_cell(plan, c.gains, f"c{i}") for i, c in enumerate(cands)]
-    dips: list[list[float]] = [[] for _ in cands]
-    peaks: list[list[float]] = [[] for _ in cands]
-    heights: list[list[float]] = [[] for _ in cands]
-    for model in robot_models:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            res = sweep(cells, model=model, replicates=plan.per_model, progress=False, **plan.sweep_options())
-        for w in caught:
-            say(f"note: {w.message}")
-        # one robot with nothing drawn is a plain sweep: its table is the robots'
-        reps = res.replicates if res.replicates is not None else res
-        for i, status, dip, sat, peak, z in zip(reps["index"], reps["status"], reps["push_dip_mm"],
-                                                reps["saturation_frac"], reps["peak_torque"], reps["final_z"]):
-            c = cands[int(i)]
-            c.robots += 1
-            if status not in ("ok", "saturated"):
-                c.fell += 1
-                continue
-            c.max_saturation = float(np.nanmax([c.max_saturation, float(sat)]))
-            dips[int(i)].append(float(dip))
-            peaks[int(i)].append(float(peak))
-            heights[int(i)].append(float(z))
-        for i, steps in enumerate(res.cell_steps):
-            cands[i].cell_steps += int(steps or 0)
-    for c, d, p, h in zip(cands, dips, peaks, heights):
-        c.p95_dip_mm = float(np.percentile(d, 95)) if d and all(math.isfinite(x) for x in d) else math.nan
-        c.p95_peak_torque = float(np.percentile(p, 95)) if p else math.nan
-        c.min_height_m = min(h) if h else math.nan
-        if c.fell:
-            c.failed = f"{c.fell} of {c.robots} robots fell, diverged or lay past the stability bound"
-        elif not c.max_saturation < plan.max_saturation:
-            c.failed = (f"saturated {100 * c.max_saturation:.1f} % of steps on its worst robot "
-                        f"(limit {100 * plan.max_saturation:g} %)")
-        elif plan.sags(c.min_height_m):
-            c.failed = (f"sags to {1000 * c.min_height_m:.1f} mm on its lowest robot, "
-                        f"{100 * c.min_height_m / plan.stance:.1f} % of its {1000 * plan.stance:.1f} mm stance "
-                        f"(limit {100 * (1 - plan.max_sag):g} %)")
-        elif not math.isfinite(c.p95_dip_mm):
-            c.failed = "no push dip measured (the run ends too early)"
+def judge(plan: Plan, c: Candidate, unmeasured: str) -> None:
+    """The constraint a simulated candidate breaks first, in words ("" when
+    it holds them all); `unmeasured` when its score is missing."""
+    if c.fell:
+        c.failed = f"{c.fell} of {c.robots} robots fell, diverged or lay past the stability bound"
+    elif not c.max_saturation < plan.max_saturation:
+        c.failed = (f"saturated {100 * c.max_saturation:.1f} % of steps on its worst robot "
+                    f"(limit {100 * plan.max_saturation:g} %)")
+    elif plan.sags(c.min_height_m):
+        c.failed = (f"sags to {1000 * c.min_height_m:.1f} mm on its lowest robot, "
+                    f"{100 * c.min_height_m / plan.stance:.1f} % of its {1000 * plan.stance:.1f} mm stance "
+                    f"(limit {100 * (1 - plan.max_sag):g} %)")
+    elif not math.isfinite(c.score):
+        c.failed = unmeasured
 
 
 def _sampler(optuna: Any, seed: int, generation: int, batch: int) -> Any:
@@ -308,7 +285,7 @@ def _told(c: Candidate, plan: Plan, dists: Mapping[str, Any]) -> float:
     share = min((math.log(c.gains[g.name][0]) - math.log(dists[f"kp.{g.name}"].low))
                 / max(math.log(dists[f"kp.{g.name}"].high / dists[f"kp.{g.name}"].low), 1e-12)
                 for g in plan.groups)
-    return c.p95_dip_mm * (1 + TIE * (1 - min(max(share, 0.0), 1.0)))
+    return c.score * (1 + TIE * (1 - min(max(share, 0.0), 1.0)))
 
 
 def windows(plan: Plan) -> dict[str, Window]:
@@ -392,7 +369,7 @@ def search(plan: Plan, robot_models: Sequence[str], say: Callable[[str], None],
         after_generation(every)
         best = best_of(plan, every)
         say(f"generation {generation}: {ran} candidates on {plan.robots} robots"
-            + (f"; best p95 push dip {best.p95_dip_mm:.4g} mm" if best else "; none holds every constraint yet"))
+            + (f"; best {plan.task.says(best.score)}" if best else "; none holds every constraint yet"))
     return every
 
 
@@ -403,26 +380,27 @@ def slowest_hz(plan: Plan, c: Candidate) -> float:
 
 
 def better(plan: Plan, a: Candidate, b: Candidate) -> bool:
-    """Whether feasible `a` beats feasible `b`: a lower push dip by more than
-    TIE; within TIE, a faster slowest group; as fast, a lower push dip."""
-    if a.p95_dip_mm < b.p95_dip_mm * (1 - TIE):
+    """Whether feasible `a` beats feasible `b`: a lower score (push dip) by
+    more than TIE; within TIE, a faster slowest group; as fast, a lower
+    score."""
+    if a.score < b.score * (1 - TIE):
         return True
-    if a.p95_dip_mm > b.p95_dip_mm * (1 + TIE):
+    if a.score > b.score * (1 + TIE):
         return False
     fa, fb = slowest_hz(plan, a), slowest_hz(plan, b)
-    return fa > fb or (fa == fb and a.p95_dip_mm < b.p95_dip_mm)
+    return fa > fb or (fa == fb and a.score < b.score)
 
 
 def best_of(plan: Plan, cands: Sequence[Candidate]) -> Candidate | None:
-    """The pick among candidates: those within TIE of the lowest push dip
-    tie; the fastest slowest group among them wins, then the lower dip,
-    then the one asked first."""
+    """The pick among candidates: those within TIE of the lowest score
+    (push dip) tie; the fastest slowest group among them wins, then the
+    lower score, then the one asked first."""
     ok = [c for c in cands if c.feasible]
     if not ok:
         return None
-    low = min(c.p95_dip_mm for c in ok)
-    near = [c for c in ok if c.p95_dip_mm <= low * (1 + TIE)]
-    return max(near, key=lambda c: (slowest_hz(plan, c), -c.p95_dip_mm, -c.number))
+    low = min(c.score for c in ok)
+    near = [c for c in ok if c.score <= low * (1 + TIE)]
+    return max(near, key=lambda c: (slowest_hz(plan, c), -c.score, -c.number))
 
 
 def gains_key(gains: Mapping[str, tuple[float, float]]) -> tuple[Any, ...]:
@@ -432,8 +410,8 @@ def gains_key(gains: Mapping[str, tuple[float, float]]) -> tuple[Any, ...]:
 
 def tradeoffs(plan: Plan, cands: Sequence[Candidate]) -> list[Candidate]:
     """The trade-off set: feasible candidates no other beats at once on the
-    push dip (lower), the slowest group's tracking (faster) and the stand
-    height (higher), ordered by push dip. The pick is one of them whenever
+    score (push dip, lower), the slowest group's tracking (faster) and the stand
+    height (higher), ordered by score. The pick is one of them whenever
     it stands no lower than its ties."""
     # the same gains asked twice (the polish's way back) count once, the first
     firsts: dict[tuple[Any, ...], Candidate] = {}
@@ -441,13 +419,13 @@ def tradeoffs(plan: Plan, cands: Sequence[Candidate]) -> list[Candidate]:
         if c.feasible:
             firsts.setdefault(gains_key(c.gains), c)
     ok = list(firsts.values())
-    keys = [(c.p95_dip_mm, -slowest_hz(plan, c), -c.min_height_m) for c in ok]
+    keys = [(c.score, -slowest_hz(plan, c), -c.min_height_m) for c in ok]
 
     def beaten(k: tuple[float, ...]) -> bool:
         return any(all(a <= b for a, b in zip(o, k)) and o != k for o in keys)
 
     front = {id(c): c for c, k in zip(ok, keys) if not beaten(k)}
-    return sorted(front.values(), key=lambda c: (c.p95_dip_mm, c.number))
+    return sorted(front.values(), key=lambda c: (c.score, c.number))
 
 
 def _along(w: Window, kp: float, kd: float, to: float) -> tuple[float, float] | None:
@@ -510,14 +488,16 @@ def polish(plan: Plan, pick: Candidate, robot_models: Sequence[str], say: Callab
                 c.p95_dip_mm, c.fell, c.robots, c.failed = old.p95_dip_mm, old.fell, old.robots, old.failed
                 c.max_saturation, c.p95_peak_torque, c.min_height_m = (old.max_saturation, old.p95_peak_torque,
                                                                        old.min_height_m)
+                c.score, c.figures = old.score, dict(old.figures)
         simulate(plan, [c for _, c in near if not c.failed and not c.robots], robot_models, say)
         # a move back to a pick already held would go round in circles
         won = best_of(plan, [pick] + [c for _, c in near if gains_key(c.gains) not in held])
         if won is None or won is pick or r == plan.polish:
             return pick, near
         held.add(gains_key(won.gains))
-        say(f"polish: a neighbour holds every constraint at a p95 push dip of {won.p95_dip_mm:.4g} mm "
-            f"(the pick's {pick.p95_dip_mm:.4g} mm), its slowest group at {slowest_hz(plan, won):.3g} Hz: moved there")
+        value = plan.task.value
+        say(f"polish: a neighbour holds every constraint at a {plan.task.objective} of {value(won.score)} "
+            f"(the pick's {value(pick.score)}), its slowest group at {slowest_hz(plan, won):.3g} Hz: moved there")
         pick = won
     return pick, near
 
@@ -526,23 +506,24 @@ def why_lost(plan: Plan, label: str, c: Candidate, pick: Candidate) -> str:
     """A neighbour's reason, in words."""
     if c.failed:
         return f"{label}: {c.failed}"
+    what, value, says = plan.task.measure, plan.task.value, plan.task.says
     if better(plan, c, pick):
-        if c.p95_dip_mm < pick.p95_dip_mm * (1 - TIE):
-            how = "a lower push dip"
+        if c.score < pick.score * (1 - TIE):
+            how = f"a lower {what}"
         elif slowest_hz(plan, c) > slowest_hz(plan, pick):
-            how = "a tie on the push dip, with a faster slowest group"
+            how = f"a tie on the {what}, with a faster slowest group"
         else:
-            how = "a tie on the push dip at the same slowest group, and a lower dip"
-        return (f"{label}: would win ({how}: {c.p95_dip_mm:.4g} mm against {pick.p95_dip_mm:.4g} mm); the polish "
+            how = f"a tie on the {what} at the same slowest group, and a lower {what.split()[-1]}"
+        return (f"{label}: would win ({how}: {value(c.score)} against {value(pick.score)}); the polish "
                 "had made its last move (--polish), so the pick may lie short of the best")
-    if c.p95_dip_mm <= pick.p95_dip_mm * (1 + TIE):
+    if c.score <= pick.score * (1 + TIE):
         fc, fp = slowest_hz(plan, c), slowest_hz(plan, pick)
         if fc < fp:
-            return (f"{label}: p95 push dip {c.p95_dip_mm:.4g} mm ties the pick's {pick.p95_dip_mm:.4g} mm, and "
+            return (f"{label}: {says(c.score)} ties the pick's {value(pick.score)}, and "
                     f"its slowest group tracks slower ({fc:.3g} Hz against {fp:.3g})")
-        return (f"{label}: p95 push dip {c.p95_dip_mm:.4g} mm ties the pick's {pick.p95_dip_mm:.4g} mm "
+        return (f"{label}: {says(c.score)} ties the pick's {value(pick.score)} "
                 "at the same slowest group, and is not lower")
-    return f"{label}: p95 push dip {c.p95_dip_mm:.4g} mm, above the pick's {pick.p95_dip_mm:.4g} mm"
+    return f"{label}: {says(c.score)}, above the pick's {value(pick.score)}"
 
 
 def robot_model_files(plan: Plan, out: Path) -> list[str]:

@@ -14,9 +14,11 @@ import html
 import json
 import os
 from pathlib import Path
+from typing import Any
 
-from pupper_core._report import fit, lab, recommend, response, sweep, tune
-from pupper_core._report.page import SCRIPT, STYLE, Page, Sections, inputs_html, kind_of, read_table
+from pupper_core._report import fit, lab, recommend, response, sweep, tune, walk
+from pupper_core._report import page as kit
+from pupper_core._report.page import SCRIPT, STYLE, Page, Sections, inputs_html, read_table
 
 __all__ = ["report"]
 
@@ -26,10 +28,16 @@ SECTIONS: dict[str, Sections] = {
     "lab": lab.sections,
     "response": response.sections,
     "hold": sweep.sections,
+    "walk": walk.sections,
     "tune": tune.sections,
     "fit": fit.sections,
     "recommend": recommend.sections,
 }
+
+
+def kind_of(manifest: dict[str, Any]) -> str:
+    """The kind a run's manifest names, one of the registry's."""
+    return kit.kind_of(manifest, SECTIONS)
 
 
 def report(run_dir: str | os.PathLike[str]) -> Path:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import html
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from pathlib import Path
 from typing import Any, Callable, NamedTuple
 
@@ -97,13 +97,11 @@ def table(header: list[str], rows: list[dict[str, str]], picks: str | set[str] |
     out.append("</tbody></table></div>")
     return "".join(out)
 
-#: The kinds a manifest names (sweep, lab and response by the Rust core;
-#: tune and fit by their Python drivers).
-KINDS = ("sweep", "lab", "response", "hold", "tune", "fit", "recommend")
-
-def kind_of(manifest: dict[str, Any]) -> str:
+def kind_of(manifest: dict[str, Any], kinds: Collection[str]) -> str:
+    """The run's kind: the manifest's, where it is one of `kinds` (the
+    report's registry), else what an older manifest's inputs say."""
     kind = manifest.get("kind")
-    if kind in KINDS:
+    if kind in kinds:
         return str(kind)
     # a manifest written before runs named their kind
     if manifest.get("command") == "fit":
@@ -245,6 +243,27 @@ class Page(NamedTuple):
     answer: list[str]
 
 Sections = Callable[[Page], list[str]]
+
+class TaskWords(NamedTuple):
+    """What a recommendation's page says of its task (`recommend --task`):
+    the measure the rule ranks, as trials.csv names it, in words and its
+    unit; the rule in words from the manifest's inputs (given the stand
+    task's, whose constraints every task keeps); what the answer quotes of
+    the cards; what else the answer shows of the manifest; what its
+    reproduce command gives again."""
+
+    column: str
+    objective: str
+    unit: str
+    rule: Callable[[dict[str, Any], str], str]
+    quoted: Callable[[dict[str, Any], list[dict[str, str]]], str]
+    shown: Callable[[dict[str, Any]], str]
+    reproduces: str
+
+    @property
+    def measure(self) -> str:
+        """What is measured, without its statistic: "push dip"."""
+        return self.objective.removeprefix("p95 ")
 
 def status_warnings(page: Page) -> None:
     counts: dict[str, int] = {}

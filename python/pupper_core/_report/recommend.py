@@ -8,8 +8,20 @@ import html
 import math
 from typing import Any
 
-from pupper_core._report.page import Page, read_table, table
+from pupper_core._report import walk
+from pupper_core._report.page import Page, TaskWords, read_table, table
 from pupper_core._report.svg import bars, num, scatter
+
+#: The stand task's words (`recommend --task stand`, the default).
+STAND = TaskWords("p95_push_dip_mm", "p95 push dip", "mm", lambda inputs, rule: rule,
+                  lambda inputs, cards: f"p95 push dip {num(cards[0].get('p95_push_dip_mm', 'nan')):.4g} mm over them",
+                  lambda manifest: "", "the push dip")
+#: The registry: each task's words, by the name the manifest's inputs give
+#: it (a task of its own writes `task`; the stand's runs write none).
+TASKS: dict[str, TaskWords] = {
+    "stand": STAND,
+    "walk": walk.RECOMMEND,
+}
 
 def sections(page: Page) -> list[str]:
     """A recommendation: the answer (a card per group, the rule, the
@@ -28,12 +40,14 @@ def sections(page: Page) -> list[str]:
             f"margin >= {inp.get('min_phase_margin_deg')}° and gain margin >= {inp.get('min_gain_margin_db')} dB "
             f"for the loop the firmware ({inp.get('motor')}) closes with {inp.get('sensing_delay')} s of sensing "
             "delay; push dips within 2 % tie, won by the faster slowest group")
+    task = TASKS[str(inp.get("task", "stand"))]
+    rule = task.rule(inp, rule)
     if cards:
-        dip = num(cards[0].get("p95_push_dip_mm", "nan"))
         page.answer.append(f"<p class='pick'>Put these gains on the robot: every constraint held on each drawn "
-                           f"robot, p95 push dip {dip:.4g} mm over them.</p><p>Rule: {html.escape(rule)}.</p>"
+                           f"robot, {task.quoted(inp, cards)}.</p><p>Rule: {html.escape(rule)}.</p>"
                            + table(ch, cards, None, key="group") + commanded(cards)
-                           + in_use(manifest.get("current"), dip))
+                           + in_use(manifest.get("current"), num(cards[0].get(task.column, "nan")), task)
+                           + task.shown(manifest))
         parts.append("<h2>Figures</h2>" + bars([c["group"] for c in cards],
                                                {"phase margin": [num(c["phase_margin_deg"]) for c in cards]},
                                                "phase margin at the spread's worst corner (deg)", unit="°"))
@@ -41,17 +55,17 @@ def sections(page: Page) -> list[str]:
         page.answer.append(f"<p class='pick'>No gains held every constraint.</p><p>Rule: {html.escape(rule)}.</p>")
     fh, front = read_table(d / "tradeoffs.csv")
     th, trials = read_table(d / "trials.csv")
-    parts.append(tradeoff_figure(inp, trials, front, manifest.get("pick") or {}))
+    parts.append(tradeoff_figure(inp, trials, front, manifest.get("pick") or {}, task))
     if len(front) > 1:
         parts.append("<h2>Trade-off set (tradeoffs.csv)</h2><p>The candidates that held every constraint and "
-                     "that no other beats at once on push dip (lower), the slowest group's natural frequency "
+                     f"that no other beats at once on {task.measure} (lower), the slowest group's natural frequency "
                      "(faster tracking) and the lowest robot's stand height (higher): where the rule's pick "
                      "gives one up for another.</p>" + table(fh, front, None, key="trial"))
     if manifest.get("neighbours"):
         parts.append("<h2>Why the neighbours lost</h2><ul>"
                      + "".join(f"<li>{html.escape(n)}</li>" for n in manifest["neighbours"]) + "</ul>")
     if manifest.get("reproduce"):
-        parts.append("<h2>Reproduce the push dip</h2><pre>" + html.escape(manifest["reproduce"]) + "</pre>")
+        parts.append(f"<h2>Reproduce {task.reproduces}</h2><pre>" + html.escape(manifest["reproduce"]) + "</pre>")
     page.warnings.extend(manifest.get("warnings", []))
     if trials:
         parts.append("<h2>Candidates (trials.csv)</h2>" + table(th, trials, None, key="trial"))
@@ -66,20 +80,23 @@ def commanded(cards: list[dict[str, str]]) -> str:
                  "margins are of the delivered gains")
     return f"<p>{html.escape(line)}.</p>"
 
-def in_use(current: dict[str, Any] | None, dip: float) -> str:
-    """The gains the robot runs today, on the same robots, beside the pick."""
+def in_use(current: dict[str, Any] | None, picked: float, task: TaskWords) -> str:
+    """The gains the robot runs today, on the same robots, beside the pick
+    (whose score is `picked`)."""
     if not current:
         return ""
     gains = ", ".join(f"{g} kp {v['kp']:.4g} kd {v['kd']:.4g}" for g, v in current["gains"].items())
     ran = (f"{current['fell']} robot(s) fell" if current.get("fell") else
-           f"p95 push dip {num(str(current.get('p95_push_dip_mm'))):.4g} mm (the pick's {dip:.4g} mm)")
+           f"{task.objective} {num(str(current.get(task.column))):.4g} {task.unit} (the pick's {picked:.4g} "
+           f"{task.unit})")
     held = "holds every constraint" if not current.get("failed") else f"breaks one: {current['failed']}"
     return f"<p>In use today ({html.escape(gains)}): {html.escape(ran)}; {html.escape(held)}.</p>"
 
 def tradeoff_figure(inputs: dict[str, Any], trials: list[dict[str, str]], front: list[dict[str, str]],
-                     picked: dict[str, dict[str, float]]) -> str:
+                    picked: dict[str, dict[str, float]], task: TaskWords = STAND) -> str:
     """Every candidate that held, by its slowest group's natural frequency
-    and its p95 push dip: the trade-off set filled, the pick starred."""
+    and its score (the stand task's p95 push dip): the trade-off set
+    filled, the pick starred."""
     inertia = {g: float(v[1]) for g, v in inputs.get("inertia", {}).items()}
     if not inertia:
         return ""
@@ -87,10 +104,10 @@ def tradeoff_figure(inputs: dict[str, Any], trials: list[dict[str, str]], front:
     def hz(r: dict[str, str]) -> float:
         return min(math.sqrt(num(r[f"kp.{g}"]) / J) for g, J in inertia.items()) / (2 * math.pi)
 
-    pts = {f"trial {r['trial']}": (hz(r), num(r["p95_push_dip_mm"])) for r in trials if r.get("status") == "ok"}
+    pts = {f"trial {r['trial']}": (hz(r), num(r[task.column])) for r in trials if r.get("status") == "ok"}
     # the pick: the first candidate with its gains (the polish may ask one twice)
     pick = next((f"trial {r['trial']}" for r in trials if r.get("status") == "ok" and picked
                  and all(num(r[f"{k}.{g}"]) == v[k] for g, v in picked.items() for k in ("kp", "kd"))), None)
     return scatter(pts, "candidates that held every constraint: the trade-off set filled, the pick ★",
                    "slowest group's natural frequency sqrt(kp/J) (Hz): faster tracking →",
-                   "p95 push dip (mm)", [f"trial {r['trial']}" for r in front], pick)
+                   f"{task.objective} ({task.unit})", [f"trial {r['trial']}" for r in front], pick)

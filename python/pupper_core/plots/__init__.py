@@ -40,11 +40,12 @@ from pupper_core.plots.tables import Table as Table
 from pupper_core.plots.tables import TableLike as TableLike
 from pupper_core.plots.tables import Traces as Traces
 from pupper_core.plots.tables import describe, grid_axes, read_replicates, read_run
+from pupper_core.plots.walk import write_walk_plots
 
 __all__ = ["base_z", "heatmap", "metric_vs_axis", "bars", "read_run", "write_run_plots",
            "grid_axes", "describe", "label_of", "read_replicates", "replicate_spread",
            "response_steps", "response_bode", "write_response_plots",
-           "lab_heatmaps", "write_lab_plots", "write_hold_plots", "write_plots"]
+           "lab_heatmaps", "write_lab_plots", "write_hold_plots", "write_walk_plots", "write_plots"]
 
 
 def __dir__() -> list[str]:
@@ -57,5 +58,5 @@ def write_plots(run_dir: str | os.PathLike) -> list[Path]:
     ``<run_dir>/plots/``; returns their paths. The registry of the kinds'
     plot writers."""
     manifest = json.loads((Path(run_dir) / "manifest.json").read_text())
-    writers = {"lab": write_lab_plots, "response": write_response_plots, "hold": write_hold_plots}
+    writers = {"lab": write_lab_plots, "response": write_response_plots, "hold": write_hold_plots, "walk": write_walk_plots}
     return writers.get(str(manifest.get("kind")), write_run_plots)(run_dir)

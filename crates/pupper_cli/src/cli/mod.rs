@@ -72,6 +72,7 @@ mod render;
 mod response;
 mod sweep;
 mod tune;
+mod walk;
 
 use args::ModelArg;
 use fit::{ExciteArgs, FitArgs};
@@ -123,6 +124,7 @@ enum Command {
     /// per gain cell the sag per newton, the sway and recovery, and the torque each joint
     /// group spends holding the load (and the copper loss, where the model declares its motors).
     Hold(Box<HoldArgs>),
+    Walk(Box<walk::WalkArgs>),
     /// PD gains from each joint's reflected inertia (the joint-space inertia diagonal with
     /// armature, on the robot hung in the air at its stand pose): the gains per joint group
     /// that give --bandwidth HZ at --damping ZETA (kp = I wn^2, kd = 2 zeta I wn), or what
@@ -187,6 +189,7 @@ pub fn run(cli: Cli, stop: &'static AtomicBool) -> Result<u8> {
         Command::Lab(a) => lab::run(*a, stop),
         Command::Response(a) => response::run(*a, stop),
         Command::Hold(a) => hold::run(*a, stop),
+        Command::Walk(a) => walk::run(*a, stop),
         Command::Tune(a) => a.run(),
         Command::Recommend(a) => a.run(),
         Command::Excite(a) => a.run(),

@@ -37,6 +37,14 @@ floor friction 0.6-1.2, 1 mrad of encoder noise, 0 to --sensing-delay of sensing
 candidate meets the same robots (common draws), so the card's numbers are reproduced by the sweep
 the manifest names. With --from-fit DIR the robot is the fit's calibrated model and the spread is
 its 95 % intervals: 8 joint models drawn inside them, the gain scales and the delay per robot.
+With several runs (--from-fit A B, e.g. per-joint fits of different motors) the robot is one model
+of what each fitted, written to the run directory as calibrated.xml.
+
+--task walk ranks by walking instead: each candidate walks `pupper walk`'s gait (--gait, --frequency,
+--speed) on the same robots, the lowest p95 speed_error_pct wins among those that hold the same
+constraints while walking and keep every robot's roll and pitch RMS under --max-tilt; the card
+then runs --task stand's search too and sets both picks side by side, each scored on both tasks,
+with why they differ.
 
 Writes, in the run directory: recommend.csv (a card per group: gains, margins, predicted step
 response, p95 push dip, torque headroom), trials.csv (every candidate), tradeoffs.csv (those no
@@ -52,7 +60,8 @@ kp, motor kd), and every margin is of the delivered gains. The gains the robot r
 Examples:
   pupper recommend -o runs/rec
   pupper recommend --motor rate=250,counts=16384 --sensing-delay 0.004 -o runs/rec_slow
-  pupper recommend --from-fit runs/fit --joint-order leg_front_r_1,leg_front_r_2,... -o runs/rec_fit"
+  pupper recommend --from-fit runs/fit --joint-order leg_front_r_1,leg_front_r_2,... -o runs/rec_fit
+  pupper recommend --task walk --gait trot --speed 0.25 -o runs/rec_walk"
 )]
 pub(super) struct RecommendArgs {
     #[command(flatten)]
@@ -75,9 +84,18 @@ pub(super) struct RecommendArgs {
     /// Seed of the robots' draws and of the search.
     #[arg(long, default_value_t = 0, value_name = "S")]
     seed: u64,
-    /// Simulated seconds per robot (the push comes at 2 s).
-    #[arg(long, default_value_t = 4.0, value_name = "S", allow_negative_numbers = true, value_parser = finite)]
-    seconds: f64,
+    /// Simulated seconds per robot (the push comes at 2 s) [default: 4, or 8 with --task walk, whose
+    /// steady window starts at 3.5 s]
+    #[arg(long, value_name = "S", allow_negative_numbers = true, value_parser = finite)]
+    seconds: Option<f64>,
+    /// What the gains are ranked for: stand (the push dip) or walk (the speed error of `pupper walk`
+    /// at --gait, --frequency and --speed on the same robots; the card sets the pick beside
+    /// --task stand's and says why they differ).
+    #[arg(long, default_value = "stand", value_name = "TASK")]
+    task: String,
+    #[command(flatten)]
+    #[serde(flatten)]
+    walk: super::walk::WalkTaskArgs,
     /// The push's vertical force (N) [default: sweep's].
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = finite)]
     push_force: Option<f64>,
@@ -97,9 +115,12 @@ pub(super) struct RecommendArgs {
     #[serde(serialize_with = "pyargs::none_if_empty")]
     spread: Vec<String>,
     /// A `pupper fit` run directory: its calibrated model is the robot, its intervals the spread.
-    #[arg(long, value_name = "DIR")]
-    #[serde(serialize_with = "pyargs::opt_path")]
-    from_fit: Option<PathBuf>,
+    /// Several (repeat the flag, or list them after it) merge into one model, each actuator's
+    /// calibrated parameters from the run that fitted it; two runs that calibrate one actuator's
+    /// parameter to different values are refused.
+    #[arg(long, value_name = "DIR", num_args = 1..)]
+    #[serde(serialize_with = "pyargs::paths_or_none")]
+    from_fit: Vec<PathBuf>,
     /// Least phase margin of every group's loop on every robot (degrees).
     #[arg(long, default_value_t = 30.0, value_name = "DEG", allow_negative_numbers = true, value_parser = finite)]
     min_phase_margin: f64,

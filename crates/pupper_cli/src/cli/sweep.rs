@@ -193,12 +193,14 @@ pub(super) fn run_job(mut a: Job, stop: &'static AtomicBool) -> Result<u8> {
         .map(|a| a.to_string_lossy().into_owned())
         .collect();
     let sweep = build(&a)?;
-    // without --rank: the steadiest, over the replicates when there are
-    // some (a `--resume DIR` alone learns that from the manifest)
+    // without --rank: the kind's own metric (a stand's steadiest), over
+    // the replicates when there are some (a `--resume DIR` alone learns
+    // that from the manifest)
     if let Some(rule) = a.rule.as_mut().filter(|r| r.metric.is_empty()) {
+        let metric = sweep.config.experiment.plan().default_metric();
         rule.metric = match sweep.config.replicates.is_plain() {
-            true => best::DEFAULT_METRIC.into(),
-            false => best::robust(best::DEFAULT_METRIC),
+            true => metric.into(),
+            false => best::robust(metric),
         };
     }
     // the ranking rule is checked against the grid before anything runs

@@ -5,6 +5,7 @@ mod hold;
 mod model;
 mod response;
 mod stand;
+mod walk;
 
 pub use gains::gains;
 pub use model::{doctor, info, pose, stand};
@@ -44,6 +45,7 @@ pub fn run_table(o: &SweepOutcome, e: &pupper_core::plan::experiment::Experiment
         Experiment::Stand => stand::table(o),
         Experiment::Response(_) => response::table(o),
         Experiment::Hold(_) => hold::table(o, e.plan().default_metric()),
+        Experiment::Walk(_) => walk::table(o),
     }
 }
 

@@ -6,58 +6,95 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::robot::variant::VARIANTS;
 
-/// A named experiment parameter that a grid can vary.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Axis {
+/// The axes, a row each: the variant, its name (as `--grid` and
+/// summary.csv write it), its tag in cell ids, the kind whose own axis it
+/// is (None: every kind's), and what its values must be (None: any).
+macro_rules! axes {
+    ($($(#[$doc:meta])* $v:ident = $name:literal, $tag:literal, $kind:expr, $rule:expr;)*) => {
+        /// A named experiment parameter that a grid can vary.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+        #[serde(rename_all = "snake_case")]
+        pub enum Axis {
+            $($(#[$doc])* $v,)*
+        }
+
+        impl Axis {
+            pub const ALL: &'static [Axis] = &[$(Axis::$v),*];
+
+            pub fn name(self) -> &'static str {
+                match self {
+                    $(Axis::$v => $name,)*
+                }
+            }
+
+            /// Short form used in cell ids.
+            pub(crate) fn tag(self) -> &'static str {
+                match self {
+                    $(Axis::$v => $tag,)*
+                }
+            }
+
+            /// The experiment kind whose own axis this is (a manifest's kind
+            /// name); None for an axis every kind takes.
+            pub fn kind(self) -> Option<&'static str> {
+                match self {
+                    $(Axis::$v => $kind,)*
+                }
+            }
+
+            /// What is wrong with value `v` of this axis, if anything.
+            fn rule(self, v: f64) -> Option<&'static str> {
+                let rule: fn(f64) -> Option<&'static str> = match self {
+                    $(Axis::$v => $rule,)*
+                };
+                rule(v)
+            }
+        }
+    };
+}
+
+const GAIN: fn(f64) -> Option<&'static str> = |v| (v < 0.0).then_some("gains must be >= 0");
+const ANY: fn(f64) -> Option<&'static str> = |_| None;
+
+axes! {
     /// Proportional gain (N·m/rad).
-    Kp,
+    Kp = "kp", "kp", None, GAIN;
     /// Derivative gain (N·m·s/rad).
-    Kd,
+    Kd = "kd", "kd", None, GAIN;
     /// Vertical push force on the base (N, world z; negative pushes down).
-    PushForce,
+    PushForce = "push_force", "push", None, ANY;
     /// Torque limit of every actuator (N·m).
-    MaxTorque,
+    MaxTorque = "max_torque", "tmax", None, |v| (v <= 0.0).then_some("max_torque must be > 0");
     /// Sliding friction of the feet and the floor.
-    Friction,
+    Friction = "friction", "mu", None, |v| (v <= 0.0).then_some("friction must be > 0");
     /// Physics timestep (s).
-    Timestep,
+    Timestep = "timestep", "dt", None,
+        |v| (!(1e-6..=0.05).contains(&v)).then_some("timestep must be in [1e-6, 0.05] s");
     /// Scale of thigh and calf lengths and masses.
-    LegScale,
+    LegScale = "leg_scale", "leg", None,
+        |v| (!(0.25..=4.0).contains(&v)).then_some("leg_scale must be in [0.25, 4]");
     /// Scale of the torso mass and inertia.
-    TorsoMassScale,
+    TorsoMassScale = "torso_mass_scale", "torso", None,
+        |v| (!(0.05..=20.0).contains(&v)).then_some("torso_mass_scale must be in [0.05, 20]");
     /// A named body (original, long-leg, heavy); values are indices into
     /// [`crate::robot::variant::VARIANTS`], shown by name.
-    Variant,
+    Variant = "variant", "", None, ANY;
     /// Kp and Kd of one joint group (abduction, hip pitch, knee), over the
     /// common `kp`/`kd` for the joints of that group.
-    KpHaa,
-    KpHfe,
-    KpKfe,
-    KdHaa,
-    KdHfe,
-    KdKfe,
+    KpHaa = "kp.haa", "kphaa", None, GAIN;
+    KpHfe = "kp.hfe", "kphfe", None, GAIN;
+    KpKfe = "kp.kfe", "kpkfe", None, GAIN;
+    KdHaa = "kd.haa", "kdhaa", None, GAIN;
+    KdHfe = "kd.hfe", "kdhfe", None, GAIN;
+    KdKfe = "kd.kfe", "kdkfe", None, GAIN;
+    /// A walk's gait: cycles per second (Hz), commanded forward speed (m/s), duty factor, step height (m).
+    Frequency = "frequency", "f", Some("walk"), |v| (!(v > 0.0 && v <= 20.0)).then_some("frequency must be in (0, 20] Hz");
+    Speed = "speed", "v", Some("walk"), |v| (v.abs() > 5.0).then_some("speed must be in [-5, 5] m/s");
+    Duty = "duty", "duty", Some("walk"), |v| (!(0.05..=0.95).contains(&v)).then_some("duty must be in [0.05, 0.95]");
+    StepHeight = "step_height", "step", Some("walk"), |v| (!(0.0..=1.0).contains(&v)).then_some("step_height must be in [0, 1] m");
 }
 
 impl Axis {
-    pub const ALL: [Axis; 15] = [
-        Axis::Kp,
-        Axis::Kd,
-        Axis::PushForce,
-        Axis::MaxTorque,
-        Axis::Friction,
-        Axis::Timestep,
-        Axis::LegScale,
-        Axis::TorsoMassScale,
-        Axis::Variant,
-        Axis::KpHaa,
-        Axis::KpHfe,
-        Axis::KpKfe,
-        Axis::KdHaa,
-        Axis::KdHfe,
-        Axis::KdKfe,
-    ];
-
     /// The axis of Kp (`kd`: Kd) for joint group `group`, if it has one.
     pub fn group_gain(kd: bool, group: &str) -> Option<Axis> {
         Some(match (kd, group) {
@@ -86,26 +123,6 @@ impl Axis {
         )
     }
 
-    pub fn name(self) -> &'static str {
-        match self {
-            Axis::Kp => "kp",
-            Axis::Kd => "kd",
-            Axis::PushForce => "push_force",
-            Axis::MaxTorque => "max_torque",
-            Axis::Friction => "friction",
-            Axis::Timestep => "timestep",
-            Axis::LegScale => "leg_scale",
-            Axis::TorsoMassScale => "torso_mass_scale",
-            Axis::Variant => "variant",
-            Axis::KpHaa => "kp.haa",
-            Axis::KpHfe => "kp.hfe",
-            Axis::KpKfe => "kp.kfe",
-            Axis::KdHaa => "kd.haa",
-            Axis::KdHfe => "kd.hfe",
-            Axis::KdKfe => "kd.kfe",
-        }
-    }
-
     /// A value as summary.csv and cell ids show it: a variant by its name,
     /// a number as its shortest round-trip text.
     pub fn text(self, v: f64) -> String {
@@ -117,33 +134,19 @@ impl Axis {
         }
     }
 
-    /// Short form used in cell ids.
-    pub(crate) fn tag(self) -> &'static str {
-        match self {
-            Axis::Kp => "kp",
-            Axis::Kd => "kd",
-            Axis::PushForce => "push",
-            Axis::MaxTorque => "tmax",
-            Axis::Friction => "mu",
-            Axis::Timestep => "dt",
-            Axis::LegScale => "leg",
-            Axis::TorsoMassScale => "torso",
-            Axis::Variant => "",
-            Axis::KpHaa => "kphaa",
-            Axis::KpHfe => "kphfe",
-            Axis::KpKfe => "kpkfe",
-            Axis::KdHaa => "kdhaa",
-            Axis::KdHfe => "kdhfe",
-            Axis::KdKfe => "kdkfe",
-        }
-    }
-
     pub fn parse(name: &str) -> Result<Axis> {
         let key = name.trim().to_ascii_lowercase().replace('-', "_");
         if let Some(axis) = Axis::ALL.iter().find(|a| a.name() == key) {
             return Ok(*axis);
         }
         let names: Vec<&str> = Axis::ALL.iter().map(|a| a.name()).collect();
+        // the list names the axes every kind takes; a kind's own are in its
+        // --help (and still suggested for a typo)
+        let listed: Vec<&str> = Axis::ALL
+            .iter()
+            .filter(|a| a.kind().is_none())
+            .map(|a| a.name())
+            .collect();
         let dist: Vec<(usize, &str)> = names
             .iter()
             .map(|n| (strsim::damerau_levenshtein(&key, n), *n))
@@ -163,26 +166,13 @@ impl Axis {
         Err(Error::Grid(format!(
             "unknown grid axis '{}': {hint}known axes are {}",
             name.trim(),
-            names.join(", ")
+            listed.join(", ")
         )))
     }
 
     /// Checks one value against the axis's physical domain.
     pub(crate) fn check(self, v: f64) -> Result<()> {
-        let problem = match self {
-            a if a.is_gain() && v < 0.0 => Some("gains must be >= 0"),
-            Axis::MaxTorque if v <= 0.0 => Some("max_torque must be > 0"),
-            Axis::Friction if v <= 0.0 => Some("friction must be > 0"),
-            Axis::Timestep if !(1e-6..=0.05).contains(&v) => {
-                Some("timestep must be in [1e-6, 0.05] s")
-            }
-            Axis::LegScale if !(0.25..=4.0).contains(&v) => Some("leg_scale must be in [0.25, 4]"),
-            Axis::TorsoMassScale if !(0.05..=20.0).contains(&v) => {
-                Some("torso_mass_scale must be in [0.05, 20]")
-            }
-            _ => None,
-        };
-        match problem {
+        match self.rule(v) {
             Some(p) => Err(Error::Grid(format!(
                 "grid axis '{}' has value {v}: {p}; fix the value list",
                 self.name()

@@ -97,6 +97,18 @@ impl Default for SweepConfig {
 impl SweepConfig {
     pub fn validate(&self) -> Result<()> {
         self.schedule.validate()?;
+        // a kind's own axis (a walk's gait) is no other kind's to vary
+        let kind = self.experiment.name();
+        if let Some((a, own)) = self
+            .grid
+            .axes
+            .iter()
+            .find_map(|a| a.axis.kind().filter(|&k| k != kind).map(|k| (a.axis, k)))
+        {
+            return Err(Error::Config(format!(
+                "grid axis '{a}' is a {own}'s own axis: run it with `pupper {own}`"
+            )));
+        }
         self.experiment
             .plan()
             .check(&self.schedule, &self.grid, !self.replicates.is_plain())?;

@@ -8,87 +8,98 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
 use crate::plan::hold::Load;
-use crate::plan::kind::KindPlan;
+use crate::plan::kind::{KindPlan, OnModel};
 use crate::plan::response::Excitation;
 use crate::plan::schedule::Schedule;
 use crate::plan::stand::Stand;
-use crate::robot::model::ModelInfo;
 
-/// The experiment of a run (the manifest's config keeps it).
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-#[serde(from = "Record", into = "Record")]
-pub enum Experiment {
-    /// The robot stands, is pushed (or shaken) and recovers: `pupper
-    /// sweep` and the lab.
-    #[default]
-    Stand,
+/// The kinds besides the stand, a row each: the variant, the plan it
+/// holds and the key a manifest's config writes it under. It makes
+/// [`Experiment`], the manifest's record of it (the stand kind absent,
+/// every other under its own key, so earlier runs' manifests read and
+/// resume as they were written) and the registry of plans.
+macro_rules! kinds {
+    ($($(#[$doc:meta])* $v:ident($plan:ty) = $key:ident;)*) => {
+        /// The experiment of a run (the manifest's config keeps it).
+        #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+        #[serde(from = "Record", into = "Record")]
+        pub enum Experiment {
+            /// The robot stands, is pushed (or shaken) and recovers: `pupper
+            /// sweep` and the lab.
+            #[default]
+            Stand,
+            $($(#[$doc])* $v($plan),)*
+        }
+
+        #[derive(Default, Serialize, Deserialize)]
+        struct Record {
+            $(#[serde(default, skip_serializing_if = "Option::is_none")]
+            $key: Option<$plan>,)*
+        }
+
+        impl From<Record> for Experiment {
+            fn from(r: Record) -> Experiment {
+                // the first kind's key wins, should a record hold two
+                $(if let Some(x) = r.$key {
+                    return Experiment::$v(x);
+                })*
+                Experiment::Stand
+            }
+        }
+
+        impl From<Experiment> for Record {
+            fn from(e: Experiment) -> Record {
+                match e {
+                    Experiment::Stand => Record::default(),
+                    $(Experiment::$v(x) => Record {
+                        $key: Some(x),
+                        ..Record::default()
+                    },)*
+                }
+            }
+        }
+
+        impl Experiment {
+            /// The registry: the kind's plan.
+            pub fn plan(&self) -> &dyn KindPlan {
+                match self {
+                    Experiment::Stand => &Stand,
+                    $(Experiment::$v(x) => x,)*
+                }
+            }
+
+            /// The kind's plan, to resolve (None: the stand kind, which
+            /// holds nothing).
+            fn plan_mut(&mut self) -> Option<&mut dyn KindPlan> {
+                match self {
+                    Experiment::Stand => None,
+                    $(Experiment::$v(x) => Some(x),)*
+                }
+            }
+        }
+    };
+}
+
+kinds! {
     /// Each joint excited alone, its target stepped, swept in a sine or a
     /// chirp: `pupper response`.
-    Response(Excitation),
+    Response(Excitation) = response;
     /// The robot stands under a load ramped onto its base, then is shoved
     /// sideways: `pupper hold`.
-    Hold(Load),
-}
-
-/// An experiment as a manifest's config writes it: the stand kind absent,
-/// every other kind under its own key, so the manifests of earlier runs
-/// read (and resume) as they were written.
-#[derive(Default, Serialize, Deserialize)]
-struct Record {
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    response: Option<Excitation>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    hold: Option<Load>,
-}
-
-impl From<Record> for Experiment {
-    fn from(r: Record) -> Experiment {
-        match (r.response, r.hold) {
-            (Some(e), _) => Experiment::Response(e),
-            (None, Some(l)) => Experiment::Hold(l),
-            (None, None) => Experiment::Stand,
-        }
-    }
-}
-
-impl From<Experiment> for Record {
-    fn from(e: Experiment) -> Record {
-        match e {
-            Experiment::Stand => Record::default(),
-            Experiment::Response(e) => Record {
-                response: Some(e),
-                ..Record::default()
-            },
-            Experiment::Hold(l) => Record {
-                hold: Some(l),
-                ..Record::default()
-            },
-        }
-    }
+    Hold(Load) = hold;
+    /// The robot walks a gait, open loop at the kinematic level: `pupper walk`.
+    Walk(crate::plan::walk::Walk) = walk;
 }
 
 impl Experiment {
-    /// The registry: the kind's plan.
-    pub fn plan(&self) -> &dyn KindPlan {
-        match self {
-            Experiment::Stand => &Stand,
-            Experiment::Response(e) => e,
-            Experiment::Hold(l) => l,
-        }
-    }
-
     /// What a kind takes from the compiled model before it runs (a hold's
     /// weight, groups and windings; the default push's force, scaled to the
-    /// model's mass). A response's joints need the model's
-    /// data too and are resolved beside it, in the adapter.
-    pub fn resolve(&mut self, info: &ModelInfo, schedule: &mut Schedule) -> Result<()> {
-        match self {
-            Experiment::Hold(l) => l.resolve(info, schedule),
-            // the default push, scaled to the robot's mass
-            Experiment::Stand | Experiment::Response(_) => match schedule.push.as_mut() {
-                Some(p) => p.resolve(info.total_mass),
-                None => Ok(()),
-            },
+    /// model's mass). A response's joints need the model's data too and
+    /// are resolved beside it, in the adapter.
+    pub fn resolve(&mut self, m: &OnModel<'_>, schedule: &mut Schedule) -> Result<()> {
+        match self.plan_mut() {
+            Some(p) => p.resolve(m, schedule),
+            None => Stand.resolve(m, schedule),
         }
     }
 
@@ -105,7 +116,7 @@ impl Experiment {
     pub fn excitation(&self) -> Option<&Excitation> {
         match self {
             Experiment::Response(e) => Some(e),
-            Experiment::Stand | Experiment::Hold(_) => None,
+            _ => None,
         }
     }
 
@@ -113,7 +124,7 @@ impl Experiment {
     pub fn excitation_mut(&mut self) -> Option<&mut Excitation> {
         match self {
             Experiment::Response(e) => Some(e),
-            Experiment::Stand | Experiment::Hold(_) => None,
+            _ => None,
         }
     }
 }

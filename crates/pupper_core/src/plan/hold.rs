@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::plan::grid::{Axis, Grid};
-use crate::plan::kind::KindPlan;
+use crate::plan::kind::{KindPlan, OnModel};
 use crate::plan::schedule::Schedule;
 use crate::robot::model::ModelInfo;
 
@@ -148,6 +148,10 @@ impl Load {
 impl KindPlan for Load {
     fn name(&self) -> &'static str {
         "hold"
+    }
+
+    fn resolve(&mut self, m: &OnModel<'_>, schedule: &mut Schedule) -> Result<()> {
+        Load::resolve(self, m.info, schedule)
     }
 
     fn base_force(&self, t: f64) -> [f64; 3] {

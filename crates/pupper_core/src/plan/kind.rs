@@ -4,6 +4,11 @@
 //! type, `plan::experiment::Experiment`; each layer has a module per kind
 //! and dispatches on that type in one place, its registry.
 
+use crate::error::Result;
+use crate::plan::grid::{Cell, Grid};
+use crate::plan::schedule::Schedule;
+use crate::robot::model::ModelInfo;
+
 /// The metric a standing run ranks by unless told: the base height's
 /// spread over the last second.
 pub const DEFAULT_METRIC: &str = "last_1s_std_mm";
@@ -44,6 +49,20 @@ pub trait KindPlan {
     fn varying_force(&self) -> bool {
         false
     }
+    /// The targets' own motion in one simulation of `cell`, from the joint
+    /// targets `start`, where the kind moves every target itself (a gait);
+    /// None where they stay or follow [`KindPlan::target_offset`].
+    fn motion(&self, _cell: &Cell, _start: &[f64]) -> Option<Box<dyn Motion>> {
+        None
+    }
+    /// What the kind takes from the compiled model before it runs; by
+    /// default the schedule's push, scaled to the robot's mass.
+    fn resolve(&mut self, m: &OnModel<'_>, schedule: &mut Schedule) -> Result<()> {
+        match schedule.push.as_mut() {
+            Some(p) => p.resolve(m.info.total_mass),
+            None => Ok(()),
+        }
+    }
     /// The summary column its best cell is the lowest of, unless a rule
     /// names another.
     fn default_metric(&self) -> &'static str {
@@ -51,12 +70,24 @@ pub trait KindPlan {
     }
     /// Refuses a run the kind cannot measure, in one line: its schedule,
     /// its grid, and whether it has replicates.
-    fn check(
-        &self,
-        _schedule: &crate::plan::schedule::Schedule,
-        _grid: &crate::plan::grid::Grid,
-        _replicated: bool,
-    ) -> crate::error::Result<()> {
+    fn check(&self, _schedule: &Schedule, _grid: &Grid, _replicated: bool) -> Result<()> {
         Ok(())
     }
+}
+
+/// Joint targets a kind moves on its own schedule, all of one
+/// simulation's at once (a gait's come from the legs' kinematics together).
+pub trait Motion {
+    /// Each actuator's target at time `t` (s), into `out` (actuator order).
+    fn targets(&self, t: f64, out: &mut [f64]);
+}
+
+/// What a kind may read of the compiled model as it resolves: the model,
+/// the run's grid, and the joint targets its cells start from (worked out
+/// only when asked: finding a stand pose is a search).
+pub struct OnModel<'a> {
+    pub info: &'a ModelInfo,
+    pub grid: &'a Grid,
+    /// The start pose's joint targets (None where the model gives none).
+    pub start: &'a dyn Fn() -> Result<Option<Vec<f64>>>,
 }

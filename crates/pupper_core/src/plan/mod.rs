@@ -18,3 +18,4 @@ pub mod setup;
 pub mod shard;
 pub mod stability;
 pub mod stand;
+pub mod walk;

@@ -5,3 +5,4 @@ pub mod hold;
 pub mod lab;
 pub mod response;
 pub mod spec;
+pub mod walk;

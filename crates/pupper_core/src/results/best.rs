@@ -204,9 +204,17 @@ fn ties(header: &[String], rule: &Rule) -> (f64, Option<usize>) {
 /// listing them.
 fn metric_column(header: &[String], rule: &Rule, replicated: bool) -> Result<usize> {
     let numeric: Vec<String> = if replicated {
+        // the metrics' statistics, then a kind's own figures' (a walk's)
+        let stat = |h: &String| STATISTICS.iter().any(|s| h.starts_with(&format!("{s}:")));
         aggregated()
             .flat_map(|m| STATISTICS.iter().map(move |s| format!("{s}:{m}")))
-            .collect()
+            .chain(header.iter().filter(|h| stat(h)).cloned())
+            .fold(Vec::new(), |mut v, m| {
+                if !v.contains(&m) {
+                    v.push(m);
+                }
+                v
+            })
     } else {
         // status is text; when a cell fell is no quality to rank by. A
         // kind's own figures follow the metrics (a hold's sag, torques; a

@@ -630,6 +630,7 @@ mod tests {
                 crate::sim::runner::Replicate {
                     drawn: vec![1.0 + k as f64 / 10.0],
                     metrics: m,
+                    figures: Vec::new(),
                 }
             })
             .collect();

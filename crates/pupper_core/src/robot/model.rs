@@ -141,6 +141,12 @@ pub struct LegInfo {
     /// Index of the foot geom.
     #[serde(default)]
     pub foot_geom: usize,
+    /// Where the abduction joint sits, and its world axis (a walk's leg
+    /// kinematics chain all three joints).
+    #[serde(default)]
+    pub abduction: [f64; 3],
+    #[serde(default)]
+    pub abduction_axis: [f64; 3],
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -372,6 +372,8 @@ mod tests {
                 hip_to_foot: 0.2,
                 foot_radius: 0.01,
                 foot_geom: 0,
+                abduction: [0.0, 0.1 * y, 0.3],
+                abduction_axis: [1.0, 0.0, 0.0],
             });
         }
         let mut info = ModelInfo::for_test("biped", joints, actuators);

@@ -17,3 +17,4 @@ pub mod runner;
 pub mod stand;
 pub mod stepping;
 pub mod torque;
+pub mod walk;

@@ -4,6 +4,7 @@
 //! the runner's registry.
 
 use crate::plan::config::SweepConfig;
+use crate::plan::grid::Cell;
 use crate::plan::schedule::Schedule;
 use crate::plan::setup::CellSetup;
 use crate::robot::layout::Layout;
@@ -20,7 +21,8 @@ pub struct Sample<'a> {
     /// The largest force over all actuators, and how many were at their limit.
     pub peak: f64,
     pub nsat: usize,
-    /// The simulation's joint targets, before any excitation.
+    /// The simulation's joint targets, before any excitation; the step's
+    /// own where the kind moves them all ([`crate::plan::kind::Motion`]).
     pub targets: &'a [f64],
     pub layout: &'a Layout,
 }
@@ -30,6 +32,8 @@ pub struct Start<'a> {
     /// The actuator it excites, if its kind excites one.
     pub excited: Option<usize>,
     pub replicate: usize,
+    /// Its cell.
+    pub cell: &'a Cell,
     /// Its own schedule (a replicate may push at its own time).
     pub schedule: &'a Schedule,
     pub dt: f64,

@@ -14,6 +14,10 @@ use crate::sim::metrics::{Metrics, Status};
 pub struct Replicate {
     pub drawn: Vec<f64>,
     pub metrics: Metrics,
+    /// The kind's own figures of this replicate, in the order its tables
+    /// name them; empty for the kinds without any.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub figures: Vec<f64>,
 }
 
 /// One finished cell.

@@ -5,6 +5,7 @@ use crate::error::Result;
 use crate::plan::config::SweepConfig;
 use crate::plan::experiment::Experiment;
 use crate::plan::grid::Cell;
+use crate::plan::kind::Motion;
 use crate::plan::mode::Mode;
 use crate::plan::setup::CellSetup;
 use crate::robot::layout::Layout;
@@ -191,6 +192,7 @@ fn probe(cfg: &SweepConfig, s: &Start<'_>) -> Box<dyn Probe> {
             s.schedule,
             s.dt,
         )),
+        (Experiment::Walk(w), _) => Box::new(crate::sim::walk::WalkProbe::new(s, w)),
         _ => Box::new(StandProbe::new(Recorder::new(s.schedule, s.dt, s.stance))),
     }
 }
@@ -216,8 +218,15 @@ fn run_chunk(
     let mut batch = physics.start(&plan.setups, cfg.mode, &schedule.initial, opts.threads)?;
     let layout = physics.layout().clone();
     let n = plan.len();
-    let probes = probes(cfg, &plan, batch.as_ref(), &layout, &limits, dt);
+    let probes = probes(cfg, cells, &plan, batch.as_ref(), &layout, &limits, dt);
     let targets: Vec<Vec<f64>> = (0..n).map(|s| batch.targets(s).to_vec()).collect();
+    // each simulation's targets where its kind moves them all (a gait)
+    let motions: Vec<Option<Box<dyn Motion>>> = (0..n)
+        .map(|s| {
+            let cell = cells[plan.sims[s].cell].cell;
+            cfg.experiment.plan().motion(cell, &targets[s])
+        })
+        .collect();
     let mut state = ChunkState {
         layout: &layout,
         targets: &targets,
@@ -245,6 +254,7 @@ fn run_chunk(
         bounds: push_bounds(&plan),
         per_step: host_pd,
         moving,
+        motions: &motions,
         chunk_steps: opts.chunk_steps,
     };
     let mut since_check = 0usize;
@@ -265,6 +275,7 @@ fn run_chunk(
 /// Each simulation's probe, of the chunk's experiment kind.
 fn probes(
     cfg: &SweepConfig,
+    cells: &[Resolved<'_>],
     plan: &ChunkPlan,
     batch: &dyn SimBatch,
     layout: &Layout,
@@ -278,6 +289,7 @@ fn probes(
                 &Start {
                     excited: plan.sims[sim].excited,
                     replicate: plan.sims[sim].replicate,
+                    cell: cells[plan.sims[sim].cell].cell,
                     schedule: &plan.schedules[sim],
                     dt,
                     stance: batch.stance(sim),

@@ -57,6 +57,7 @@ impl Probe for StandProbe {
             cell.replicates.push(Replicate {
                 drawn: done.drawn,
                 metrics,
+                figures: Vec::new(),
             });
         }
     }

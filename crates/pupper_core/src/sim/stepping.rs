@@ -6,6 +6,7 @@ use std::cell::RefCell;
 
 use crate::error::{Error, Result};
 use crate::plan::config::SweepConfig;
+use crate::plan::kind::Motion;
 use crate::robot::layout::Layout;
 use crate::sim::chunk::ChunkPlan;
 use crate::sim::firmware::Sensing;
@@ -29,7 +30,8 @@ pub(crate) struct ChunkState<'a> {
 
 impl ChunkState<'_> {
     /// One post-step sample of simulation `sim`, whose step ended at `t`;
-    /// `act` the actuator forces, `peak`/`nsat` over all actuators.
+    /// `act` the actuator forces, `peak`/`nsat` over all actuators;
+    /// `moved` the step's targets where its kind moves them all.
     #[allow(clippy::too_many_arguments)]
     fn sample(
         &mut self,
@@ -40,6 +42,7 @@ impl ChunkState<'_> {
         act: &[f64],
         peak: f64,
         nsat: usize,
+        moved: Option<&[f64]>,
     ) {
         self.steps[sim] += 1;
         self.probes[sim].observe(&Sample {
@@ -48,7 +51,7 @@ impl ChunkState<'_> {
             act,
             peak,
             nsat,
-            targets: &self.targets[sim],
+            targets: moved.unwrap_or(&self.targets[sim]),
             layout: self.layout,
         });
         if let Some(f) = &mut self.frames[sim] {
@@ -96,6 +99,8 @@ pub(crate) struct Stepping<'a> {
     /// Targets that move on a schedule (the response): each call gets
     /// every step's ctrl.
     pub(crate) moving: bool,
+    /// Each simulation's targets where its kind moves them all (a gait).
+    pub(crate) motions: &'a [Option<Box<dyn Motion>>],
     pub(crate) chunk_steps: usize,
 }
 
@@ -113,6 +118,34 @@ impl Stepping<'_> {
             }
             _ => base,
         }
+    }
+
+    /// Every target of simulation `sim` at time `t`, into `out`.
+    fn fill(&self, sim: usize, t: f64, out: &mut [f64]) {
+        match &self.motions[sim] {
+            Some(m) => m.targets(t, out),
+            None => {
+                for (a, o) in out.iter_mut().enumerate() {
+                    *o = self.target(sim, a, t);
+                }
+            }
+        }
+    }
+
+    /// Actuator `a`'s target of simulation `sim` at time `t`; where a
+    /// motion moves every target at once, from `row` (all of them at
+    /// `row.0`, filled again when `t` differs: the firmware asks at its
+    /// own delays).
+    fn target_from(&self, sim: usize, a: usize, t: f64, row: &mut (f64, Vec<f64>)) -> f64 {
+        if self.motions[sim].is_none() {
+            return self.target(sim, a, t);
+        }
+        if row.0.to_bits() != t.to_bits() || row.1.len() != self.layout.nu {
+            row.1.resize(self.layout.nu, 0.0);
+            self.fill(sim, t, &mut row.1);
+            row.0 = t;
+        }
+        row.1[a]
     }
 
     /// The external base force on simulation `sim` at time `t` (pushed or not).
@@ -248,9 +281,24 @@ fn advance_open_loop(
             .collect();
         Force::Constant(&forces)
     };
+    // moving targets: the servos' targets of every step, known in advance
+    let nu = st.layout.nu;
+    let mut ctrl = Vec::new();
+    if st.moving {
+        ctrl.resize(alive.len() * nstep * nu, 0.0);
+        let at = alive
+            .iter()
+            .flat_map(|&s| step_time.iter().map(move |&t| (s, t)));
+        for (row, (sim, t)) in ctrl.chunks_mut(nu.max(1)).zip(at) {
+            st.fill(sim, t, row);
+        }
+    }
+    let ctrl = ctrl;
     let mut observe = |pos: usize, step: usize, qpos: &[f64], act: &[f64]| {
         let sim = alive[pos];
         let (peak, nsat) = peak_and_saturated(act, &st.limits[sim]);
+        let at = (pos * nstep + step) * nu;
+        let moved = st.motions[sim].as_ref().and(ctrl.get(at..at + nu));
         state.sample(
             sim,
             step_time[step] + dt,
@@ -259,22 +307,11 @@ fn advance_open_loop(
             act,
             peak,
             nsat,
+            moved,
         );
     };
-    Ok(match st.moving {
-        false => batch.advance(alive, nstep, force, None, &mut observe)?,
-        true => {
-            // the servos' targets of every step, known in advance
-            let nu = st.layout.nu;
-            let mut ctrl = Vec::with_capacity(alive.len() * nstep * nu);
-            for &sim in alive {
-                for &t in step_time {
-                    ctrl.extend((0..nu).map(|a| st.target(sim, a, t)));
-                }
-            }
-            batch.advance(alive, nstep, force, Some(&ctrl), &mut observe)?
-        }
-    })
+    let given = st.moving.then_some(&ctrl[..]);
+    batch.advance(alive, nstep, force, given, &mut observe)
 }
 
 /// One controlled step of the simulations `alive` at time `t`: torque
@@ -293,6 +330,9 @@ fn step_controlled(
 ) -> Result<Vec<usize>> {
     let delivered: RefCell<Vec<Delivered>> =
         RefCell::new((0..alive.len()).map(|_| Delivered::default()).collect());
+    // where a motion moves every target: all of them at a time, per simulation
+    let rows: RefCell<Vec<(f64, Vec<f64>)>> =
+        RefCell::new((0..alive.len()).map(|_| (f64::NAN, Vec::new())).collect());
     batch.step_controlled(
         alive,
         forces,
@@ -302,7 +342,7 @@ fn step_controlled(
                 setup: &st.plan.setups[sim],
                 limits: &st.limits[sim],
                 layout: st.layout,
-                target: |a, t| st.target(sim, a, t),
+                target: |a, t| st.target_from(sim, a, t, &mut rows.borrow_mut()[pos]),
             };
             let mut delivered = delivered.borrow_mut();
             motors.control(&mut sensing[sim], t, qpos, qvel, ctrl, &mut delivered[pos]);
@@ -313,7 +353,23 @@ fn step_controlled(
             let d = &delivered[pos];
             // the cpu batch reports no forces here: the controller's own
             let forces = if act.is_empty() { &d.forces[..] } else { act };
-            state.sample(sim, t + st.dt, pushing(sim), qpos, forces, d.peak, d.nsat);
+            let mut rows = rows.borrow_mut();
+            let row = &mut rows[pos];
+            if st.motions[sim].is_some() {
+                st.target_from(sim, 0, t, row);
+            }
+            let moved = st.motions[sim].as_ref().map(|_| &row.1[..]);
+            let (peak, nsat) = (d.peak, d.nsat);
+            state.sample(
+                sim,
+                t + st.dt,
+                pushing(sim),
+                qpos,
+                forces,
+                peak,
+                nsat,
+                moved,
+            );
         },
     )
 }

@@ -4,6 +4,7 @@
 use crate::bridge;
 use pupper_core::error::{Error, Result};
 use pupper_core::plan::config::SweepConfig;
+use pupper_core::plan::kind::OnModel;
 use pupper_core::plan::schedule::InitialState;
 use pupper_core::robot::model::ModelInfo;
 
@@ -109,7 +110,13 @@ pub(super) fn start_qpos(
 pub(super) fn resolved(cfg: &SweepConfig, model: &bridge::LoadedModel<'_>) -> Result<SweepConfig> {
     let info = model.info();
     let mut c = cfg.clone();
-    c.experiment.resolve(info, &mut c.schedule)?;
+    let start = || Ok(start_targets(info, &cfg.schedule.initial)?.0);
+    let on = OnModel {
+        info,
+        grid: &cfg.grid,
+        start: &start,
+    };
+    c.experiment.resolve(&on, &mut c.schedule)?;
     if let Some(e) = c.experiment.excitation_mut() {
         if e.joints.is_empty() {
             e.resolve(info)?;

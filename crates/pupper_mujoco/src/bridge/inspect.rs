@@ -354,6 +354,8 @@ impl<'py> Mujoco<'py> {
                 hip_to_foot: d,
                 foot_radius: gsize[foot_geom][0],
                 foot_geom,
+                abduction: anchor[haa],
+                abduction_axis: axis[haa],
             });
         }
         Ok(legs)

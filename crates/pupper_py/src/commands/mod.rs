@@ -9,3 +9,4 @@ pub(crate) mod record;
 pub(crate) mod response;
 pub(crate) mod runs;
 pub(crate) mod sweep;
+pub(crate) mod walk;

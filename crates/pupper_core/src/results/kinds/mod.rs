@@ -6,6 +6,7 @@
 pub mod hold;
 pub mod response;
 pub mod stand;
+pub mod walk;
 
 use crate::plan::config::SweepConfig;
 use crate::results::output::Detail;
@@ -36,5 +37,6 @@ pub fn of(e: &Experiment) -> &dyn KindTables {
         Experiment::Stand => &Stand,
         Experiment::Response(x) => x,
         Experiment::Hold(l) => l,
+        Experiment::Walk(w) => w,
     }
 }
