@@ -359,16 +359,16 @@ def test_from_fit_draws_stay_inside_the_fits_intervals(run, tmp_path):
 
 def test_a_fitted_torque_lag_is_in_the_firmware_and_its_margins():
     """A fit's torque lag (fit.csv's lag row) goes into the firmware every
-    candidate runs through (--motor lag=, the upper end of its interval:
-    the margins take the most the logs allow) and into the loop margins,
-    and the card says where it came from; a lag given in --motor stands."""
+    candidate runs through (--motor lag=, the fitted value) and into the
+    loop margins, and the card says where it came from; a lag given in
+    --motor stands."""
     from pupper_core._native import loop_margins
     from pupper_core._recommend.inputs import _torque_lag
 
     rows = [{"parameter": "lag", "fitted": "0.007", "low95": "0.0062", "high95": "0.0081", "actuators": "a b"}]
     spec, said = _torque_lag("rate=500,counts=16384", rows)
-    assert spec == "rate=500,counts=16384,lag=0.0081"
-    assert "torque lag 0.0081 s" in said and "fit.csv: lag 0.007 s [0.0062, 0.0081]" in said
+    assert spec == "rate=500,counts=16384,lag=0.007"
+    assert "torque lag 0.007 s" in said and "fit.csv: lag 0.007 s [0.0062, 0.0081]" in said
     assert _torque_lag("rate=500,lag=0.002", rows) == ("rate=500,lag=0.002",
                                                        "; torque lag given by --motor (the fit measured "
                                                        "0.007 s [0.0062, 0.0081])")
