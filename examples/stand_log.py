@@ -72,9 +72,9 @@ def segments(freqs: tuple[float, ...] = FREQS, hold: float = 0.3) -> list[tuple[
     return out
 
 
-def command(t: np.ndarray, amplitude: float = AMPLITUDE) -> np.ndarray:
+def command(t: np.ndarray, amplitude: float = AMPLITUDE, freqs: tuple[float, ...] = FREQS) -> np.ndarray:
     out = np.zeros_like(t)
-    for a, b, f in segments():
+    for a, b, f in segments(freqs):
         on = (t >= a) & (t < b)
         out[on] = amplitude * np.sin(2 * np.pi * f * (t[on] - a))
     return out
@@ -121,12 +121,14 @@ def stamps(seconds: float, seed: int, start: float, clock: bool = True) -> tuple
 def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, float] = TRUTH,
               start: float = 1732600000.25, noise: float = 1e-3, held_columns: bool = False,
               clock: bool = True, velocity_lag: float = VELOCITY_LAG, amplitude: float = AMPLITUDE,
-              gzip: bool = False, motor_name: str = MOTOR, prefix: str = "fr_knee") -> Path:
+              gzip: bool = False, freqs: tuple[float, ...] = FREQS, motor_name: str = MOTOR,
+              prefix: str = "fr_knee") -> Path:
     """Plays the stepped sine on the stand and writes the loop's log (no
     header lines: the gains are the command line's to give). ``truth``:
     the stand's values (TRUTH's keys; ``lag`` and ``latency`` default 0);
     ``clock``: rows on time, stamps late (else each row at its stamp);
     ``amplitude``: the sine's (rad); ``gzip``: compressed as the bench's tool does (``gzip -n -9``);
+    ``freqs``: the stepped sine's frequencies (Hz; fewer make a shorter log);
     ``motor_name``: the motor on the stand, its columns named ``prefix``_cmd, ``prefix``_pos, ...."""
     truth = {"lag": 0.0, "latency": 0.0, **truth}
     m = hardware(kp, kd, truth, motor_name)
@@ -134,10 +136,10 @@ def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, f
     motor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, motor_name)
     qadr = m.jnt_qposadr[m.actuator_trnid[motor, 0]]
     vadr = m.jnt_dofadr[m.actuator_trnid[motor, 0]]
-    seconds = segments()[-1][1] + 0.3
+    seconds = segments(freqs)[-1][1] + 0.3
     when, ts = stamps(seconds, seed, start, clock)
     # the loop computes its command from the time it reads
-    cmd = command(ts - ts[0], amplitude)
+    cmd = command(ts - ts[0], amplitude, freqs)
     rng = np.random.default_rng(seed + 100)
     q, qd = np.empty(len(ts)), np.empty(len(ts))
     g, dg = kp * truth["kp_scale"], kd * truth["kd_scale"]

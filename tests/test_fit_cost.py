@@ -18,13 +18,14 @@ pytest.importorskip("scipy", reason="the fit extra (make test installs it)")
 def test_a_per_joint_jacobian_is_the_finite_difference_one_at_a_quarter_of_the_rollouts(tmp_path: Path):
     from mujoco.minimize import jacobian_fd
 
-    from pupper_core._fit import DEFAULT_PARAMS, _problem, _read_logs, _residual_fn, _sysid, load_robot
+    from pupper_core._fit import _problem, _read_logs, _residual_fn, _sysid, load_robot
+    from pupper_core._fit.terms import SERVO_FREE_PARAMS
     from pupper_core._fit.jacobian import colours, jacobian_fn, rollouts_per_jacobian
 
     log = pc.excite(out=tmp_path / "log.csv", seconds=0.5, hold=0.2)
     robot = load_robot("pupper_v3")
     sysid = _sysid()
-    pb = _problem(sysid, robot, _read_logs([log], robot), list(DEFAULT_PARAMS), "joint")
+    pb = _problem(sysid, robot, _read_logs([log], robot), list(SERVO_FREE_PARAMS), "joint")
     assert len(pb.labels) == 72 and len(colours(pb)) == 18 == rollouts_per_jacobian(robot, "joint", 6)
     calls = []
     fn = _residual_fn(sysid, pb.sequences, pb.enabled(sysid), None)
@@ -46,5 +47,5 @@ def test_a_per_joint_jacobian_is_the_finite_difference_one_at_a_quarter_of_the_r
     # a leg's parameter moves its own leg's signals only: the columns are not all zero, nor all full
     assert np.all(np.any(got != 0, axis=0)) and np.all(np.mean(got == 0, axis=0) > 0.5)
     # per group, every parameter spans the four legs: each needs its own rollout (sysid's own Jacobian)
-    pbg = _problem(sysid, robot, _read_logs([log], robot), list(DEFAULT_PARAMS), "group")
+    pbg = _problem(sysid, robot, _read_logs([log], robot), list(SERVO_FREE_PARAMS), "group")
     assert jacobian_fn(fn, pbg.pdict, pbg) is None and rollouts_per_jacobian(robot, "group", 6) == 18

@@ -45,20 +45,32 @@ def real_log(folder: Path, motor: int, kp: float) -> Path:
     return out
 
 
+def fitted_at_kp5(folder: Path, motor: int) -> dict:
+    """``motor`` fitted at kp 5 with the defaults, validated at kp 7.5."""
+    fitted, held = real_log(folder, motor, 5), real_log(folder, motor, 7.5)
+    res = pc.fit([fitted], validate=[held], progress=False)
+    return {"dir": folder, "fit": res, "held": held, "fitted": fitted}
+
+
 @pytest.fixture(scope="module")
 def hip(tmp_path_factory) -> dict:
     """Motor 3 (the hip) fitted at kp 5 with the defaults, validated at kp 7.5."""
-    d = tmp_path_factory.mktemp("real")
-    fitted, held = real_log(d, 3, 5), real_log(d, 3, 7.5)
-    res = pc.fit([fitted], validate=[held], progress=False)
-    return {"dir": d, "fit": res, "held": held, "fitted": fitted}
+    return fitted_at_kp5(tmp_path_factory.mktemp("real"), 3)
 
 
-def test_a_default_fit_predicts_gains_it_never_saw(hip):
+@pytest.fixture(scope="module")
+def abduction(tmp_path_factory) -> dict:
+    """Motor 4 (the hip's abduction) fitted at kp 5 with the defaults, validated at kp 7.5."""
+    return fitted_at_kp5(tmp_path_factory.mktemp("real4"), 4)
+
+
+@pytest.mark.parametrize("motor", ["hip", "abduction"])
+def test_a_default_fit_predicts_gains_it_never_saw(motor, request):
     """Done when (issue 48): at kp 7.5 the calibrated model's RMS angle
     error is at most a quarter of the nominal model's, its -3 dB bandwidth
-    within 10 % of the log's and its phase at 10 Hz within 5 degrees."""
-    res = hip["fit"]
+    within 10 % of the log's and its phase at 10 Hz within 5 degrees, on
+    both motors that have a kp 7.5 log."""
+    res = request.getfixturevalue(motor)["fit"]
     row = res.validation[0]
     assert row["rms_calibrated_rad"] <= row["rms_nominal_rad"] / 4, row
     assert abs(row["bandwidth_hz_calibrated"] / row["bandwidth_hz_log"] - 1) <= 0.10, row
@@ -79,8 +91,11 @@ def test_three_delay_starts_give_one_answer(hip):
         for row in base.table:
             a, b = row["fitted"], other.value(row["parameter"])
             lo, hi = base.interval(row["parameter"])
-            # within a hundredth of the interval's width (the optimizer's own tolerance)
-            assert abs(a - b) <= 0.01 * (hi - lo) + 1e-9, (row["parameter"], start, a, b, lo, hi)
+            # within a hundredth of the interval's width (the optimizer's own tolerance); a torque limit the
+            # log never reaches has no finite interval, and the optimizer stops where it stops mattering:
+            # within a hundredth of its value
+            tol = 0.01 * (hi - lo) if math.isfinite(hi - lo) else 0.01 * abs(a)
+            assert abs(a - b) <= tol + 1e-9, (row["parameter"], start, a, b, lo, hi)
 
 
 def test_a_default_fit_says_its_residual_is_model_error(hip):
@@ -96,19 +111,19 @@ def test_a_default_fit_says_its_residual_is_model_error(hip):
 
 
 def test_intervals_hold_each_gains_own_fit(hip):
-    """Both gains of the hip fitted together, with the servo's torque lag
-    (the model that predicts the other gains best): the intervals of the
-    motor's own parameters hold what each log alone gives (the logs'
-    disagreement widens them), not 7 digits of one log's noise."""
-    lagged = "armature,damping,frictionloss,kp_scale,kd_scale,delay,lag"
-    both = pc.fit([hip["fitted"], hip["held"]], params=lagged, progress=False)
+    """Both gains of the hip fitted together: the residual is the model's
+    error, and every interval holds what each log alone gives (a fit of
+    the log alone, from scratch): the logs' disagreement (the model bends
+    differently at kp 5 and at 7.5) widens the intervals to their own
+    fits, not 7 digits of one log's noise. The fit finds each log's own
+    fit from its end; a fit from scratch stops within the optimizer's
+    tolerance of it (a hundredth of the width, as the delay starts do)."""
+    both = pc.fit([hip["fitted"], hip["held"]], progress=False)
     assert both.interval_source == "model error"
-    alone = [pc.fit([log], params=lagged, progress=False) for log in (hip["fitted"], hip["held"])]
-    for name in ("kp_scale", "kd_scale", "delay", "lag"):
-        lo, hi = both.interval(name)
-        # "within reason" (issue 48): each log's own optimum enters the interval to first order only,
-        # along the directions it holds 5 % of the information in; the kp 5 log's own fit lands 5 %
-        # of the width past it (delay 13.33 ms against [13.38, 14.38] ms; kp scale 0.855 against 0.848)
-        slack = 0.1 * (hi - lo)
+    alone = [hip["fit"], pc.fit([hip["held"]], progress=False)]
+    for row in both.table:
+        lo, hi = both.interval(row["parameter"])
+        assert math.isfinite(lo) and math.isfinite(hi), row
         for res in alone:
-            assert lo - slack <= res.value(name) <= hi + slack, (name, lo, res.value(name), hi)
+            v = res.value(row["parameter"])
+            assert lo - 0.01 * (hi - lo) <= v <= hi + 0.01 * (hi - lo), (row["parameter"], lo, v, hi)

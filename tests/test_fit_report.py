@@ -36,16 +36,7 @@ def stepped_sine_log(path: Path, kp: float, seed: int) -> Path:
     above 2 Hz off its jittered stamps, and whose Bode plot spans 2 to 20 Hz."""
     import stand_log
 
-    steps = stand_log.segments
-
-    def segments(freqs=(2.0, 4.0, 10.0, 20.0), hold=0.3):  # type: ignore[no-untyped-def]
-        return steps(freqs, hold)
-
-    stand_log.segments = segments
-    try:
-        return stand_log.stand_log(path, kp=kp, kd=0.1, seed=seed, **stand_log.PLAIN)
-    finally:
-        stand_log.segments = steps
+    return stand_log.stand_log(path, kp=kp, kd=0.1, seed=seed, freqs=(2.0, 4.0, 10.0, 20.0), **stand_log.PLAIN)
 
 
 @pytest.fixture(scope="module")

@@ -218,8 +218,8 @@ def test_a_fit_that_cannot_beat_the_nominal_values_keeps_them(nominal, tmp_path,
 
     optimize = solve._optimize
 
-    def stalled(sysid, pb, start, residual_fn, max_iters, sink, say=None):
-        opt, res = optimize(sysid, pb, start, residual_fn, 1, sink, say)
+    def stalled(sysid, pb, start, residual_fn, max_iters, sink, say=None, ftol=None):
+        opt, res = optimize(sysid, pb, start, residual_fn, 1, sink, say, ftol)
         opt.update_from_vector(np.array([3.0]))
         return opt, res
 

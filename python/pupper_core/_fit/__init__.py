@@ -183,11 +183,25 @@ def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Ma
             sol = _solve(sysid, pb, max_iters, begin, _Progress(progress))
             val = validate_logs(sysid, pb, sol, held_out, names, per) if held_out else None
         result = _result(pb, sol, out_dir, time.perf_counter() - started, val, per)
-        result.notes = notes + pb.notes
+        result.notes = notes + pb.notes + _lag_notes(result.table)
         result.delay_scan = sol.scan
         if out_dir is not None:
             _write_run(out_dir, result, pb, sol, model, names, per, force, plot, val)
     return result
+
+
+
+def _lag_notes(table: list[dict[str, Any]]) -> list[str]:
+    """Where the fit found a torque lag: how it reaches a simulation (the
+    firmware's, not the model's: MuJoCo's servo has none to set)."""
+    lags = [r for r in table if str(r["parameter"]).partition(".")[0] == "lag" and float(r["fitted"]) > 1e-6]
+    if not lags:
+        return []
+    most = max(float(r["fitted"]) for r in lags)
+    each = ", ".join(f"{r['parameter']} {float(r['fitted']) * 1e3:.3g} ms" for r in lags)
+    return [f"the servo's torque lag ({each}) "
+            "is the firmware's: calibrated.xml keeps it as a pupper:lag numeric that pupper's simulations do not "
+            f"apply; run them in torque mode with --motor lag={most:.4g} (recommend --from-fit adds it)"]
 
 
 

@@ -30,6 +30,9 @@ DRAWS = 12
 #: Where a firmware motor keeps the PD's kp, kd, command delay, the feedback latency (how old the
 #: angle and velocity the PD reads are) and the torque's lag (a first-order filter behind the PD).
 KP_SLOT, KD_SLOT, DELAY_SLOT, LATENCY_SLOT, LAG_SLOT = 1, 2, 3, 4, 5
+#: How much later (steps) a PD updated every physics step and held over it acts than a continuous one
+#: (``_actuators``): a quarter step under MuJoCo's semi-implicit Euler.
+HELD_STEPS = 0.25
 
 
 @dataclass
@@ -170,10 +173,13 @@ def _actuators(fw: Firmware, models: list[Any], dt: float) -> tuple[np.ndarray, 
     kp, kd, lag, latency, tlag = (np.stack([m.actuator_gainprm[:, s] for m in models])
                                   for s in (KP_SLOT, KD_SLOT, DELAY_SLOT, LATENCY_SLOT, LAG_SLOT))
     lag = lag / dt
-    # the PD reads the state `latency` old; updated every physics step and held over it, it acts
-    # half a step later than a continuous PD would: a firmware without a rate of its own stands for a
-    # continuous one, so it reads half a step younger (a latency under half a step is none)
-    latency = np.maximum(latency / dt - (0.5 if fw.rate is None else 0.0), 0.0)
+    # the PD reads the state `latency` old; updated every physics step and held over it, it acts later
+    # than a continuous PD would: a firmware without a rate of its own stands for a continuous one, so it
+    # reads younger. By a quarter step, not half: MuJoCo's semi-implicit Euler moves the angle by a held
+    # torque's whole step at once (twice a held torque's exact first-step motion), so a held torque acts
+    # half as late as it is held. A stand stepped at 0.1 ms with 3 and 6 ms of latency, at kp 5 and 7.5,
+    # is replayed best at its own latency with a quarter step; with half, 0.5 to 0.75 ms too long
+    latency = np.maximum(latency / dt - (HELD_STEPS if fw.rate is None else 0.0), 0.0)
     # each rollout's own torque limit (a fitted one differs between a Jacobian's rollouts)
     peak = np.stack([np.where(m.actuator_forcelimited.astype(bool), np.abs(m.actuator_forcerange).max(axis=1),
                               np.inf) for m in models])
@@ -209,13 +215,15 @@ def _replay(fw: Firmware, models: list[Any], control: np.ndarray, x0: np.ndarray
     vh = np.empty((nb2, n, nu)) if felt else None
     out = np.zeros((nb2, nu))
     state = np.empty((nb2, n, mujoco.mj_stateSize(m0, kind)))
-    sens = np.empty((nb2, n, m0.nsensordata))
+    delivered = np.empty((nb2, n, nu))
+    step, get = mujoco.mj_step, mujoco.mj_getState
+    # each rollout's controls, a view into its data (read once: the attribute makes a new array each time)
+    ctrls = [d.ctrl for d in datas]
     sign = np.where(np.arange(nb2) < nb, 1.0, -1.0)[:, None]
     fs = _State(fw, (nb2, nu), dt, sign)
     # the torque the PD gives on the replay's own angle, without the noise it reads: what the
     # torque sensors report (the hardware's dither is its own draw, which no replay can match)
     clean = _State(replace(fw, noise=None), (nb2, nu), dt) if fw.noise else None
-    tau_cols = slice(2 * nu, 3 * nu)
     # the angles and velocities read back from the state each step records (time, qpos, qvel first)
     qcol = 1 + qadr
     vcol = 1 + mujoco.mj_stateSize(m0, mujoco.mjtState.mjSTATE_QPOS) + dadr
@@ -240,17 +248,22 @@ def _replay(fw: Firmware, models: list[Any], control: np.ndarray, x0: np.ndarray
             # the current loop follows the PD's torque with a first-order lag
             out += follow * (tau - out) if k else tau - out
             tau = out
-        for b, (m, d) in enumerate(zip(models, datas)):
-            d.ctrl[:] = tau[b]
-            mujoco.mj_step(m, d)
-            mujoco.mj_getState(m, d, state[b, k], kind)
-            sens[b, k] = d.sensordata
+        delivered[:, k] = tau
+        rows = state[:, k]
+        for b in range(nb2):
+            ctrls[b][:] = tau[b]
+            step(models[b], datas[b])
+            get(models[b], datas[b], rows[b], kind)
         if clean is not None:
             torque = clean.deliver(peak, speed)
             if lagged:
                 clean_out += follow * (torque - clean_out) if k else torque - clean_out
                 torque = clean_out
-            sens[:, k, tau_cols] = torque
+            delivered[:, k] = torque
+    # the sensors (each actuator's angle, velocity and torque: ``suspended_spec``'s), as MuJoCo reads them
+    # at each step's start (the state before it), and the torques delivered, once for every step
+    before = np.concatenate([x0[:, None], state[:, :-1]], axis=1)
+    sens = np.concatenate([before[:, :, qcol], before[:, :, vcol], delivered], axis=2)
     if nb2 > nb:
         return 0.5 * (state[:nb] + state[nb:]), 0.5 * (sens[:nb] + sens[nb:])
     return state, sens

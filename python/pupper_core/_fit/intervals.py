@@ -20,10 +20,12 @@ and the fit says so.
 Segments of one log share its gains: a model that bends differently at
 other gains (on the real hip, a delay 1 ms longer and a kp scale 8 %
 lower at kp 7.5 than at 5) shows it only between logs. Where several logs
-are fitted together, each one's own optimum is found from the fit's end by
-one Gauss–Newton step on its rows alone; where they disagree by at least
-MODEL_RATIO times the noise interval, each interval is widened to hold
-every log's own fit."""
+are fitted together, each one's own optimum is found from the fit's end
+on its rows alone (``judge._own_shifts``), in the directions it places
+alone (``placed``); where they
+disagree by at least MODEL_RATIO times the noise interval, each interval
+is widened to hold every log's own fit. (One step alone fell short: the
+real hip's kp 5 log's own delay lay 5 % of the width past the interval.)"""
 
 from __future__ import annotations
 
@@ -96,31 +98,29 @@ def ratio(noise: np.ndarray, model: np.ndarray) -> float:
     return float(np.max(model[ok] / noise[ok])) if np.any(ok) else math.nan
 
 
-def per_log_shifts(jac: np.ndarray, r: np.ndarray, sizes: list[int]) -> np.ndarray | None:
-    """Each log's own optimum less the fit's, to first order: one
-    Gauss–Newton step on its rows alone, in the directions it identifies
-    (logs, parameters); None with one log or rows that do not match."""
-    if len(sizes) < 2 or jac is None or sum(sizes) != jac.shape[0] or r.shape[0] != jac.shape[0]:
+def placed(jac: np.ndarray, sizes: list[int]) -> list[np.ndarray] | None:
+    """Per log, the projection onto the directions it places alone (a
+    parameters x parameters matrix): a shift of its own fit along any other
+    is the optimizer's wandering in a valley the log does not see; None with
+    one log or rows that do not match."""
+    if len(sizes) < 2 or jac is None or sum(sizes) != jac.shape[0]:
         return None
     # whitened by the whole fit's information H: in those coordinates each
     # log's own information H_i has eigenvalues in [0, 1], its share of what
     # all logs together know along each direction
-    h = jac.T @ jac
-    w, v = np.linalg.eigh(h)
+    w, v = np.linalg.eigh(jac.T @ jac)
     if not np.all(np.isfinite(w)) or w[-1] <= 0:
         return None
     keep = w > w[-1] * 1e-12
-    white = v[:, keep] / np.sqrt(w[keep])
+    white, unwhite = v[:, keep] / np.sqrt(w[keep]), (v[:, keep] * np.sqrt(w[keep])).T
     out, start = [], 0
     for n in sizes:
-        j, ri = jac[start:start + n] @ white, r[start:start + n]
+        j = jac[start:start + n] @ white
         start += n
         share, u = np.linalg.eigh(j.T @ j)
         # a log alone places only the directions it knows a share of: along
         # one it hardly sees (damping against kd's scale at its one kd) its
         # "own optimum" is anywhere, and the other logs place it (no shift)
-        seen = share >= LOG_SHARE
-        step = u[:, seen] @ ((u[:, seen].T @ (j.T @ ri)) / share[seen])
-        out.append(-(white @ step))
-    shifts = np.array(out)
-    return shifts if np.all(np.isfinite(shifts)) else None
+        seen = u[:, share >= LOG_SHARE]
+        out.append(white @ seen @ seen.T @ unwhite)
+    return out if all(np.all(np.isfinite(m)) for m in out) else None

@@ -182,6 +182,10 @@ def _calibrated_xml(robot: Robot, labels: list[tuple[str, str, list[int], float]
                 setattr(spec.joint(robot.joints[i]), kind, float(v))
             elif kind == "damping":
                 spec.joint(robot.joints[i]).damping[0] = float(v)
+            elif kind == "torque_limit":
+                act = spec.actuator(robot.actuators[i])
+                act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+                act.forcerange[0], act.forcerange[1] = -float(v), float(v)
             elif kind == "delay":
                 act = spec.actuator(robot.actuators[i])
                 act.delay = float(v)

@@ -448,7 +448,10 @@ def _problem(sysid: Any, robot: Robot, read: list[JointLog], names: list[str], p
         x0 = initial_state(m, robot, q0, qd0, target[0])
         unlogged = [k for k, a in enumerate(robot.actuators) if a not in lg.logged]
         if unlogged and len(unlogged) < nu:
-            x0 = _settled(m, x0, robot, [k for k in range(nu) if k not in unlogged], q0, qd0, target[0])
+            # through the firmware the actuators are torque motors: the joints settle under a servo at the
+            # log's gains (a torque of the target's value let them hang limp, and jump at the log's start)
+            servo = suspended_spec(robot, kp, kd).compile() if firmware is not None else m
+            x0 = _settled(m, x0, robot, [k for k in range(nu) if k not in unlogged], q0, qd0, target[0], servo)
         control = sysid.TimeSeries.from_control_names(*_held(t, target, m.opt.timestep), m)
         measured = sysid.TimeSeries.from_names(t, y, m)
         sequences.append(sysid.ModelSequences(f"log{li}", spec, lg.path.stem, x0, control, measured))
@@ -465,25 +468,29 @@ SETTLE_S = 1.0
 
 
 def _settled(m: Any, x0: np.ndarray, robot: Robot, logged: list[int], q0: np.ndarray, qd0: np.ndarray,
-             target0: np.ndarray) -> np.ndarray:
+             target0: np.ndarray, servo: Any = None) -> np.ndarray:
     """The start with the joints a log does not cover where they rest: held
     at their targets, they sag under gravity (mrad at kp 5), and started at
     the targets themselves they sagged during the log and moved the logged
     joints with them (5 µrad off a noise-free log's own replay, past the
     intervals' noise floor). They settle for SETTLE_S with the first target
-    held; the logged joints then start where the log says."""
+    held by ``servo`` (the robot with servo actuators at the log's gains:
+    ``m`` itself, unless its actuators are the firmware's torque motors);
+    the logged joints then start where the log says."""
     import mujoco
     from mujoco import rollout
 
-    hold = np.tile(target0, (max(int(round(SETTLE_S / m.opt.timestep)), 1), 1))
-    state, _ = rollout.rollout(m, mujoco.MjData(m), x0, hold)
-    d = mujoco.MjData(m)
-    mujoco.mj_setState(m, d, np.asarray(state[0, -1]), mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    servo = m if servo is None else servo
+    start = x0 if servo is m else initial_state(servo, robot, q0, qd0, target0)
+    hold = np.tile(target0, (max(int(round(SETTLE_S / servo.opt.timestep)), 1), 1))
+    state, _ = rollout.rollout(servo, mujoco.MjData(servo), start, hold)
+    d = mujoco.MjData(servo)
+    mujoco.mj_setState(servo, d, np.asarray(state[0, -1]), mujoco.mjtState.mjSTATE_FULLPHYSICS)
     q, qd = np.array(q0, dtype=float), np.array(qd0, dtype=float)
     for k, j in enumerate(robot.joints):
         if k not in logged:
-            jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)
-            q[k], qd[k] = d.qpos[m.jnt_qposadr[jid]], d.qvel[m.jnt_dofadr[jid]]
+            jid = mujoco.mj_name2id(servo, mujoco.mjtObj.mjOBJ_JOINT, j)
+            q[k], qd[k] = d.qpos[servo.jnt_qposadr[jid]], d.qvel[servo.jnt_dofadr[jid]]
     # a fresh start there (time 0, the command history holding the first target)
     return initial_state(m, robot, q, qd, target0)
 
@@ -542,7 +549,8 @@ def _parameters(sysid: Any, robot: Robot, names: list[str], per: str, gains: dic
     log covers is not fitted, silently (the logs say what they cover).
     ``several``: a fit of several motors' logs (``cover.parameter_sets``)."""
     pdict = sysid.ParameterDict()
-    nominal = {"armature": robot.armature, "damping": robot.damping, "frictionloss": robot.frictionloss}
+    nominal = {"armature": robot.armature, "damping": robot.damping, "frictionloss": robot.frictionloss,
+               "torque_limit": robot.limits}
     labels: list[tuple[str, str, list[int], float]] = []
     for kind in names:
         for suffix, members in parameter_sets(robot, kind, per, several):

@@ -17,7 +17,18 @@ joint's own lag as delay). The fit then starts from the best delays found
 (the lowest minimum of the grid, the next local minimum where it is
 nearly as low, and any start the caller gives) and keeps the lowest cost:
 multi-start over what is cheap. A start is never below STEPS_OFF
-timesteps, where the delay's column is zero."""
+timesteps, where the delay's column is zero.
+
+A feedback latency (inside the loop) has a narrow basin: its effect
+depends on the rotor and the gains it acts through, and from the nominal
+values (a lighter rotor, which a latency destabilises more) the first
+steps drive it to 0, where the rest bends to make up for it (a stand-in
+with 6 ms of latency and 15 ms of delay: latency 0, kp scale 1.33,
+friction ×2.3, RMS 8-12 mrad against 3-4 from a start near it). So where
+the latency is fitted, the starts are a profile: the latency held at
+LATENCY_SHARES of the logs' delay estimate while the rest is fitted for a
+few iterations each (the cost over the held latency is smooth once the
+rest has followed it), and the lowest goes on with the latency free."""
 
 from __future__ import annotations
 
@@ -36,6 +47,11 @@ GRID = 11
 SECOND = 1.5
 #: A delay starts at least this many timesteps in (below one its Jacobian column is zero).
 STEPS_OFF = 1.5
+#: Where a feedback latency is held while the rest is fitted (``starts``): shares of the logs' delay
+#: estimate (taken with the latency at its own start), the delay starting at the rest of it.
+LATENCY_SHARES = (0.0, 0.25, 0.5, 0.75)
+#: The logs' delay estimate the shares are of, where no delay is fitted (s).
+LATENCY_SPAN = 0.02
 
 
 def parse_start(start: str | Mapping[str, float] | None, names: list[str]) -> dict[str, float]:
@@ -130,7 +146,44 @@ def starts(residual_fn: Any, pb: _Problem, x0: np.ndarray,
            start: dict[str, float]) -> tuple[list[np.ndarray], dict[str, Any]]:
     """The start vectors the fit runs from, and what the scan found (for the
     manifest): without a delay to fit, the one start ``x0`` (the caller's
-    values in it)."""
+    values in it); with a feedback latency, its profile first (the latency
+    held at each of ``latency_profile_s`` while that start probes)."""
+    xs, scan = _delay_starts(residual_fn, pb, x0, start)
+    return _latency_profile(pb, xs, scan, start)
+
+
+def latencies(pb: _Problem) -> list[int]:
+    return [i for i, label in enumerate(pb.labels) if label[1] == "latency"]
+
+
+def _latency_profile(pb: _Problem, xs: list[np.ndarray], scan: dict[str, Any],
+                     start: dict[str, float]) -> tuple[list[np.ndarray], dict[str, Any]]:
+    """The starts with the feedback latency held at LATENCY_SHARES of the
+    logs' delay estimate (its own start's share included), the delay at
+    the rest; a latency the caller starts runs free as one more start."""
+    held = latencies(pb)
+    if not held:
+        return xs, scan
+    delays = _delays(pb)
+    best = xs[0]
+    floor = pb.robot.timestep
+    total = float(best[delays[0]]) + float(best[held[0]]) if delays else LATENCY_SPAN
+    out = []
+    for share in LATENCY_SHARES:
+        x = best.copy()
+        x[held] = max(share * total, floor)
+        if delays:
+            x[delays] = max(total - float(x[held[0]]), least_delay(pb))
+        out.append(x)
+    values = [float(x[held[0]]) for x in out]
+    # the caller's own latency start runs free too: the lowest cost of all is kept
+    free = [best] if "latency" in start else []
+    return out + free, {**scan, "latency_profile_s": values}
+
+
+def _delay_starts(residual_fn: Any, pb: _Problem, x0: np.ndarray,
+                  start: dict[str, float]) -> tuple[list[np.ndarray], dict[str, Any]]:
+    """The delay's starts: its scan's minima, and the caller's own."""
     base = with_start(pb, x0, start)
     delays = _delays(pb)
     if not delays:

@@ -67,7 +67,12 @@ def _modifier(kind: str, members: list[int], robot: Robot, gains: dict[int, tupl
                 base = gains[id(spec)][0 if kind == "kp_scale" else 1][i] if "scale" in kind else 1.0
                 act.gainprm[slot[kind]] = base * v
                 continue
-            if kind in ("armature", "damping", "frictionloss"):
+            if kind == "torque_limit":
+                import mujoco
+
+                act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+                act.forcerange[0], act.forcerange[1] = -v, v
+            elif kind in ("armature", "damping", "frictionloss"):
                 j = spec.joint(robot.joints[i])
                 if kind == "damping":
                     j.damping[0] = v

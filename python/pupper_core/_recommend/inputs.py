@@ -154,6 +154,26 @@ def _motor(motor: str | None, command_delay: float) -> str:
     return spec
 
 
+def _torque_lag(spec: str, rows: Sequence[Mapping[str, str]]) -> tuple[str, str]:
+    """The firmware spec with the fit's torque lag in it (``lag=``: the
+    fitted value, the largest where joints differ), and the card's words on
+    it; a ``lag=`` in --motor stands. The fitted value, not its interval's
+    upper end: on real logs the lag trades against the joint's damping
+    (correlation 0.998 on a Pupper v3 abduction motor, its interval 0.8 to
+    16 ms), and a lag at its upper end without the damping that goes with
+    it is no robot the logs allow; no gains then kept any margin, where the
+    real robot stands at its gains."""
+    lags = [(float(r["fitted"]), *_interval(r)) for r in rows if kind(r) == "lag"]
+    if not lags or max(v for v, _, _ in lags) <= 1e-9:
+        return spec, ""
+    fitted = ", ".join(f"{v:.3g} s [{a:.3g}, {b:.3g}]" for v, a, b in lags)
+    if re.search(r"(^|,)\s*lag\s*=", spec):
+        return spec, f"; torque lag given by --motor (the fit measured {fitted})"
+    lag = max(v for v, _, _ in lags)
+    spec = f"{spec},lag={lag:.6g}" if spec else f"lag={lag:.6g}"
+    return spec, f"; torque lag {lag:.3g} s in the firmware (--motor lag=), the fit's (fit.csv: lag {fitted})"
+
+
 #: The feedback latency assumed where neither --sensing-delay nor a fit says one (s).
 SENSING_DELAY = 0.002
 
@@ -289,7 +309,8 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
     _standing_robot(model, inf)
     low = _armature_low(rows, [str(a["name"]) for a in inf["actuators"]])
     names, groups, dt, capped = _groups(model, inf, kp_max, kd_max, leg, low)
-    motor_spec = _motor(motor, command_delay)
+    motor_spec, lag_from = _torque_lag(_motor(motor, command_delay), rows)
+    latency_from += lag_from
     _servo_delay(motor_spec)
     from pupper_core._native import loop_margins, stance
 

@@ -123,7 +123,8 @@ pub(super) struct SimArgs {
     /// torque held between updates), filter=HZ (first-order low-pass on the derivative),
     /// counts=N (encoder counts per revolution; the derivative is then the encoder's
     /// difference), delay=S (command delay: the PD tracks the target of S ago), noload=RAD_S
-    /// (torque limit falling linearly to 0 at this speed). E.g. rate=1000,filter=100,counts=16384
+    /// (torque limit falling linearly to 0 at this speed), lag=S (the torque's first-order lag
+    /// behind the PD: a current loop's; `pupper fit` measures it). E.g. rate=1000,filter=100,counts=16384
     /// [default: ideal, the PD every physics step on the exact state]
     #[arg(long, value_name = "SPEC")]
     pub(super) motor: Option<String>,

@@ -136,9 +136,9 @@ contacts off) at the log's gains and fits the angles (and velocities and torques
 logged) by mujoco.sysid's bounded Levenberg-Marquardt. With angles only, joint damping and the
 servo's kd act as one damping: fit a second log at another kd (pupper excite --kd) or log torque,
 or leave one of them out of --params; fit warns when they are confounded. calibrated.xml keeps
-armature, damping and friction loss in the joints, the delay in the actuators (MuJoCo's own
-actuator delay) and the gain scales as custom numerics that pupper applies to every gain it
-commands. Needs the fit extra (make setup PUPPER_EXTRAS=fit).
+armature, damping and friction loss in the joints, the delay and the torque limit in the
+actuators (MuJoCo's own actuator delay and force range) and the gain scales as custom numerics
+that pupper applies to every gain it commands. Needs the fit extra (make setup PUPPER_EXTRAS=fit).
 
 Examples:
   pupper excite -o ex1.csv && pupper excite --kd 0.3 -o ex2.csv    then play both on the robot
@@ -161,10 +161,12 @@ pub(super) struct FitArgs {
     #[command(flatten)]
     #[serde(flatten)]
     model: ModelArg,
-    /// What to fit, comma-separated: armature, damping, frictionloss, kp_scale, kd_scale, delay.
+    /// What to fit, comma-separated: armature, damping, frictionloss, kp_scale, kd_scale, delay,
+    /// lag (the servo's torque lag), torque_limit, latency (the PD's feedback latency). The lag and
+    /// latency replay each log through the servo firmware.
     #[arg(
         long,
-        default_value = "armature,damping,frictionloss,kp_scale,kd_scale,delay",
+        default_value = "armature,damping,frictionloss,kp_scale,kd_scale,delay,lag,torque_limit",
         value_name = "NAMES"
     )]
     params: String,

@@ -58,7 +58,7 @@ pub(super) struct GainsArgs {
     #[arg(long, value_name = "NAME")]
     integrator: Option<String>,
     /// The servo firmware whose loop margins to state (see `pupper sweep --help`'s --motor:
-    /// rate, filter, counts, delay, noload).
+    /// rate, filter, counts, delay, noload, lag).
     #[arg(long, value_name = "SPEC")]
     motor: Option<String>,
     /// How old the firmware's measurements are when the PD uses them (s), for the loop margins.

@@ -42,7 +42,7 @@ pub(super) struct LabArgs {
     #[arg(long, value_name = "M", allow_negative_numbers = true)]
     depth: Option<f64>,
     /// The servo firmware and motor the lab's torque-mode PD runs through, as for `sweep
-    /// --motor` (rate=HZ, filter=HZ, counts=N, delay=S, noload=RAD_S) [default: ideal]
+    /// --motor` (rate=HZ, filter=HZ, counts=N, delay=S, noload=RAD_S, lag=S) [default: ideal]
     #[arg(long, value_name = "SPEC")]
     motor: Option<String>,
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".

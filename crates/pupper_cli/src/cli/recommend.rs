@@ -99,7 +99,8 @@ pub(super) struct RecommendArgs {
     /// The push's vertical force (N) [default: sweep's].
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = finite)]
     push_force: Option<f64>,
-    /// The servo firmware, as --motor takes it (rate=HZ,filter=HZ,counts=N,noload=RAD_S).
+    /// The servo firmware, as --motor takes it (rate=HZ,filter=HZ,counts=N,noload=RAD_S,lag=S;
+    /// with --from-fit a fitted torque lag is added as lag=).
     #[arg(long, default_value = "rate=500,counts=16384", value_name = "SPEC")]
     motor: String,
     /// Age of the measurements the firmware's PD reads (s): in the loop margins, and drawn 0 to it

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 
 /// The keys of `--motor`, with what each means, for help and errors.
-pub const KEYS: [(&str, &str); 5] = [
+pub const KEYS: [(&str, &str); 6] = [
     (
         "rate",
         "the firmware's PD rate (Hz), torque held between updates",
@@ -22,6 +22,10 @@ pub const KEYS: [(&str, &str); 5] = [
     (
         "noload",
         "no-load speed (rad/s): the torque limit falls linearly to 0 there",
+    ),
+    (
+        "lag",
+        "the torque's first-order lag behind the PD (s): a current loop's",
     ),
 ];
 
@@ -46,6 +50,10 @@ pub struct Motor {
     /// No-load speed (rad/s); None: the torque limit at every speed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noload: Option<f64>,
+    /// Time constant (s) of the torque's first-order lag behind the PD (a
+    /// current loop's, as `pupper fit` measures it); None: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lag: Option<f64>,
 }
 
 fn is_zero(v: &f64) -> bool {
@@ -90,6 +98,7 @@ impl Motor {
             } else {
                 0.0
             },
+            torque_lag: self.lag.unwrap_or(0.0),
         }
     }
 
@@ -153,6 +162,7 @@ impl Motor {
                 "filter" => m.filter = Some(number(true)?),
                 "delay" => m.delay = number(false)?,
                 "noload" => m.noload = Some(number(true)?),
+                "lag" => m.lag = Some(number(true)?),
                 _ => {
                     m.counts = Some(match value.parse::<u32>() {
                         Ok(c) if c >= 2 => c,
@@ -202,6 +212,9 @@ impl Motor {
         if let Some(w) = self.noload {
             parts.push(format!("noload={w}"));
         }
+        if let Some(l) = self.lag {
+            parts.push(format!("lag={l}"));
+        }
         parts.join(",")
     }
 }
@@ -219,6 +232,7 @@ fn example(key: &str) -> &'static str {
         "rate" => "1000",
         "filter" => "200",
         "delay" => "0.004",
+        "lag" => "0.007",
         _ => "30",
     }
 }
@@ -229,12 +243,15 @@ mod tests {
 
     #[test]
     fn parses_every_key_and_round_trips() {
-        let m = Motor::parse("rate=1000, filter=200,counts=16384,delay=0.004,noload=30").unwrap();
+        let m = Motor::parse("rate=1000, filter=200,counts=16384,delay=0.004,noload=30,lag=0.007")
+            .unwrap();
         assert_eq!(m.rate, Some(1000.0));
         assert_eq!(m.filter, Some(200.0));
         assert_eq!(m.counts, Some(16384));
         assert_eq!(m.delay, 0.004);
         assert_eq!(m.noload, Some(30.0));
+        assert_eq!(m.lag, Some(0.007));
+        assert_eq!(m.feedback(0.0, 0.002).torque_lag, 0.007);
         assert!(!m.is_ideal());
         assert_eq!(Motor::parse(&m.spec()).unwrap(), m);
         assert!(Motor::parse("ideal").unwrap().is_ideal());
@@ -261,6 +278,7 @@ mod tests {
         assert!(e("filter=abc").contains("not a number"));
         assert!(e("counts=1").contains(">= 2"));
         assert!(e("counts=2.5").contains("whole number"));
+        assert!(e("lag=0").contains("> 0"));
         assert!(e("rate=1,rate=2").contains("twice"));
         assert!(!e("wind=3").contains('\n'));
         let m = Motor::parse("rate=1000").unwrap();

@@ -50,8 +50,9 @@ pub(crate) fn firmware(
 
 /// One simulation's servo firmware ([`Motor`]): the PD updated at its own
 /// rate on the encoder's angle and a filtered derivative, towards the
-/// target of `delay` ago, its torque held between updates and delivered
-/// within the motor's torque–speed band.
+/// target of `delay` ago, its torque held between updates, delivered
+/// within the motor's torque–speed band and, with a `lag`, followed by the
+/// current loop's first-order lag every physics step.
 pub(crate) struct Firmware {
     motor: Motor,
     /// The update period (s).
@@ -66,6 +67,11 @@ pub(crate) struct Firmware {
     last_angle: Vec<f64>,
     /// Each actuator's command delay (s).
     pub(crate) delays: Vec<f64>,
+    /// The lag's weight of a new torque per physics step (the exact
+    /// discretisation of `T·dy/dt = x − y`), and each actuator's lagged
+    /// torque (NaN before the first step: it starts at the PD's).
+    follow: Option<f64>,
+    lagged: Vec<f64>,
 }
 
 impl Firmware {
@@ -80,6 +86,8 @@ impl Firmware {
             filtered: vec![f64::NAN; nu],
             last_angle: vec![f64::NAN; nu],
             delays: vec![motor.delay; nu],
+            follow: motor.lag.map(|t| -(-dt / t).exp_m1()),
+            lagged: vec![f64::NAN; nu],
         }
     }
 
@@ -125,14 +133,24 @@ impl Firmware {
         self.held[a] = pd::law(kp, kd, target, q, v);
     }
 
-    /// The torque actuator `a` delivers at joint speed `speed`, and whether
-    /// the limit (`peak` at stall) cut it.
-    pub(crate) fn deliver(&self, a: usize, peak: f64, speed: f64) -> (f64, bool) {
+    /// The torque actuator `a` delivers over this physics step at joint
+    /// speed `speed`, and whether the limit (`peak` at stall) cut it.
+    pub(crate) fn deliver(&mut self, a: usize, peak: f64, speed: f64) -> (f64, bool) {
         let band = match self.motor.noload {
             Some(w) => motor::speed_band(peak, w, speed),
             None => (-peak, peak),
         };
-        motor::clip(self.held[a], band)
+        let (tau, cut) = motor::clip(self.held[a], band);
+        let Some(follow) = self.follow else {
+            return (tau, cut);
+        };
+        let y = &mut self.lagged[a];
+        *y = if y.is_nan() {
+            tau
+        } else {
+            *y + follow * (tau - *y)
+        };
+        (*y, cut)
     }
 }
 
@@ -188,5 +206,40 @@ impl Sensing {
             Some(noise) => (q + noise.sample(), v),
             None => (q, v),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_torque_lag_follows_a_step_as_its_first_order_law() {
+        // a 1 N·m step held from the first step through a 10 ms lag on a
+        // 2 ms step: 1 at the first step (the lag starts at the PD's
+        // torque), then from a 0 N·m start it reaches 1 − exp(−k·dt/T)
+        let dt = 0.002;
+        let motor = Motor::parse("lag=0.01").unwrap();
+        let mut f = Firmware::new(&motor, 1, dt);
+        f.held[0] = 0.0;
+        assert_eq!(f.deliver(0, 3.0, 0.0), (0.0, false));
+        f.held[0] = 1.0;
+        for k in 1..=25 {
+            let (y, cut) = f.deliver(0, 3.0, 0.0);
+            let want = 1.0 - (-(k as f64) * dt / 0.01).exp();
+            assert!((y - want).abs() < 1e-12, "step {k}: {y} vs {want}");
+            assert!(!cut);
+        }
+        // the lag follows what the limit lets through: a 5 N·m command at a
+        // 3 N·m limit is cut, and the lagged torque never passes 3
+        f.held[0] = 5.0;
+        for _ in 0..500 {
+            let (y, cut) = f.deliver(0, 3.0, 0.0);
+            assert!(cut && y <= 3.0 + 1e-12);
+        }
+        // no lag: what the PD holds, clipped
+        let mut ideal = Firmware::new(&Motor::parse("rate=500").unwrap(), 1, dt);
+        ideal.held[0] = 5.0;
+        assert_eq!(ideal.deliver(0, 3.0, 0.0), (3.0, true));
     }
 }

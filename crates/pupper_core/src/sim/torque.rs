@@ -58,7 +58,7 @@ impl<F: Fn(usize, f64) -> f64> Motors<'_, F> {
                             f.update(a, s.kp(a), s.kd(a), target, q, v);
                         }
                     }
-                    match &sense.firmware {
+                    match sense.firmware.as_mut() {
                         Some(f) => f.deliver(a, lim[a], qvel[layout.act_dof[a]]),
                         None => (0.0, false),
                     }
