@@ -122,7 +122,7 @@ def _own_shifts(sysid: Any, pb: _Problem, opt: Any, res: Any, r_star: list[np.nd
     import io
 
     from pupper_core._fit import intervals as fi
-    from pupper_core._fit.solve import _optimize
+    from pupper_core._fit.optimize import _optimize
 
     keep = fi.placed(res.jac, [int(np.size(r)) for r in r_star])
     if keep is None:
