@@ -360,21 +360,22 @@ def test_from_fit_draws_stay_inside_the_fits_intervals(run, tmp_path):
 def test_a_fitted_torque_lag_is_in_the_firmware_and_its_margins():
     """A fit's torque lag (fit.csv's lag row) goes into the firmware every
     candidate runs through (--motor lag=, the fitted value) and into the
-    loop margins, and the card says where it came from; a lag given in
-    --motor stands."""
+    loop margins, with the words the card's latency line takes; a lag given
+    in --motor stands."""
     from pupper_core._native import loop_margins
     from pupper_core._recommend.inputs import _torque_lag
 
     rows = [{"parameter": "lag", "fitted": "0.007", "low95": "0.0062", "high95": "0.0081", "actuators": "a b"}]
-    spec, said = _torque_lag("rate=500,counts=16384", rows)
+    spec, said = _torque_lag("rate=500,counts=16384", rows, 0.002)
     assert spec == "rate=500,counts=16384,lag=0.007"
     assert "torque lag 0.007 s" in said and "fit.csv: lag 0.007 s [0.0062, 0.0081]" in said
-    assert _torque_lag("rate=500,lag=0.002", rows) == ("rate=500,lag=0.002",
+    assert _torque_lag("rate=500,lag=0.002", rows, 0.002) == ("rate=500,lag=0.002",
                                                        "; torque lag given by --motor (the fit measured "
                                                        "0.007 s [0.0062, 0.0081])")
-    none = [dict(rows[0], fitted="0", low95="0", high95="1e-12")]
-    assert _torque_lag("rate=500", none) == ("rate=500", "")
-    assert _torque_lag("rate=500", []) == ("rate=500", "")
+    # a lag under half a 2 ms step is none (a noise-free stand without one fits 0.1 ms)
+    none = [dict(rows[0], fitted="0.000105", low95="-0.2", high95="0.2")]
+    assert _torque_lag("rate=500", none, 0.002) == ("rate=500", "")
+    assert _torque_lag("rate=500", [], 0.002) == ("rate=500", "")
     # the knee of Pupper v3 (reflected inertia 1.8e-3 kg m^2) at kp 5, kd 0.25: the lag costs phase
     pm = [loop_margins(1.816e-3, 5.0, 0.25, motor=m, sensing_delay=0.002, timestep=0.002)[0]
           for m in ("rate=500,counts=16384", spec)]

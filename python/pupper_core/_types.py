@@ -126,7 +126,8 @@ class SimOptions(TypedDict, total=False):
     chapter's 0.14 m scaled to the model's legs."""
     motor: str | None
     """Torque mode's servo firmware and motor, as `--motor` takes it:
-    "rate=1000,filter=100,counts=16384,delay=0.004,noload=30" (any subset);
+    "rate=1000,filter=100,counts=16384,delay=0.004,noload=30,lag=0.007" (any
+    subset; lag: the torque's first-order lag behind the PD, s);
     None: the ideal motor (the PD every physics step on the exact state)."""
     integrator: Literal["euler", "implicitfast", "implicit", "rk4"] | None
     """MuJoCo's integrator for every cell; None: the model's own. Cells past

@@ -86,6 +86,7 @@ from pupper_core._fit.terms import (
     MEMORY_FRACTION,
     PARAMS,
     FIRMWARE_ONLY,
+    lag_matters,
     PER,
     FitError,
 )
@@ -183,7 +184,7 @@ def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Ma
             sol = _solve(sysid, pb, max_iters, begin, _Progress(progress))
             val = validate_logs(sysid, pb, sol, held_out, names, per) if held_out else None
         result = _result(pb, sol, out_dir, time.perf_counter() - started, val, per)
-        result.notes = notes + pb.notes + _lag_notes(result.table)
+        result.notes = notes + pb.notes + _lag_notes(result.table, pb.robot.timestep)
         result.delay_scan = sol.scan
         if out_dir is not None:
             _write_run(out_dir, result, pb, sol, model, names, per, force, plot, val)
@@ -191,10 +192,11 @@ def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Ma
 
 
 
-def _lag_notes(table: list[dict[str, Any]]) -> list[str]:
+def _lag_notes(table: list[dict[str, Any]], timestep: float) -> list[str]:
     """Where the fit found a torque lag: how it reaches a simulation (the
     firmware's, not the model's: MuJoCo's servo has none to set)."""
-    lags = [r for r in table if str(r["parameter"]).partition(".")[0] == "lag" and float(r["fitted"]) > 1e-6]
+    lags = [r for r in table if str(r["parameter"]).partition(".")[0] == "lag"
+            and lag_matters(float(r["fitted"]), timestep)]
     if not lags:
         return []
     most = max(float(r["fitted"]) for r in lags)

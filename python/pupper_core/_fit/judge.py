@@ -135,8 +135,9 @@ def _own_shifts(sysid: Any, pb: _Problem, opt: Any, res: Any, r_star: list[np.nd
         try:
             own, _ = _optimize(sysid, one, opt.copy(), fn, OWN_ITERS, io.StringIO())
         except FitError:
-            # a log alone whose linear algebra fails places nothing of its own
-            return None
+            # a log alone whose linear algebra fails places nothing of its own; the others' shifts stand
+            out.append(np.zeros_like(x))
+            continue
         out.append(proj @ (own.as_vector() - x))
     shifts = np.array(out)
     return shifts if np.all(np.isfinite(shifts)) else None

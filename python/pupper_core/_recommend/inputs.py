@@ -12,6 +12,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from pupper_core._fit.terms import lag_matters
 from pupper_core._recommend.fits import FitRuns, actuators, fit_runs, kind, robot_of
 from pupper_core._recommend.plan import DEFAULT_MOTOR, DEFAULT_SPREAD, FIT_MODELS, Group, Plan, RecommendError, Task
 from pupper_core._recommend.robot_config import config_gains, current_gains, joint_order_of, read_robot_config
@@ -154,7 +155,7 @@ def _motor(motor: str | None, command_delay: float) -> str:
     return spec
 
 
-def _torque_lag(spec: str, rows: Sequence[Mapping[str, str]]) -> tuple[str, str]:
+def _torque_lag(spec: str, rows: Sequence[Mapping[str, str]], timestep: float) -> tuple[str, str]:
     """The firmware spec with the fit's torque lag in it (``lag=``: the
     fitted value, the largest where joints differ), and the card's words on
     it; a ``lag=`` in --motor stands. The fitted value, not its interval's
@@ -164,7 +165,8 @@ def _torque_lag(spec: str, rows: Sequence[Mapping[str, str]]) -> tuple[str, str]
     it is no robot the logs allow; no gains then kept any margin, where the
     real robot stands at its gains."""
     lags = [(float(r["fitted"]), *_interval(r)) for r in rows if kind(r) == "lag"]
-    if not lags or max(v for v, _, _ in lags) <= 1e-9:
+    # a lag well under a step is none (``pupper fit`` says nothing of it either)
+    if not lags or not lag_matters(max(v for v, _, _ in lags), timestep):
         return spec, ""
     fitted = ", ".join(f"{v:.3g} s [{a:.3g}, {b:.3g}]" for v, a, b in lags)
     if re.search(r"(^|,)\s*lag\s*=", spec):
@@ -309,7 +311,7 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
     _standing_robot(model, inf)
     low = _armature_low(rows, [str(a["name"]) for a in inf["actuators"]])
     names, groups, dt, capped = _groups(model, inf, kp_max, kd_max, leg, low)
-    motor_spec, lag_from = _torque_lag(_motor(motor, command_delay), rows)
+    motor_spec, lag_from = _torque_lag(_motor(motor, command_delay), rows, dt)
     latency_from += lag_from
     _servo_delay(motor_spec)
     from pupper_core._native import loop_margins, stance

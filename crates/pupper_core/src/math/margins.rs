@@ -76,7 +76,7 @@ pub struct Margins {
     /// 180° plus the phase of L there (deg); below 0: unstable.
     pub phase_deg: f64,
     /// Phase crossover (Hz): arg L = −180°; infinite when the phase never
-    /// gets there (no latency).
+    /// gets there (no latency, and no torque lag as long as kd/kp).
     pub phase_crossover_hz: f64,
     /// −20·log10 |L| at the phase crossover (dB); infinite without one.
     pub gain_db: f64,

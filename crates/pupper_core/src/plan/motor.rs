@@ -106,7 +106,7 @@ impl Motor {
         *self == Motor::default()
     }
 
-    /// `rate=1000,filter=200,counts=16384,delay=0.004,noload=30`, any
+    /// `rate=1000,filter=200,counts=16384,delay=0.004,noload=30,lag=0.007`, any
     /// subset in any order; `ideal` or empty: the ideal motor.
     pub fn parse(text: &str) -> Result<Motor> {
         let mut m = Motor::default();

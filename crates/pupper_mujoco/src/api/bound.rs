@@ -28,7 +28,8 @@ pub(super) struct StabilityBound<'a, 'py> {
 impl<'a, 'py> StabilityBound<'a, 'py> {
     /// None where pupper states no bound: RK4, no start pose to read the
     /// inertias at, or torque mode's firmware closing another loop than the
-    /// PD at the physics step (a filtered derivative, a slower update).
+    /// PD at the physics step (a filtered derivative, a slower update, a
+    /// torque lag).
     pub(super) fn new(
         cfg: &'a SweepConfig,
         model: &'a bridge::LoadedModel<'py>,
@@ -37,6 +38,7 @@ impl<'a, 'py> StabilityBound<'a, 'py> {
         let damping = Damping::of(cfg.mode, info.integrator)?;
         let firmware = cfg.mode == Mode::Torque
             && (cfg.motor.filter.is_some()
+                || cfg.motor.lag.is_some()
                 || cfg
                     .motor
                     .rate
