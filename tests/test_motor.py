@@ -165,6 +165,34 @@ def test_replicates_draw_the_motor():
         pc.sweep(GRID, seconds=1, randomize=["motor_delay=0:0.01"], progress=False)
 
 
+def test_replicates_draw_the_torque_lag():
+    """motor_lag is drawn per replicate like the command delay: each
+    replicate is the robot that `--motor lag=` at its drawn value is, to the
+    byte; a drawn 0 is the robot without a lag. With a lag drawn the
+    explicit-PD bound is not stated (another loop than the PD's)."""
+    kw = dict(mode="torque", seconds=3, push_at=1, progress=False)
+    res = pc.sweep({"kp": [30], "kd": [0.5]}, replicates=3, seed=5, randomize=["motor_lag=0:0.02"], **kw)
+    reps = res.tables["replicates"]
+    lags = [float(v) for v in reps["motor_lag"]]
+    assert all(0 <= t <= 0.02 for t in lags) and len(set(lags)) == 3
+    metrics = [h for h in res.tables["replicates"].header if h.endswith(("_mm", "_s", "_frac"))]
+    for i, t in enumerate(lags):
+        one = pc.sweep({"kp": [30], "kd": [0.5]}, motor=f"lag={t!r}", **kw).row(0)
+        assert [reps[m][i] for m in metrics] == [one[m] for m in metrics], (t, metrics)
+    zero = pc.sweep({"kp": [30], "kd": [0.5]}, replicates=1, randomize=["motor_lag=0:0"], **kw)
+    plain = pc.sweep({"kp": [30], "kd": [0.5]}, **kw).row(0)
+    assert [zero.tables["replicates"][m][0] for m in metrics] == [plain[m] for m in metrics]
+    with pytest.raises(pc.ConfigError, match="motor_lag"):
+        pc.sweep({"kp": [30], "kd": [0.5]}, randomize=["motor_lag=-0.01:0.01"], **kw)
+    # kd 5 is past the bound of the ideal motor's PD; with a lag drawn no bound is stated
+    kd5 = {"kp": [120], "kd": [5]}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert pc.sweep(kd5, **kw).row(0)["status"] == "past_bound"
+    lagged = pc.sweep(kd5, replicates=1, randomize=["motor_lag=0.001:0.002"], **kw)
+    assert lagged.tables["replicates"]["status"][0] != "past_bound"
+
+
 def test_the_lab_runs_through_the_motor(run, tmp_path):
     """`pupper lab --motor` (the lab is torque mode): the filter that calms
     the chattering Kd 5 cells does so in every body, CLI and Python alike."""

@@ -256,7 +256,7 @@ pub(super) struct PopulationArgs {
     /// with a push (sweep, not lab): push_force=-35:-15 (N), push_at=1.5:3 (s). Torque mode only: q_noise=N(0,0.002) (rad,
     /// on the angles the PD reads, every step), delay=0:3 (whole control steps the PD reads
     /// late), and the --motor model's motor_delay=0:0.01 (s), motor_filter=50:200 (Hz),
-    /// motor_noload=20:40 (rad/s). `+-10%` may stand for `±10%`.
+    /// motor_noload=20:40 (rad/s), motor_lag=0.004:0.01 (s). `+-10%` may stand for `±10%`.
     #[arg(long, value_name = "QUANTITY=DIST", allow_hyphen_values = true)]
     pub(super) randomize: Vec<String>,
     /// Every cell's replicate r is the same robot (its draws keyed without the cell id):

@@ -42,10 +42,12 @@ pub enum Quantity {
     MotorFilter,
     /// The motor's no-load speed (rad/s; `--motor noload`).
     MotorNoload,
+    /// The torque's first-order lag behind the PD (s; `--motor lag`).
+    MotorLag,
 }
 
 impl Quantity {
-    pub const ALL: [Quantity; 11] = [
+    pub const ALL: [Quantity; 12] = [
         Quantity::TorsoMass,
         Quantity::LegMass,
         Quantity::MotorGain,
@@ -57,6 +59,7 @@ impl Quantity {
         Quantity::MotorDelay,
         Quantity::MotorFilter,
         Quantity::MotorNoload,
+        Quantity::MotorLag,
     ];
 
     pub fn name(self) -> &'static str {
@@ -72,6 +75,7 @@ impl Quantity {
             Quantity::MotorDelay => "motor_delay",
             Quantity::MotorFilter => "motor_filter",
             Quantity::MotorNoload => "motor_noload",
+            Quantity::MotorLag => "motor_lag",
         }
     }
 
@@ -87,6 +91,7 @@ impl Quantity {
             Quantity::MotorDelay => "LOW:HIGH seconds, LOW >= 0 (e.g. 0:0.01)",
             Quantity::MotorFilter => "LOW:HIGH hertz, LOW > 0 (e.g. 50:200)",
             Quantity::MotorNoload => "LOW:HIGH rad/s, LOW > 0 (e.g. 20:40)",
+            Quantity::MotorLag => "LOW:HIGH seconds, LOW >= 0 (e.g. 0.004:0.01)",
         }
     }
 
@@ -105,6 +110,7 @@ impl Quantity {
                 | Quantity::MotorDelay
                 | Quantity::MotorFilter
                 | Quantity::MotorNoload
+                | Quantity::MotorLag
         )
     }
 }
@@ -223,7 +229,10 @@ fn uniform(spec: &str, q: Quantity, t: &str) -> Result<Dist> {
         q,
         Quantity::Friction | Quantity::MotorFilter | Quantity::MotorNoload
     );
-    let nonnegative = matches!(q, Quantity::PushAt | Quantity::MotorDelay);
+    let nonnegative = matches!(
+        q,
+        Quantity::PushAt | Quantity::MotorDelay | Quantity::MotorLag
+    );
     if (positive && lo <= 0.0) || (nonnegative && lo < 0.0) {
         return Err(bad(
             spec,
@@ -258,7 +267,8 @@ impl Randomize {
             | Quantity::PushAt
             | Quantity::MotorDelay
             | Quantity::MotorFilter
-            | Quantity::MotorNoload => uniform(spec, q, t)?,
+            | Quantity::MotorNoload
+            | Quantity::MotorLag => uniform(spec, q, t)?,
         };
         Ok(Randomize { quantity: q, dist })
     }
@@ -355,11 +365,12 @@ pub struct Draws {
     pub push_at: Option<f64>,
     /// Control steps of observation latency (torque mode).
     pub delay: usize,
-    /// The motor model's command delay (s), derivative filter (Hz) and
-    /// no-load speed (rad/s), where drawn (torque mode).
+    /// The motor model's command delay (s), derivative filter (Hz),
+    /// no-load speed (rad/s) and torque lag (s), where drawn (torque mode).
     pub motor_delay: Option<f64>,
     pub motor_filter: Option<f64>,
     pub motor_noload: Option<f64>,
+    pub motor_lag: Option<f64>,
     /// Values in the order of [`Replicates::columns`].
     pub values: Vec<f64>,
 }
@@ -451,6 +462,7 @@ impl Replicates {
             motor_delay: None,
             motor_filter: None,
             motor_noload: None,
+            motor_lag: None,
             values: Vec::new(),
         };
         let one = |r: &Randomize| draw(r, self.seed, cell_id, replicate, 0);
@@ -477,6 +489,7 @@ impl Replicates {
                 Quantity::MotorDelay => d.motor_delay = Some(v),
                 Quantity::MotorFilter => d.motor_filter = Some(v),
                 Quantity::MotorNoload => d.motor_noload = Some(v),
+                Quantity::MotorLag => d.motor_lag = Some(v),
                 Quantity::MotorGain | Quantity::QNoise => {}
             }
             d.values.push(v);
@@ -519,6 +532,7 @@ mod tests {
         assert_eq!(p("push_force=-35:-15").dist, Dist::Uniform(-35.0, -15.0));
         assert_eq!(p("q_noise=N(0,0.002)").dist, Dist::Normal(0.0, 0.002));
         assert_eq!(p("delay=0:3").dist, Dist::Steps(0, 3));
+        assert_eq!(p("motor_lag=0:0.01").dist, Dist::Uniform(0.0, 0.01));
         assert_eq!(p("Leg-Mass=±10%").quantity, Quantity::LegMass);
     }
 
@@ -532,6 +546,7 @@ mod tests {
         );
         assert!(e("torso_mass=abc").contains("±P%"));
         assert!(e("friction=-1:2").contains("make no sense"));
+        assert!(e("motor_lag=-0.001:0.01").contains("make no sense"));
         assert!(e("push_at=3:1").contains("LOW is above HIGH"));
         assert!(e("delay=0:-1").contains("whole number"));
         assert!(

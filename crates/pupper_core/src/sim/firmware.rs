@@ -37,6 +37,8 @@ pub(crate) fn firmware(
     motor.delay = d.motor_delay.unwrap_or(motor.delay);
     motor.filter = d.motor_filter.or(motor.filter);
     motor.noload = d.motor_noload.or(motor.noload);
+    // a drawn lag of 0 is a robot without one
+    motor.lag = d.motor_lag.map_or(motor.lag, |t| (t > 0.0).then_some(t));
     let delayed = info.actuators.iter().any(|a| a.delay > 0.0);
     if motor.is_ideal() && !(delayed && cfg.mode == Mode::Torque) {
         return None;

@@ -47,7 +47,7 @@ impl<'a, 'py> StabilityBound<'a, 'py> {
                     .replicates
                     .randomize
                     .iter()
-                    .any(|r| r.quantity == Quantity::MotorFilter));
+                    .any(|r| matches!(r.quantity, Quantity::MotorFilter | Quantity::MotorLag)));
         if firmware {
             return None;
         }
