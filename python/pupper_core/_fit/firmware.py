@@ -127,6 +127,24 @@ class _State:
         return np.minimum(np.maximum(self.held, lo), hi)
 
 
+def _components(model: Any, part: int, whole: int) -> np.ndarray:
+    """Where the state vector ``part`` (an mjtState spec) sits within the
+    vector ``whole`` that holds it: components are laid out in the order of
+    their bits, each as long as ``mj_stateSize`` says."""
+    import mujoco
+
+    at, out = 0, []
+    bit = 1
+    while bit <= int(whole):
+        if int(whole) & bit:
+            size = mujoco.mj_stateSize(model, bit)
+            if int(part) & bit:
+                out.extend(range(at, at + size))
+            at += size
+        bit <<= 1
+    return np.asarray(out, dtype=np.intp)
+
+
 def _all_delayed(control: np.ndarray, lag: np.ndarray) -> np.ndarray:
     """Every step's ``_delayed`` target at once (rollouts, steps, actuators)."""
     n = control.shape[1]
@@ -195,6 +213,7 @@ def _replay(fw: Firmware, models: list[Any], control: np.ndarray, x0: np.ndarray
     draw, cancels to first order, and what the noise does to the
     friction (it dithers the joint loose) stays."""
     import mujoco
+    import mujoco.batch
 
     nb = len(models)
     if fw.noise:
@@ -202,10 +221,14 @@ def _replay(fw: Firmware, models: list[Any], control: np.ndarray, x0: np.ndarray
     nb2, n, nu = control.shape
     m0 = models[0]
     dt = float(m0.opt.timestep)
-    datas = [mujoco.MjData(m) for m in models]
     kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    for m, d, x in zip(models, datas, x0):
-        mujoco.mj_setState(m, d, x, kind)
+    # every rollout stepped by one call on all cores (bit for bit a loop over one MjData each)
+    batch = mujoco.batch.Batch(m0, nb2, nthread=0)
+    batch.set_models(models)
+    batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
+    rows, full = batch.state, _components(m0, kind, mujoco.mjtState.mjSTATE_INTEGRATION)
+    rows[:, full] = x0
+    ctrls = batch.bind("ctrl")
     jnt = m0.actuator_trnid[:, 0]
     qadr, dadr = m0.jnt_qposadr[jnt], m0.jnt_dofadr[jnt]
     kp, kd, lag, latency, peak, follow = _actuators(fw, models, dt)
@@ -216,9 +239,6 @@ def _replay(fw: Firmware, models: list[Any], control: np.ndarray, x0: np.ndarray
     out = np.zeros((nb2, nu))
     state = np.empty((nb2, n, mujoco.mj_stateSize(m0, kind)))
     delivered = np.empty((nb2, n, nu))
-    step, get = mujoco.mj_step, mujoco.mj_getState
-    # each rollout's controls, a view into its data (read once: the attribute makes a new array each time)
-    ctrls = [d.ctrl for d in datas]
     sign = np.where(np.arange(nb2) < nb, 1.0, -1.0)[:, None]
     fs = _State(fw, (nb2, nu), dt, sign)
     # the torque the PD gives on the replay's own angle, without the noise it reads: what the
@@ -249,11 +269,9 @@ def _replay(fw: Firmware, models: list[Any], control: np.ndarray, x0: np.ndarray
             out += follow * (tau - out) if k else tau - out
             tau = out
         delivered[:, k] = tau
-        rows = state[:, k]
-        for b in range(nb2):
-            ctrls[b][:] = tau[b]
-            step(models[b], datas[b])
-            get(models[b], datas[b], rows[b], kind)
+        ctrls[:] = tau
+        batch.step()
+        state[:, k] = rows[:, full]
         if clean is not None:
             torque = clean.deliver(peak, speed)
             if lagged:
