@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 from pathlib import Path
 
@@ -313,6 +314,28 @@ def test_a_feedback_latency_and_a_command_delay_come_back_apart(latent):
     assert abs(res.value("delay") - DELAY) < 0.001, res.table
     assert len(res.delay_scan["latency_profile_s"]) == 4, res.delay_scan
     assert not any("cannot tell the feedback latency" in w for w in res.warnings), res.warnings
+
+
+def test_the_latency_profile_runs_every_delay_start_within_max_iters(latent):
+    """Every delay start the manifest lists runs beside the latency's
+    profile (a caller's `delay=` start was dropped), and the best start's
+    probe counts towards --max-iters (a profile probe ran 6 iterations and
+    the best went on for max-iters - 4)."""
+    said: list[str] = []
+    res = pc.fit(list(latent.values()), columns=COLUMNS, params=LAGGED.replace("lag", "latency"),
+                 start={"delay": 0.04}, max_iters=8, progress=said.append)
+    starts = res.delay_scan["starts_s"]
+    assert any(abs(s - 0.04) < 1e-12 for s in starts), res.delay_scan
+    stages = [re.search(r"iteration (\d+) \((start (\d+) of (\d+)|on from start (\d+))", s) for s in said]
+    stages = [m for m in stages if m]
+    total = {int(m[4]) for m in stages if m[4]}
+    # the best delay start is the profile's; every other runs after it
+    assert total == {len(res.delay_scan["latency_profile_s"]) + len(starts) - 1}, said
+    best = next(int(m[5]) for m in stages if m[5])
+    # a run's first report is its start's cost, before any iteration
+    probe = max(int(m[1]) for m in stages if m[3] and int(m[3]) == best) - 1
+    went_on = max(int(m[1]) for m in stages if m[5]) - 1
+    assert probe + went_on <= 8, said
 
 
 def test_one_kp_cannot_tell_the_latency_from_the_delay_and_says_so(latent):

@@ -108,7 +108,9 @@ def _multistart(sysid: Any, pb: _Problem, xs: list[np.ndarray], residual_fn: Any
     lowest cost on to the end."""
     scan = scan or {}
     held, count = latencies(pb), len(scan.get("latency_profile_s", []))
-    if len(xs) == 1 or max_iters <= PROBE_ITERS:
+    # a probe's iterations count towards --max-iters: the best goes on for the rest
+    used = [PROFILE_ITERS if k < count else PROBE_ITERS for k in range(len(xs))]
+    if len(xs) == 1 or max_iters <= max(used):
         best = None
         for k, x in enumerate(xs):
             p = pb.pdict.copy()
@@ -134,7 +136,7 @@ def _multistart(sysid: Any, pb: _Problem, xs: list[np.ndarray], residual_fn: Any
         probes.append((_cost(residual_fn, opt, opt.as_vector()), k, opt))
     c, k, opt = min(probes, key=lambda t: (t[0], t[1]))
     say.stage = f"on from start {k + 1}"
-    out = _optimize(sysid, pb, opt, residual_fn, max_iters - PROBE_ITERS, sink, say, ftol)
+    out = _optimize(sysid, pb, opt, residual_fn, max_iters - used[k], sink, say, ftol)
     say.stage = ""
     return out
 

@@ -159,8 +159,10 @@ def latencies(pb: _Problem) -> list[int]:
 def _latency_profile(pb: _Problem, xs: list[np.ndarray], scan: dict[str, Any],
                      start: dict[str, float]) -> tuple[list[np.ndarray], dict[str, Any]]:
     """The starts with the feedback latency held at LATENCY_SHARES of the
-    logs' delay estimate (its own start's share included), the delay at
-    the rest; a latency the caller starts runs free as one more start."""
+    best delay start's total delay (its own start's share included), the
+    delay at the rest; the other delay starts (the scan's second minimum,
+    the caller's delay) run free after them, and with a latency the caller
+    starts, so does the best."""
     held = latencies(pb)
     if not held:
         return xs, scan
@@ -176,8 +178,9 @@ def _latency_profile(pb: _Problem, xs: list[np.ndarray], scan: dict[str, Any],
             x[delays] = max(total - float(x[held[0]]), least_delay(pb))
         out.append(x)
     values = [float(x[held[0]]) for x in out]
-    # the caller's own latency start runs free too: the lowest cost of all is kept
-    free = [best] if "latency" in start else []
+    # every delay start the scan lists runs (the lowest cost of all is kept);
+    # the best's own split of the delay only where the caller gave a latency
+    free = xs if "latency" in start else xs[1:]
     return out + free, {**scan, "latency_profile_s": values}
 
 
