@@ -5,12 +5,13 @@ command delay and a torque-speed limit, all on real MuJoCo."""
 from __future__ import annotations
 
 import json
+import math
 import warnings
 
 import pupper_core as pc
 import pytest
 
-from conftest import assert_refused, read_csv, same_files
+from conftest import REPO, assert_refused, read_csv, same_files
 
 GRID = {"kp": [30, 120], "kd": [0.5, 5]}
 
@@ -207,3 +208,21 @@ def test_the_lab_runs_through_the_motor(run, tmp_path):
     res = pc.lab(grid=["kp=60", "kd=5"], seconds=3, motor="filter=50", progress=False)
     col = res.header.index("last_1s_std_mm")
     assert [r[col] for r in res.rows] == [r["last_1s_std_mm"] for r in calm]
+
+
+def test_a_lag_longer_than_kd_over_kp_has_no_gain_that_is_stable(run):
+    """Past −180° from the lowest frequency (an undamped joint whose kd/kp,
+    12.5 ms here, is shorter than a 16 ms lag and 2 ms of latency), no
+    common gain makes the loop stable: the gain margin is −inf, not the
+    +inf of a loop whose phase never reaches −180° (which it read before),
+    and recommend's margins (loop_margins) fail it on both counts."""
+    from pupper_core._native import loop_margins
+
+    pm, gm = loop_margins(3.166e-2, 40.0, 0.5, motor="lag=0.016", sensing_delay=0.002, timestep=0.002)
+    assert pm < 0 and gm == float("-inf"), (pm, gm)
+    pm, gm = loop_margins(3.166e-2, 40.0, 1.0, motor="lag=0.016", sensing_delay=0.002, timestep=0.002)
+    assert math.isfinite(gm), (pm, gm)
+    out = run("gains", "--model", REPO / "tests" / "models" / "trotter15.xml", "--kp", "40", "--kd", "0.5", "--motor", "lag=0.016",
+              check=0).stdout
+    haa = next(line for line in out.splitlines() if line.startswith("haa"))
+    assert haa.split()[-2:] == ["UNST", "-inf"], haa

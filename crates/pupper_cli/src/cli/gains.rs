@@ -25,7 +25,9 @@ PD's update period: --motor rate=HZ, else the physics step), the derivative's lo
 (filter=HZ) and, with encoder counts, half a period more on the derivative (a difference over one
 period); no viscous damping (the conservative case). phase_margin_deg: 180 plus the phase of
 the open loop where its gain is 1 (below 0: the real joint oscillates or runs away however the
-simulation looks); gain_margin_db: how much more loop gain makes it unstable. A command delay
+simulation looks); gain_margin_db: how much more loop gain makes it unstable (inf: none does;
+-inf: the phase starts past -180°, kd/kp shorter than the lag and latency, and no gain is stable;
+null in --json). A command delay
 (delay=S) is not in the loop: it shifts the step response, not these margins.
 On a calibrated model (gain scales pupper:kp_scale:ACT, pupper:kd_scale:ACT: `pupper fit`'s)
 kp and kd are what to command; motor kp and motor kd are what each motor delivers of them, and

@@ -20,8 +20,10 @@ fn margins(pm: Option<f64>, gm: Option<f64>) -> String {
             },
             if gm.is_finite() {
                 format!("{gm:.1}")
-            } else {
+            } else if gm > 0.0 {
                 "inf".into()
+            } else {
+                "-inf".into()
             }
         ),
         _ => String::new(),

@@ -76,9 +76,13 @@ pub struct Margins {
     /// 180° plus the phase of L there (deg); below 0: unstable.
     pub phase_deg: f64,
     /// Phase crossover (Hz): arg L = −180°; infinite when the phase never
-    /// gets there (no latency, and no torque lag as long as kd/kp).
+    /// gets there (no latency, and no torque lag as long as kd/kp); 0 when
+    /// it starts past it (an undamped joint whose kd/kp is shorter than the
+    /// lag and latency together).
     pub phase_crossover_hz: f64,
-    /// −20·log10 |L| at the phase crossover (dB); infinite without one.
+    /// −20·log10 |L| at the phase crossover (dB): +∞ without one, −∞ when
+    /// the phase starts past −180° (no loop gain makes it stable: scaling
+    /// kp and kd together keeps kd/kp).
     pub gain_db: f64,
 }
 
@@ -126,7 +130,13 @@ impl ServoLoop {
         let gain = |w: f64| self.magnitude(w).ln();
         let wc = first_root(&ws, &gain)?;
         let turn = |w: f64| self.phase(w) + std::f64::consts::PI;
-        let w180 = first_root(&ws, &turn);
+        // past −180° from the band's start, the crossover is at 0 Hz, where
+        // |L| of the undamped joint is infinite (a gain margin of −∞, not +∞)
+        let w180 = if turn(ws[0]) <= 0.0 {
+            Some(0.0)
+        } else {
+            first_root(&ws, &turn)
+        };
         let hz = |w: f64| w / (2.0 * std::f64::consts::PI);
         Some(Margins {
             crossover_hz: hz(wc),
@@ -248,6 +258,27 @@ mod tests {
             m.phase_deg,
             without.phase_deg
         );
+    }
+
+    #[test]
+    fn a_phase_past_180_from_the_start_has_no_gain_margin() {
+        // kd/kp = 12.5 ms under a 16 ms lag and 2 ms of latency: the phase
+        // starts at −180° − w (T + τ − kd/kp), below −180°, and the loop
+        // I T s³ + I s² + kd s + kp is unstable at any common gain
+        let l = ServoLoop {
+            torque_lag: 0.016,
+            ..knee(40.0, 0.5)
+        };
+        let m = l.margins().unwrap();
+        assert!(m.phase_deg < 0.0, "{}", m.phase_deg);
+        assert_eq!((m.phase_crossover_hz, m.gain_db), (0.0, f64::NEG_INFINITY));
+        // kd/kp of 25 ms keeps the low frequencies above −180°: a finite margin
+        let kept = ServoLoop {
+            torque_lag: 0.016,
+            ..knee(40.0, 1.0)
+        };
+        let k = kept.margins().unwrap();
+        assert!(k.phase_crossover_hz > 0.0 && k.gain_db.is_finite(), "{k:?}");
     }
 
     #[test]
