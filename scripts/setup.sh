@@ -14,6 +14,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
+# ldconfig (below) and dpkg's helpers live in sbin, which a plain user PATH
+# (a fresh machine's, scripts/fresh-env's) leaves out
+PATH="$PATH:/usr/local/sbin:/usr/sbin:/sbin"
 profile=${PUPPER_PROFILE:-release}
 case $profile in
   release) release=(--release) ;;
@@ -36,7 +39,6 @@ fi
 # nsenter (util-linux), ip (iproute2), pkill (procps).
 if [[ ",${PUPPER_EXTRAS:-}," == *,ray,* ]]; then
   missing=()
-  PATH="$PATH:/usr/sbin:/sbin"
   for tool in unshare:util-linux nsenter:util-linux ip:iproute2 pkill:procps; do
     command -v "${tool%%:*}" >/dev/null || missing+=("${tool#*:}")
   done

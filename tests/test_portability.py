@@ -12,6 +12,7 @@ appears in this file. `test_guard_can_fail` proves it reports what it should.
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 from collections.abc import Iterable
@@ -173,3 +174,69 @@ def test_guard_passes_harmless_text():
     ])
     found = find_machine_paths({"h.txt": harmless}, [REPO])
     assert found == [], found
+
+
+# -- the environment of a fresh machine (issue 58) -----------------------------
+
+FRESH_ENV = REPO / "scripts" / "fresh-env"
+#: What a command run by `make test` finds in its environment besides what
+#: scripts/fresh-env passes: make's own, the Makefile's exports, pytest's and
+#: its workers', and what a shell sets for itself.
+SET_BY_THE_RUN = {
+    "HOME", "PATH", "PUPPER_FRESH_ENV", "PWD", "OLDPWD", "SHLVL", "_",
+    "MAKEFLAGS", "MAKELEVEL", "MFLAGS", "MAKEOVERRIDES",
+    "PUPPER_PROFILE", "PUPPER_EXTRAS", "PYO3_PYTHON", "MUJOCO_GL", "PUPPER_BIN",
+    "PYTEST_CURRENT_TEST", "PYTEST_XDIST_WORKER", "PYTEST_XDIST_WORKER_COUNT",
+    "PYTEST_XDIST_TESTRUNUID", "PYTEST_VERSION", "COLUMNS", "LINES",
+}
+
+
+def test_fresh_env_passes_home_and_a_plain_path_and_nothing_else(tmp_path):
+    """`.ci/run` runs `make test` through scripts/fresh-env: whatever the
+    calling shell holds (PYTHONUNBUFFERED on a developer's machine, an
+    activated venv), the command sees HOME, a plain PATH and its marker."""
+    assert "scripts/fresh-env make test" in (REPO / ".ci" / "run").read_text()
+    inherited = {**os.environ, "PYTHONUNBUFFERED": "1", "VIRTUAL_ENV": str(tmp_path),
+                 "PUPPER_SOMETHING": "x", "CARGO_TARGET_DIR": str(tmp_path)}
+    out = subprocess.run([str(FRESH_ENV), "env"], capture_output=True, text=True, env=inherited,
+                         check=True, timeout=60).stdout
+    got = dict(line.split("=", 1) for line in out.splitlines())
+    home = os.environ["HOME"]
+    assert got == {"HOME": home, "PATH": f"/usr/local/bin:/usr/bin:/bin:{home}/.cargo/bin",
+                   "PUPPER_FRESH_ENV": "1"}, got
+
+
+def test_under_ci_no_test_inherits_a_variable():
+    """In the run `.ci/run` starts, the tests' own environment holds only
+    what fresh-env, make, the Makefile and pytest put there: a test that
+    passes only with some variable of the developer's machine fails there,
+    as it would on a fresh machine."""
+    if os.environ.get("PUPPER_FRESH_ENV") != "1":
+        pytest.skip("not under scripts/fresh-env (.ci/run): the developer's environment is inherited")
+    extra = sorted(set(os.environ) - SET_BY_THE_RUN)
+    assert not extra, f"variables the fresh environment does not set reached the tests: {extra}"
+
+
+@pytest.mark.parametrize("unbuffered", [None, "1"])
+def test_output_keeps_its_order_whatever_pythons_buffering(pupper_bin, tmp_path, unbuffered):
+    """A Python-run command (a fit that warns) prints its table, then its
+    warnings, then its closing lines, in that order on a merged stream,
+    with PYTHONUNBUFFERED unset (a fresh machine) as with it set: off a
+    terminal CPython buffered stdout in blocks, and the warnings on stderr
+    overtook the table (issue 58)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    if unbuffered:
+        env["PYTHONUNBUFFERED"] = unbuffered
+    p = subprocess.run([str(pupper_bin), "fit",
+                        str(REPO / "docs" / "sample_joint_log.csv"), "--params", "damping,lag",
+                        "--max-iters", "2", "-o", str(tmp_path / "fit")],
+                       stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+                       cwd=tmp_path, timeout=300)
+    assert p.returncode == 0, p.stdout
+    lines = p.stdout.splitlines()
+    kinds = ["table" if ln.startswith(("parameter ", "damping ", "lag ")) else
+             "warning" if ln.startswith("warning: ") else
+             "closing" if ln.startswith(("fitted in ", "wrote ")) else "other" for ln in lines]
+    assert "warning" in kinds, p.stdout  # the case the order matters in
+    order = [k for k in kinds if k != "other"]
+    assert order == sorted(order, key=["table", "warning", "closing"].index), p.stdout

@@ -75,6 +75,12 @@ def say(line: str) -> None:
     a closed stream) is dropped: there is nowhere left to say it, and the
     command's outcome is its exit status."""
     try:
+        # what went to stdout before this line reaches it first, whatever
+        # the buffering (a notebook, a pipe, PYTHONUNBUFFERED unset)
+        sys.stdout.flush()
+    except (OSError, ValueError):
+        pass  # stdout's own failure: the next print or `printing` reports it
+    try:
         print(line, file=sys.stderr, flush=True)
     except (OSError, ValueError):
         pass

@@ -56,6 +56,9 @@ pub fn main(args: impl IntoIterator<Item = OsString>, host: Host) -> u8 {
         let python = pupper_mujoco::embed::find_python(built_with);
         pupper_mujoco::embed::start(python.as_deref());
     }
+    // What Python prints keeps its place among Rust's and stderr's lines
+    // whatever the buffering (the console script's host included).
+    pupper_mujoco::embed::line_buffered_stdout();
     // A second handler in one process is refused; the first one sets STOP too.
     let _ = ctrlc::set_handler(|| {
         if STOP.swap(true, Ordering::SeqCst) {

@@ -46,3 +46,28 @@ pub fn start(python: Option<&Path>) {
     }
     pyo3::Python::initialize();
 }
+
+/// Makes Python's `sys.stdout` flush at every newline, as Rust's does.
+///
+/// Off a terminal CPython buffers stdout in blocks while stderr goes out a
+/// line at a time, so a Python-run command's table would reach a log file
+/// (`2>&1 | tee`) after the warnings printed below it, and the order would
+/// hang on `PYTHONUNBUFFERED` (issue 58). A command prints a few lines, so
+/// flushing each costs nothing. Errors are ignored: a stdout that cannot be
+/// reconfigured (replaced by the host) keeps its own behaviour.
+pub fn line_buffered_stdout() {
+    use pyo3::prelude::*;
+    use pyo3::types::PyDict;
+    Python::attach(|py| {
+        let _ = (|| -> PyResult<()> {
+            let stdout = py.import("sys")?.getattr("stdout")?;
+            if stdout.is_none() || !stdout.hasattr("reconfigure")? {
+                return Ok(());
+            }
+            let kw = PyDict::new(py);
+            kw.set_item("line_buffering", true)?;
+            stdout.call_method("reconfigure", (), Some(&kw))?;
+            Ok(())
+        })();
+    });
+}
