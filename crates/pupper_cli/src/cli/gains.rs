@@ -90,15 +90,14 @@ impl GainsArgs {
             Some(spec::PoseInput::Angles(p)) => Some(p),
             _ => None,
         };
-        let mut r = api::gains(&self.model.source()?, pose, ask, self.integrator.as_deref())?;
-        let timestep = r.timestep;
-        if let Some(fb) = pupper_core::plan::motor::feedback_of(
+        let r = api::gains(
+            &self.model.source()?,
+            pose,
+            ask,
+            self.integrator.as_deref(),
             self.motor.as_deref(),
             self.sensing_delay,
-            timestep,
-        )? {
-            r = r.with_feedback(fb);
-        }
+        )?;
         if self.json {
             outln!("{}", print::json(&r)?);
         } else {

@@ -152,7 +152,26 @@ fn notes(s: &mut String, r: &GainsReport, scaled: bool) {
             "kp, kd: what to command; motor kp, motor kd: what the motor delivers of them (the model's gain scales, pupper:kp_scale/kd_scale, a fit's); every other figure is of the delivered gains"
         );
     }
-    if let Some(fb) = &r.feedback {
+    if r.fitted {
+        let range = |f: &dyn Fn(&pupper_core::robot::gains::LoopTerms) -> f64| {
+            let v: Vec<f64> = r.joints.iter().filter_map(|j| j.loop_terms.as_ref().map(f)).collect();
+            let (lo, hi) = v.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+            if (hi - lo).abs() <= 1e-12 * hi.abs().max(1.0) {
+                format!("{}", Sig(lo))
+            } else {
+                format!("{} to {}", Sig(lo), Sig(hi))
+            }
+        };
+        let _ = writeln!(
+            s,
+            "PM/GM: phase and gain margin of the loop the fit found (the model's calibrated servo): torque lag {} ms, feedback latency {} ms (its own and the PD's update), joint damping {} N·m·s/rad; --motor and --sensing-delay stand in for the fitted terms they name (see --help)",
+            range(&|t| t.feedback.torque_lag * 1000.0),
+            range(&|t| t.feedback.latency * 1000.0),
+            range(&|t| t.damping),
+        );
+    } else if let Some(fb) = &r.feedback {
         let _ = writeln!(
             s,
             "PM/GM: phase and gain margin of the loop the firmware closes: {} ms of feedback latency{}{} (see --help)",

@@ -81,24 +81,81 @@ pub fn feedback_of(
     ))
 }
 
+/// The feedback path of one actuator's loop on a calibrated model: the
+/// firmware `motor` with the actuator's fitted torque `lag` where `motor`
+/// sets none, and its fitted feedback `latency` where no `sensing` delay is
+/// given (a user's `--motor lag=` or `--sensing-delay` stands instead), the
+/// latency read as torque mode's firmware reads it ([`Motor::late_steps`]).
+pub fn fitted_feedback(
+    motor: &Motor,
+    sensing: Option<f64>,
+    dt: f64,
+    lag: f64,
+    latency: f64,
+) -> crate::math::margins::Feedback {
+    let mut m = motor.clone();
+    if m.lag.is_none() && lag > 0.0 {
+        m.lag = Some(lag);
+    }
+    let mut fb = m.feedback(sensing.unwrap_or(latency), dt);
+    if let (None, Some(s)) = (sensing, fb.sampled.as_mut()) {
+        s.late = m.late_steps(latency, dt);
+    }
+    fb
+}
+
+/// How much later (physics steps) a PD updated every step and held over
+/// it acts than a continuous one: a quarter step under MuJoCo's
+/// semi-implicit Euler, which moves the angle by a held torque's whole step
+/// at once. A fitted latency is what `pupper fit`'s replay found beyond a
+/// continuous PD, so a firmware without a rate of its own reads that much
+/// younger (the fit's replay and torque mode alike).
+pub const HELD_STEPS: f64 = 0.25;
+
 impl Motor {
+    /// How many physics steps of `dt` old the state is that a PD with a
+    /// fitted feedback `latency` (s) reads: a firmware without a rate of
+    /// its own reads [`HELD_STEPS`] younger; none below 0.
+    pub fn late_steps(&self, latency: f64, dt: f64) -> f64 {
+        if latency <= 0.0 {
+            return 0.0;
+        }
+        let held = if self.rate.is_none() { HELD_STEPS } else { 0.0 };
+        (latency / dt - held).max(0.0)
+    }
+
+    /// Whether the PD updates every physics step of `dt`.
+    pub fn every_step(&self, dt: f64) -> bool {
+        self.rate.is_none_or(|r| r * dt >= 1.0 - 1e-9)
+    }
+
     /// What this firmware puts in a joint's feedback path, measurements
     /// `sensing` s old, the physics stepping at `dt`: the sensing delay
     /// plus half an update period (the PD's output is held for one: `rate`,
     /// else every step), the derivative's filter, and half a period more on
-    /// the derivative when it is an encoder's difference over a period. The
-    /// command delay is not feedback: it moves the target, not the loop.
+    /// the derivative when it is an encoder's difference over a period. A
+    /// PD that acts every physics step closes the sampled loop the
+    /// simulation steps ([`crate::math::margins::Sampled`]): its state
+    /// `sensing` old, the encoder's difference over a step the velocity
+    /// semi-implicit Euler steps with. The command delay is not feedback:
+    /// it moves the target, not the loop.
     pub fn feedback(&self, sensing: f64, dt: f64) -> crate::math::margins::Feedback {
-        let period = self.rate.map_or(dt, |r| 1.0 / r);
+        let period = self.period(dt);
+        let every = self.every_step(dt);
         crate::math::margins::Feedback {
             latency: sensing + 0.5 * period,
             filter_hz: self.filter,
-            derivative_delay: if self.counts.is_some() {
+            derivative_delay: if self.counts.is_some() && !every {
                 0.5 * period
             } else {
                 0.0
             },
             torque_lag: self.lag.unwrap_or(0.0),
+            hold: 0.5 * period,
+            sampled: every.then_some(crate::math::margins::Sampled {
+                step: dt,
+                late: sensing / dt,
+            }),
         }
     }
 

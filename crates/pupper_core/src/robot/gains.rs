@@ -78,6 +78,21 @@ pub struct JointGains {
     pub group: String,
     #[serde(flatten)]
     pub figures: Figures,
+    /// The loop its margins are of, where a firmware or a calibrated
+    /// model's fitted servo closes one.
+    #[serde(rename = "loop", skip_serializing_if = "Option::is_none")]
+    pub loop_terms: Option<LoopTerms>,
+}
+
+/// What closes a joint's loop besides its inertia and gains: the
+/// firmware's feedback path and the joint's viscous damping.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LoopTerms {
+    #[serde(flatten)]
+    pub feedback: Feedback,
+    /// Viscous damping in the loop (N·m·s/rad): a calibrated model's fitted
+    /// joint damping; 0 otherwise (unknown: the conservative case).
+    pub damping: f64,
 }
 
 /// A joint group's gains: for a bandwidth, on the group's mean inertia.
@@ -102,26 +117,48 @@ pub struct GainsReport {
     pub implicit_damping: bool,
     pub groups: Vec<GroupGains>,
     pub joints: Vec<JointGains>,
-    /// The firmware the loop margins are for, when asked.
+    /// The firmware the loop margins are for, when asked (a calibrated
+    /// model's: its first joint's; each joint's own is in `joints[].loop`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub feedback: Option<Feedback>,
+    /// The margins close the loop a fit found: the model's fitted servo
+    /// (torque lag, feedback latency) and joint damping.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub fitted: bool,
 }
 
 impl GainsReport {
     /// Each joint's (and group's worst) phase and gain margin of the loop
     /// `fb` closes, the joint linearised at the report's pose with no
     /// viscous damping (the conservative case: damping adds phase).
-    pub fn with_feedback(mut self, fb: Feedback) -> GainsReport {
-        let margins = |i: f64, kp: f64, kd: f64| {
-            fb.servo(i, 0.0, kp, kd)
-                .margins()
-                .map_or((f64::NAN, f64::NAN), |m| (m.phase_deg, m.gain_db))
-        };
-        for j in &mut self.joints {
+    pub fn with_feedback(self, fb: Feedback) -> GainsReport {
+        let n = self.joints.len();
+        self.with_loops(
+            &vec![
+                LoopTerms {
+                    feedback: fb,
+                    damping: 0.0
+                };
+                n
+            ],
+            false,
+        )
+    }
+
+    /// Each joint's (and group's worst) phase and gain margin of its own
+    /// loop, `terms[j]` for joint j (`fitted`: a calibrated model's fitted
+    /// servo and damping).
+    pub fn with_loops(mut self, terms: &[LoopTerms], fitted: bool) -> GainsReport {
+        for (j, t) in self.joints.iter_mut().zip(terms) {
             let f = &mut j.figures;
             let [kp, kd] = f.delivered();
-            let (pm, gm) = margins(f.inertia, kp, kd);
+            let (pm, gm) = t
+                .feedback
+                .servo(f.inertia, t.damping, kp, kd)
+                .margins()
+                .map_or((f64::NAN, f64::NAN), |m| (m.phase_deg, m.gain_db));
             (f.phase_margin_deg, f.gain_margin_db) = (Some(pm), Some(gm));
+            j.loop_terms = Some(*t);
         }
         for g in &mut self.groups {
             let worst = |f: &dyn Fn(&JointGains) -> Option<f64>| {
@@ -134,7 +171,8 @@ impl GainsReport {
             g.figures.phase_margin_deg = Some(worst(&|j| j.figures.phase_margin_deg));
             g.figures.gain_margin_db = Some(worst(&|j| j.figures.gain_margin_db));
         }
-        self.feedback = Some(fb);
+        self.feedback = terms.first().map(|t| t.feedback);
+        self.fitted = fitted;
         self
     }
 }
@@ -256,6 +294,7 @@ pub fn report(
                 actuator: info.actuators[a].name.clone(),
                 group: g,
                 figures: Figures::new(inertia[a], kp, kd, scale(a), bound(inertia[a])),
+                loop_terms: None,
             }
         })
         .collect();
@@ -272,5 +311,6 @@ pub fn report(
         groups,
         joints,
         feedback: None,
+        fitted: false,
     }
 }

@@ -183,6 +183,8 @@ impl ActuatorInfo {
             delay: 0.0,
             gain_scale: [1.0, 1.0],
             winding: None,
+            lag: 0.0,
+            latency: 0.0,
         }
     }
 }
@@ -264,6 +266,17 @@ pub struct ActuatorInfo {
     /// `pupper:resistance:NAME`): the copper loss `pupper hold` reports.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub winding: Option<[f64; 2]>,
+    /// The servo's torque lag behind its PD (s, a current loop's first-order
+    /// time constant) and the PD's feedback latency (s, how old the angle
+    /// and velocity it reads are), as `pupper fit` measured them: custom
+    /// numerics `pupper:lag:NAME` and `pupper:latency:NAME` of a calibrated
+    /// model. Torque mode's firmware runs them, and the loop margins close
+    /// the loop through them, unless `--motor lag=`/`--sensing-delay` stand
+    /// instead.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub lag: f64,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub latency: f64,
 }
 
 fn one() -> f64 {
@@ -372,6 +385,20 @@ pub const GAIN_SCALE: ActuatorNumeric = ActuatorNumeric {
     fits: |v| v > 0.0 && v <= MAX_GAIN_SCALE,
 };
 
+/// The fitted servo times of an actuator (`pupper:lag:ACT`,
+/// `pupper:latency:ACT`): kind 0 the torque lag, 1 the feedback latency,
+/// each in seconds within the bounds `pupper fit` fits them in.
+pub const SERVO_TIMES: ActuatorNumeric = ActuatorNumeric {
+    kinds: ["lag:", "latency:"],
+    what: "a servo time (s)",
+    rule: "a number of seconds in [0, 0.05]; refit the model or remove it",
+    fits: |v| (0.0..=MAX_SERVO_TIME).contains(&v),
+};
+
+/// The longest torque lag or feedback latency a model may declare (s): the
+/// upper bound `pupper fit` fits them within.
+pub const MAX_SERVO_TIME: f64 = 0.05;
+
 /// The largest gain scale a model may declare: a fit that lands past it has
 /// found no servo but a different robot.
 pub const MAX_GAIN_SCALE: f64 = 100.0;
@@ -460,6 +487,22 @@ fn is_yes(v: &bool) -> bool {
 pub const JOINT_GROUPS: [&str; 3] = ["haa", "hfe", "kfe"];
 
 impl ModelInfo {
+    /// Whether the model carries a servo `pupper fit` measured: a torque
+    /// lag or feedback latency (custom numerics), a command delay (MuJoCo's
+    /// actuator delay) or gain scales on some actuator. Its loop margins
+    /// are then of that servo and the model's joint damping.
+    pub fn calibrated(&self) -> bool {
+        self.actuators.iter().any(|a| {
+            a.lag > 0.0 || a.latency > 0.0 || a.delay > 0.0 || a.gain_scale != [1.0, 1.0]
+        })
+    }
+
+    /// Whether some actuator has a fitted torque lag or feedback latency:
+    /// a servo only torque mode's firmware runs (MuJoCo's servo has none).
+    pub fn fitted_servo_times(&self) -> bool {
+        self.actuators.iter().any(|a| a.lag > 0.0 || a.latency > 0.0)
+    }
+
     /// What a standing run should know of the ground: a note when the
     /// robot has legs but nothing in the world for its feet to touch.
     pub fn ground_note(&self) -> Option<String> {

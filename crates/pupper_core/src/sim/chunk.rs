@@ -7,7 +7,8 @@ use crate::plan::grid::Cell;
 use crate::plan::schedule::Schedule;
 use crate::plan::setup::CellSetup;
 use crate::robot::model::ModelInfo;
-use crate::sim::firmware::{Sensing, firmware};
+use crate::plan::mode::Mode;
+use crate::sim::firmware::{Sensing, firmware, latency_steps};
 
 /// Torque-mode simulations stepped together per thread (see `run_chunk`):
 /// measured on a 2-core EPYC (1 MB L2 per core): 32 per thread when
@@ -56,6 +57,12 @@ impl ChunkPlan {
         let per_cell = cfg.sims_per_cell();
         let reps = &cfg.replicates;
         let excited = cfg.experiment.plan().excited();
+        // a calibrated model's fitted feedback latency, run by torque mode's PD
+        let late = if cfg.mode == Mode::Torque {
+            latency_steps(&cfg.motor, info, dt)
+        } else {
+            Vec::new()
+        };
         let n = cells.len() * per_cell;
         let mut out = ChunkPlan {
             sims: Vec::with_capacity(n),
@@ -82,10 +89,12 @@ impl ChunkPlan {
                         None => plan.push.clone(),
                     };
                     out.schedules.push(own);
+                    let fw = firmware(cfg, info, dt, &d);
                     out.sensing.push(Sensing::new(
                         d.delay,
                         reps.noise(&c.cell.id, r as u32),
-                        firmware(cfg, info, dt, &d),
+                        fw,
+                        late.clone(),
                     ));
                     out.setups.push(setup);
                     out.sims.push(SimPlan {

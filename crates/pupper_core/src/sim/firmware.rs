@@ -11,13 +11,18 @@ use crate::robot::layout::Layout;
 use crate::robot::model::ModelInfo;
 
 /// What the torque-mode PD of one simulation reads: its joint angles and
-/// velocities `delay` control steps late (the start state until then), the
-/// angles with Gaussian noise.
+/// velocities `delay` control steps late (the start state until then), each
+/// actuator's a fitted feedback latency later still (fractional steps,
+/// between two recorded states), the angles with Gaussian noise.
 pub(crate) struct Sensing {
     delay: usize,
     noise: Option<Noise>,
-    /// The last `delay + 1` (angles, velocities) of the actuated joints,
-    /// oldest first.
+    /// Each actuator's feedback latency beyond `delay`, in control steps
+    /// (a calibrated model's `pupper:latency:ACT`, as `pupper fit`'s
+    /// replay reads it); empty: none.
+    latency: Vec<f64>,
+    /// The last `delay + ceil(latency) + 1` (angles, velocities) of the
+    /// actuated joints, oldest first.
     history: std::collections::VecDeque<(Vec<f64>, Vec<f64>)>,
     /// The servo firmware between the PD and the joint; None: the ideal
     /// motor (the PD every step on what is read, clipped at the limit).
@@ -25,7 +30,9 @@ pub(crate) struct Sensing {
 }
 
 /// The firmware of a torque-mode simulation: `--motor`, or a calibrated
-/// model's command delay; None for the ideal motor.
+/// model's fitted servo (its command delay, torque lag and feedback
+/// latency per actuator, where `--motor` and the draws give none); None
+/// for the ideal motor.
 pub(crate) fn firmware(
     cfg: &SweepConfig,
     info: &ModelInfo,
@@ -39,15 +46,45 @@ pub(crate) fn firmware(
     motor.noload = d.motor_noload.or(motor.noload);
     // a drawn lag of 0 is a robot without one
     motor.lag = d.motor_lag.map_or(motor.lag, |t| (t > 0.0).then_some(t));
+    let torque = cfg.mode == Mode::Torque;
     let delayed = info.actuators.iter().any(|a| a.delay > 0.0);
-    if motor.is_ideal() && !(delayed && cfg.mode == Mode::Torque) {
+    // the model's own lag runs where neither --motor nor a draw sets one
+    let own_lag = motor.lag.is_none() && d.motor_lag.is_none();
+    let lagged = own_lag && info.actuators.iter().any(|a| a.lag > 0.0);
+    if motor.is_ideal() && !((delayed || lagged) && torque) {
         return None;
     }
     let mut f = Firmware::new(&motor, info.nu, dt);
     if motor.delay == 0.0 && d.motor_delay.is_none() {
         f.delays = info.actuators.iter().map(|a| a.delay).collect();
     }
+    if lagged {
+        f.follow = info
+            .actuators
+            .iter()
+            .map(|a| (a.lag > 0.0).then(|| lag_weight(a.lag, dt)))
+            .collect();
+    }
     Some(f)
+}
+
+/// Each actuator's fitted feedback latency in control steps at physics step
+/// `dt` (a calibrated model's; empty where it has none), as the firmware's
+/// PD reads it: a PD without a rate of its own reads `HELD_STEPS` younger.
+pub(crate) fn latency_steps(motor: &Motor, info: &ModelInfo, dt: f64) -> Vec<f64> {
+    if info.actuators.iter().all(|a| a.latency <= 0.0) {
+        return Vec::new();
+    }
+    info.actuators
+        .iter()
+        .map(|a| motor.late_steps(a.latency, dt))
+        .collect()
+}
+
+/// The lag's weight of a new torque per physics step: the exact
+/// discretisation of `T·dy/dt = x − y` over `dt`.
+fn lag_weight(t: f64, dt: f64) -> f64 {
+    -(-dt / t).exp_m1()
 }
 
 /// One simulation's servo firmware ([`Motor`]): the PD updated at its own
@@ -69,10 +106,10 @@ pub(crate) struct Firmware {
     last_angle: Vec<f64>,
     /// Each actuator's command delay (s).
     pub(crate) delays: Vec<f64>,
-    /// The lag's weight of a new torque per physics step (the exact
-    /// discretisation of `T·dy/dt = x − y`), and each actuator's lagged
-    /// torque (NaN before the first step: it starts at the PD's).
-    follow: Option<f64>,
+    /// Each actuator's lag weight of a new torque per physics step
+    /// ([`lag_weight`]; None: no lag), and its lagged torque (NaN before
+    /// the first step: it starts at the PD's).
+    follow: Vec<Option<f64>>,
     lagged: Vec<f64>,
 }
 
@@ -88,7 +125,7 @@ impl Firmware {
             filtered: vec![f64::NAN; nu],
             last_angle: vec![f64::NAN; nu],
             delays: vec![motor.delay; nu],
-            follow: motor.lag.map(|t| -(-dt / t).exp_m1()),
+            follow: vec![motor.lag.map(|t| lag_weight(t, dt)); nu],
             lagged: vec![f64::NAN; nu],
         }
     }
@@ -143,7 +180,7 @@ impl Firmware {
             None => (-peak, peak),
         };
         let (tau, cut) = motor::clip(self.held[a], band);
-        let Some(follow) = self.follow else {
+        let Some(follow) = self.follow[a] else {
             return (tau, cut);
         };
         let y = &mut self.lagged[a];
@@ -157,19 +194,33 @@ impl Firmware {
 }
 
 impl Sensing {
-    /// Reads `delay` control steps late, with `noise` on the angles,
-    /// through `firmware` (None: the ideal motor).
-    pub(crate) fn new(delay: usize, noise: Option<Noise>, firmware: Option<Firmware>) -> Sensing {
+    /// Reads `delay` control steps late (and each actuator `latency[a]`
+    /// steps later still; empty: none), with `noise` on the angles, through
+    /// `firmware` (None: the ideal motor).
+    pub(crate) fn new(
+        delay: usize,
+        noise: Option<Noise>,
+        firmware: Option<Firmware>,
+        latency: Vec<f64>,
+    ) -> Sensing {
         Sensing {
             delay,
             noise,
+            latency,
             history: Default::default(),
             firmware,
         }
     }
 
     fn exact(&self) -> bool {
-        self.delay == 0 && self.noise.is_none()
+        self.delay == 0 && self.noise.is_none() && self.latency.is_empty()
+    }
+
+    /// How many past states the reads need: the newest and `delay` plus the
+    /// longest latency's steps before it.
+    fn depth(&self) -> usize {
+        let late = self.latency.iter().fold(0.0_f64, |m, &l| m.max(l));
+        self.delay + late.ceil() as usize + 1
     }
 
     /// Records the state just read, for the sensing delay; what the PD sees
@@ -179,7 +230,7 @@ impl Sensing {
             return;
         }
         // the oldest entry's buffers take the newest state
-        let (mut q, mut v) = if self.history.len() > self.delay {
+        let (mut q, mut v) = if self.history.len() >= self.depth() {
             self.history.pop_front().unwrap_or_default()
         } else {
             Default::default()
@@ -199,10 +250,28 @@ impl Sensing {
         qpos: &[f64],
         qvel: &[f64],
     ) -> (f64, f64) {
-        let exact = self.exact();
-        let (q, v) = match self.history.front() {
-            Some((q, v)) if !exact => (q[a], v[a]),
-            _ => (qpos[layout.act_qpos[a]], qvel[layout.act_dof[a]]),
+        let (q, v) = if self.exact() || self.history.is_empty() {
+            (qpos[layout.act_qpos[a]], qvel[layout.act_dof[a]])
+        } else {
+            // `delay + latency` steps before the newest state, between the
+            // two recorded states around it (the oldest before the start)
+            let back = self.delay as f64 + self.latency.get(a).copied().unwrap_or(0.0);
+            let at = (self.history.len() - 1) as f64 - back;
+            if at <= 0.0 {
+                let (q, v) = &self.history[0];
+                (q[a], v[a])
+            } else {
+                let i = at.floor() as usize;
+                let frac = at - i as f64;
+                let (q0, v0) = &self.history[i];
+                match self.history.get(i + 1) {
+                    Some((q1, v1)) if frac > 0.0 => (
+                        q0[a] * (1.0 - frac) + q1[a] * frac,
+                        v0[a] * (1.0 - frac) + v1[a] * frac,
+                    ),
+                    _ => (q0[a], v0[a]),
+                }
+            }
         };
         match &mut self.noise {
             Some(noise) => (q + noise.sample(), v),

@@ -29,7 +29,7 @@ impl<'a, 'py> StabilityBound<'a, 'py> {
     /// None where pupper states no bound: RK4, no start pose to read the
     /// inertias at, or torque mode's firmware closing another loop than the
     /// PD at the physics step (a filtered derivative, a slower update, a
-    /// torque lag).
+    /// torque lag or a feedback latency, given or a calibrated model's).
     pub(super) fn new(
         cfg: &'a SweepConfig,
         model: &'a bridge::LoadedModel<'py>,
@@ -39,6 +39,8 @@ impl<'a, 'py> StabilityBound<'a, 'py> {
         let firmware = cfg.mode == Mode::Torque
             && (cfg.motor.filter.is_some()
                 || cfg.motor.lag.is_some()
+                // a calibrated model's fitted lag or latency, which torque mode runs
+                || info.actuators.iter().any(|a| a.lag > 0.0 || a.latency > 0.0)
                 || cfg
                     .motor
                     .rate

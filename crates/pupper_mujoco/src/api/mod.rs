@@ -124,11 +124,19 @@ pub fn pose(source: &ModelSource, variant: &Variant, depth: Option<f64>) -> Resu
 /// `pupper gains`: each joint's reflected inertia on the robot hung in the
 /// air at the stand pose (or the pose given), and the gains a bandwidth and
 /// damping ratio ask for, or what given gains give.
+///
+/// The loop margins: with a firmware (`motor`, `sensing` s of feedback
+/// latency), of the loop it closes; on a calibrated model (its fitted
+/// servo: [`pupper_core::robot::model::ModelInfo::calibrated`]), of the loop
+/// the fit found, each joint's own (its fitted torque lag and feedback
+/// latency, where `motor` and `sensing` give none, and its damping).
 pub fn gains(
     source: &ModelSource,
     pose: Option<Vec<f64>>,
     ask: pupper_core::robot::gains::Ask,
     integrator: Option<&str>,
+    motor: Option<&str>,
+    sensing: Option<f64>,
 ) -> Result<pupper_core::robot::gains::GainsReport> {
     let integrator = integrator
         .map(pupper_core::plan::integrator::Integrator::parse)
@@ -169,13 +177,36 @@ pub fn gains(
         // the one asked for); torque mode's Rust PD is always explicit
         let mj_integrator = integrator.map_or(info.integrator, |i| i.mj());
         let implicit = Damping::of(Mode::Servo, mj_integrator) == Some(Damping::Implicit);
-        Ok(pupper_core::robot::gains::report(
-            info,
-            &inertia,
-            info.timestep,
-            ask,
-            implicit,
-        ))
+        let report =
+            pupper_core::robot::gains::report(info, &inertia, info.timestep, ask, implicit);
+        let calibrated = info.calibrated();
+        if calibrated {
+            let damping = model.joint_damping()?;
+            let m = pupper_core::plan::motor::Motor::parse(motor.unwrap_or(""))?;
+            pupper_core::plan::motor::feedback_of(Some(""), sensing, info.timestep)?;
+            let terms: Vec<_> = info
+                .actuators
+                .iter()
+                .zip(damping)
+                .map(|(a, damping)| pupper_core::robot::gains::LoopTerms {
+                    feedback: pupper_core::plan::motor::fitted_feedback(
+                        &m,
+                        sensing,
+                        info.timestep,
+                        a.lag,
+                        a.latency,
+                    ),
+                    damping,
+                })
+                .collect();
+            return Ok(report.with_loops(&terms, true));
+        }
+        Ok(
+            match pupper_core::plan::motor::feedback_of(motor, sensing, info.timestep)? {
+                Some(fb) => report.with_feedback(fb),
+                None => report,
+            },
+        )
     })
 }
 

@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 use super::python::{Mujoco, PyResultExt};
 use pupper_core::error::{Error, Result};
 use pupper_core::robot::model::{
-    ActuatorInfo, GAIN_SCALE, JointInfo, KeyframeInfo, LegInfo, MOTOR_CONSTANT, ModelInfo,
+    ActuatorInfo, GAIN_SCALE, JointInfo, KeyframeInfo, LegInfo, MOTOR_CONSTANT, ModelInfo, SERVO_TIMES,
     ModelSource, SensorInfo,
 };
 
@@ -144,6 +144,8 @@ impl<'py> Mujoco<'py> {
                     delay: delays.get(i).copied().unwrap_or(0.0),
                     gain_scale: [1.0, 1.0],
                     winding: None,
+                    lag: 0.0,
+                    latency: 0.0,
                 })
             })
             .collect()
@@ -173,6 +175,12 @@ impl<'py> Mujoco<'py> {
                 GAIN_SCALE.read(&name, values, actuators, &source.display())?
             {
                 actuators[actuator].gain_scale[k] = scale;
+            }
+            if let Some((k, actuator, v)) =
+                SERVO_TIMES.read(&name, values, actuators, &source.display())?
+            {
+                let a = &mut actuators[actuator];
+                *(if k == 0 { &mut a.lag } else { &mut a.latency }) = v;
             }
             if let Some((k, actuator, v)) =
                 MOTOR_CONSTANT.read(&name, values, actuators, &source.display())?

@@ -288,6 +288,22 @@ impl<'py> LoadedModel<'py> {
         self.body_joint_inertia(&self.model, qpos)
     }
 
+    /// Each actuated joint's viscous damping (N·m·s/rad, MuJoCo's
+    /// `dof_damping`), in ctrl order: a calibrated model's fitted damping.
+    pub fn joint_damping(&self) -> Result<Vec<f64>> {
+        let layout = self
+            .layout
+            .as_ref()
+            .ok_or_else(|| Error::Internal("joint damping needs a floating model".into()))?;
+        let all: Vec<f64> = self
+            .model
+            .getattr("dof_damping")
+            .and_then(|d| d.call_method0("tolist"))
+            .and_then(|d| d.extract())
+            .internal()?;
+        Ok(layout.act_dof.iter().map(|&d| all[d]).collect())
+    }
+
     /// [`LoadedModel::joint_inertia`] on one of its bodies (a [`LoadedModel::variant`]).
     pub fn body_joint_inertia(&self, body: &Bound<'py, PyAny>, qpos: &[f64]) -> Result<Vec<f64>> {
         let layout = self

@@ -70,12 +70,15 @@ pub(crate) fn gains<'py>(
         }
     };
     let source = ModelSource::parse(&model.to_string_lossy()).map_err(to_py)?;
-    let mut r = api::gains(&source, pose, ask, integrator.as_deref()).map_err(to_py)?;
-    let fb = pupper_core::plan::motor::feedback_of(motor.as_deref(), sensing_delay, r.timestep)
-        .map_err(to_py)?;
-    if let Some(fb) = fb {
-        r = r.with_feedback(fb);
-    }
+    let r = api::gains(
+        &source,
+        pose,
+        ask,
+        integrator.as_deref(),
+        motor.as_deref(),
+        sensing_delay,
+    )
+    .map_err(to_py)?;
     to_dict(py, &r)
 }
 
