@@ -67,10 +67,12 @@ if [ "${1-}" = --inside ]; then
   say "environment: dropped ${dropped[*]:-nothing}; kept HOME=$HOME (pip and cargo caches)"
   # and nothing else a fresh machine would not set (PYTHONUNBUFFERED, say):
   # only HOME, that PATH and the two settings above reach the clone's commands
-  fresh=(env -i HOME="$HOME" PATH="$PATH" PUPPER_PROFILE=debug CARGO_INCREMENTAL=0)
+  for name in $(compgen -e); do
+    case $name in HOME | PATH | PUPPER_PROFILE | CARGO_INCREMENTAL) ;; *) unset "$name" 2>/dev/null || true ;; esac
+  done
 
   say "set-up and default sweep: PUPPER_PROFILE=debug make sweep (in $clone)"
-  "${fresh[@]}" make sweep || fail "PUPPER_PROFILE=debug make sweep failed in the fresh clone (exit $?; its output is above)"
+  make sweep || fail "PUPPER_PROFILE=debug make sweep failed in the fresh clone (exit $?; its output is above)"
 
   bin=target/debug/pupper
   if [ ! -x "$bin" ] && [ -x target/release/pupper ]; then
@@ -80,13 +82,13 @@ if [ "${1-}" = --inside ]; then
   [ -x "$bin" ] || fail "make sweep succeeded but built no $bin"
 
   say "python module: .venv's pupper_core must come from the clone"
-  mod=$("${fresh[@]}" .venv/bin/python -c 'import pupper_core; print(pupper_core.__file__)') \
+  mod=$(.venv/bin/python -c 'import pupper_core; print(pupper_core.__file__)') \
     || fail ".venv/bin/python cannot import pupper_core"
   case $mod in "$clone"/*) ;; *) fail "pupper_core imports from $mod, not from the clone $clone" ;; esac
 
   out=$tmp/two
   say "2-cell sweep: $bin sweep --grid kp=5,30 --seconds 1 -o $out -q"
-  "${fresh[@]}" "$bin" sweep --grid kp=5,30 --seconds 1 -o "$out" -q \
+  "$bin" sweep --grid kp=5,30 --seconds 1 -o "$out" -q \
     || fail "the 2-cell sweep with $bin failed (exit $?)"
   csv=$out/summary.csv
   [ -s "$csv" ] || fail "the 2-cell sweep wrote no $csv"

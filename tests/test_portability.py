@@ -188,6 +188,9 @@ SET_BY_THE_RUN = {
     "PUPPER_PROFILE", "PUPPER_EXTRAS", "PYO3_PYTHON", "MUJOCO_GL", "PUPPER_BIN",
     "PYTEST_CURRENT_TEST", "PYTEST_XDIST_WORKER", "PYTEST_XDIST_WORKER_COUNT",
     "PYTEST_XDIST_TESTRUNUID", "PYTEST_VERSION", "COLUMNS", "LINES",
+    # set inside the test process itself: CPython's coercion of the C locale
+    # (PEP 538), PyOpenGL's platform from MUJOCO_GL, Ray's on import
+    "LC_CTYPE", "PYOPENGL_PLATFORM", "RAY_CLIENT_MODE",
 }
 
 
@@ -195,7 +198,8 @@ def test_fresh_env_passes_home_and_a_plain_path_and_nothing_else(tmp_path):
     """`.ci/run` runs `make test` through scripts/fresh-env: whatever the
     calling shell holds (PYTHONUNBUFFERED on a developer's machine, an
     activated venv), the command sees HOME, a plain PATH and its marker."""
-    assert "scripts/fresh-env make test" in (REPO / ".ci" / "run").read_text()
+    ci = (REPO / ".ci" / "run").read_text()
+    assert "exec scripts/fresh-env .ci/run" in ci and "\nmake test\n" in ci, ci
     inherited = {**os.environ, "PYTHONUNBUFFERED": "1", "VIRTUAL_ENV": str(tmp_path),
                  "PUPPER_SOMETHING": "x", "CARGO_TARGET_DIR": str(tmp_path)}
     out = subprocess.run([str(FRESH_ENV), "env"], capture_output=True, text=True, env=inherited,
