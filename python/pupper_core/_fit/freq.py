@@ -12,6 +12,13 @@ cycle of a step (a stepped sine's) is its transient and is dropped; the
 cycles are then pooled by frequency (within POOL), the response of a pool
 being the sum of its angle coefficients over the sum of its command's.
 A multisine has no such cycles: it gives no response.
+
+A step command (a square wave: the target holds still between jumps) is
+told from the command itself (``jumps``) and read as steps instead
+(``step_response``): per jump, the time the angle takes to cover RISE of
+its own change (from the jump to where it settles: the mean of the last
+SETTLED of the hold, so a servo's steady error is no slower rise) and its
+overshoot past where it settles, averaged over the jumps.
 """
 
 from __future__ import annotations
@@ -20,8 +27,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from pupper_core._spec import PHASE_AT
 
 #: Cycles whose frequencies lie within this ratio are one step (and pooled).
 POOL = 0.05
@@ -147,3 +152,68 @@ def delay_left(log: Response, model: Response) -> float:
     f = np.array([c[0] for c in common])
     lag = np.array([np.angle(c[2] / c[1]) for c in common])
     return float(np.sum(f * lag) / (2 * math.pi * np.sum(f * f)))
+
+
+#: A step command jumps by at least JUMP of its swing at a time, and moves
+#: by at most STILL of it between jumps, each hold HOLD samples or more:
+#: a sine at the log's rate moves a little every sample, a stepped sine's
+#: fast steps hold a sample or two.
+JUMP = 0.1
+STILL = 0.01
+HOLD = 10
+#: The share of a step's change the rise time is taken to.
+RISE = 0.9
+#: The share of a hold, at its end, whose mean angle is where the joint settled.
+SETTLED = 0.2
+
+
+@dataclass
+class StepResponse:
+    """The mean over a step command's jumps of the 90 % rise time (s) and
+    the overshoot (% of the change); NaN where no jump could be read."""
+
+    rise_time: float
+    overshoot_pct: float
+    jumps: int
+
+
+def jumps(command: np.ndarray) -> np.ndarray | None:
+    """The samples at which a step command jumps (the first of each new
+    hold), or None where ``command`` is no step command."""
+    swing = float(np.ptp(command)) if len(command) > 1 else 0.0
+    if swing <= 0:
+        return None
+    d = np.abs(np.diff(command))
+    at = np.flatnonzero(d >= JUMP * swing) + 1
+    holds = np.diff(np.concatenate([[0], at, [len(command)]]))
+    if not at.size or np.any((d > STILL * swing) & (d < JUMP * swing)) or holds.min() < HOLD:
+        return None
+    return at
+
+
+def step_response(t: np.ndarray, command: np.ndarray, angle: np.ndarray) -> StepResponse | None:
+    """The step response of ``angle`` to a step ``command`` (both at times
+    ``t``), or None where ``command`` is no step command. A jump the joint
+    does not follow (it moves under a tenth of the command's jump, or the
+    other way) is not read."""
+    at = jumps(command)
+    if at is None:
+        return None
+    rises, overs = [], []
+    for a, b in zip(at, np.append(at[1:], len(t))):
+        y0 = float(angle[a - 1])
+        change = float(np.mean(angle[b - max(1, int(SETTLED * (b - a))):b])) - y0
+        if change * (command[a] - command[a - 1]) <= 0.1 * float(command[a] - command[a - 1]) ** 2:
+            continue
+        frac = (angle[a - 1:b] - y0) / change
+        reach = np.flatnonzero(frac >= RISE)
+        if not reach.size:
+            continue
+        i = int(reach[0])
+        # the crossing, linearly between the samples either side (the jump's own sample: 0 of the change)
+        tc = t[a - 2 + i] + (RISE - frac[i - 1]) / (frac[i] - frac[i - 1]) * (t[a - 1 + i] - t[a - 2 + i])
+        rises.append(max(float(tc - t[a]), 0.0))
+        overs.append(100.0 * max(float(np.max(frac)) - 1.0, 0.0))
+    if not rises:
+        return StepResponse(math.nan, math.nan, 0)
+    return StepResponse(float(np.mean(rises)), float(np.mean(overs)), len(rises))

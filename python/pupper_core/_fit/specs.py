@@ -1,8 +1,8 @@
 """How logs are named to `pupper fit` (and `pupper_core.fit`), each with
 what it was run at, so that logs as they come off a robot need no editing:
 
-- a path (plain, or gzip-, bzip2- or xz-compressed: ``_joint_log`` tells
-  by the bytes);
+- a path (plain, or gzip-, bzip2- or xz-compressed: ``pupper_core._fit.log``
+  tells by the bytes);
 - ``LOG::kp=5,kd=0.25``: a log with options of its own, ``kp`` and ``kd``
   (the gains it ran at: one value, or one per logged actuator), ``held``
   (what the joints it does not cover held) and ``columns`` (its column
@@ -15,7 +15,9 @@ what it was run at, so that logs as they come off a robot need no editing:
   ``..._kp_5_kd_0.25.csv.gz``).
 
 Every source of a log's gains (its header line or columns, ``LOG::``, its
-name, ``--kp``) must agree, or the log is refused (``_joint_log``)."""
+name, ``--kp``) must agree, or the log is refused (``settle``, as
+``pupper_core._fit.log`` reads it); gains no servo runs at are refused
+(``check_gains``)."""
 
 from __future__ import annotations
 
@@ -23,14 +25,17 @@ import math
 import numbers
 import os
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from pupper_core._fit.columns import LogError
 
-__all__ = ["LogSpec", "log_specs", "name_pattern", "gains_in_name", "option_text", "path_list", "OPTIONS"]
+__all__ = ["LogSpec", "log_specs", "name_pattern", "gains_in_name", "option_text", "path_list", "OPTIONS",
+           "KP_MAX", "KD_MAX", "gains", "check_gains", "settle", "sources", "gain_columns", "held_angles", "finite"]
 
 #: The options a log may carry (``LOG::KEY=VALUE,...``).
 OPTIONS = ("kp", "kd", "held", "columns")
@@ -225,3 +230,164 @@ def gains_in_name(rx: re.Pattern[str], pattern: str, name: str) -> dict[str, str
     if not found:
         return {}
     return {k: v.replace("p", ".") for k, v in next(iter(found))}
+
+
+# -- what each source says of a log's gains and held angles, and that they agree ----------------------
+
+#: The largest gains a log may say (N·m/rad, N·m·s/rad): past any servo. A
+#: kp of 1e4 asks 10 N·m per mrad of error, three orders above Pupper's
+#: 3 N·m limit at its usual kp 5; a larger number is in other units
+#: (per degree, firmware counts) or a typo.
+KP_MAX = 1e4
+KD_MAX = 1e3
+
+
+def gains(text: str, n: int, key: str, where: str, said: str = "") -> np.ndarray:
+    """A gain as said (``said``: how, a header line by default): one value,
+    or one per logged actuator."""
+    said = said or f"'# {key}: {text}'"
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise LogError(f"{where}: {said} is not a number or a comma-separated list: "
+                       f"write e.g. {key} 5") from None
+    if len(values) == 1:
+        values = values * n
+    if len(values) != n:
+        raise LogError(f"{where}: {said} must be one gain, or one per logged "
+                       f"actuator ({n}) in column order")
+    check_gains(values, key, where, said)
+    return np.asarray(values)
+
+
+def check_gains(values: Sequence[float], key: str, where: str, said: str) -> None:
+    """Refuses gains no servo runs at: kp must be > 0 (a servo at kp 0 holds
+    nothing, and a fit could not see its kp), kd >= 0, both finite and at
+    most KP_MAX / KD_MAX."""
+    top, unit = (KP_MAX, "N·m/rad") if key == "kp" else (KD_MAX, "N·m·s/rad")
+    at = f"{where}: {said}" if said else where
+    for v in values:
+        if not math.isfinite(v):
+            raise LogError(f"{at}: {v} is not a finite number: write the gains in use")
+        if key == "kp" and v <= 0:
+            raise LogError(f"{at}: kp must be > 0 ({v:g}): a servo at kp 0 does not hold its joint; "
+                           "write the gains in use")
+        if v < 0:
+            raise LogError(f"{at}: {key} must be >= 0 ({v:g}): write the gains in use")
+        if v > top:
+            raise LogError(f"{at}: {key} {v:g} is past {top:g} {unit}, more than any servo delivers "
+                           f"(a {key} of {top:g} asks {top / 1e3:g} N·m per mrad{'' if key == 'kp' else '/s'} "
+                           f"of error): it is likely in other units (per degree, firmware counts); "
+                           f"write {unit}")
+
+
+def sources(stated: Mapping[str, Sequence[tuple[str, str]]] | None,
+            defaults: Mapping[str, str | None] | None) -> dict[str, list[tuple[str, str]]]:
+    """Each header key's values said outside the log: the caller's, then --KEY's."""
+    out = {k: list(v) for k, v in (stated or {}).items()}
+    for key, v in (defaults or {}).items():
+        if v is not None:
+            out.setdefault(key, []).append((str(v), f"--{key} {v}"))
+    return out
+
+
+def settle(meta: dict[str, str], where: dict[str, str], said: dict[str, str],
+           given_by: Mapping[str, Sequence[tuple[str, str]]], name: str, acts: list[str],
+           ranges: Mapping[str, tuple[float, float] | None], advice: str) -> None:
+    """Every source of a key agrees with the log's own (which it fills in
+    where the log says nothing); gains nobody states are refused."""
+    for key, given in given_by.items():
+        if given and key not in meta:
+            (meta[key], said[key]), where[key] = given[0], name
+            given = given[1:]
+        for v, w in given:
+            _agree(key, (meta[key], where[key], said[key]), (v, w), len(acts), ranges, acts)
+    for key in ("kp", "kd"):
+        if key not in meta:
+            raise LogError(f"{name}: no '# {key}:' line and no {key} given for it: " + (
+                advice or f"write e.g. '# kp: 5' and '# kd: 0.1' above the header, or give --{key}"))
+
+
+def _agree(key: str, have: tuple[str, str, str], other: tuple[str, str], n: int,
+           ranges: Mapping[str, tuple[float, float] | None], acts: list[str]) -> None:
+    """Two sources of one header key (the log's own line or columns, a
+    flag, the file's name) must say the same (``have``: the value, where
+    and how it was said; ``other``: the value and how): a disagreement is
+    refused, never settled silently (issue 49, item 10)."""
+    (value, where, said), (value2, said2) = have, other
+    name = where.split(", line ")[0]
+    if key == "held":
+        same = (held_angles(value, ranges, acts, f"{where}: {said}")
+                == held_angles(value2, ranges, acts, f"{name}: {said2}"))
+    else:
+        a = gains(value, n, key, where, said)
+        b = gains(value2, n, key, name, said2)
+        same = bool(np.allclose(a, b, rtol=1e-9, atol=0.0))
+    if not same:
+        raise LogError(f"{where}: {said} and {said2} disagree: say the {key} it ran at once (drop one, or fix "
+                       "the other)")
+
+
+def gain_columns(data: dict[str, np.ndarray], header: list[str], keys: list[str | None], acts: list[str],
+                 key: str, said: str | None, name: str) -> tuple[str, str]:
+    """Gains logged as columns (a command message's per-motor kp, kd): each
+    constant through the log, and the same as a header line that says them."""
+    values = []
+    for a in acts:
+        col = data[f"{a}.{key}"]
+        if (bad := np.flatnonzero(col != col[0])).size:
+            own = header[keys.index(f"{a}.{key}")]
+            raise LogError(f"{name}, column '{own}': {key} changes during the log ({col[0]:g} to "
+                           f"{col[bad[0]]:g}): fit replays one gain per log; split the log where it changes")
+        values.append(float(col[0]))
+    text = ",".join(repr(v) for v in values)
+    if said is not None:
+        try:
+            same = [float(v) for v in said.split(",")]
+        except ValueError:
+            same = []
+        if not (same == values or (len(same) == 1 and set(values) == set(same))):
+            raise LogError(f"{name}: the {key} columns ({text}) and '# {key}: {said}' disagree: keep one")
+    return text, f"{name}, the {key} columns"
+
+
+def held_angles(text: str, ranges: Mapping[str, tuple[float, float] | None], logged: list[str],
+                where: str) -> dict[str, float]:
+    """``held``: one angle (rad) for every actuator the log does not cover,
+    or ACTUATOR=RAD,... (the others at the model's rest pose)."""
+    out: dict[str, float] = {}
+    for item in (x.strip() for x in text.split(",") if x.strip()):
+        act, eq, v = item.rpartition("=")
+        act = act.strip() if eq else ""
+        value = finite(v, lambda inf: f"{where}: held '{item}' is not a finite angle: give the angle in rad"
+                       if inf else f"{where}: held '{item}' is not RAD or ACTUATOR=RAD: write e.g. "
+                       "'held: 0' or 'held: leg_front_r_1=0,leg_front_r_2=0.5'")
+        if act and act not in ranges:
+            raise LogError(f"{where}: held '{item}' names no actuator of the model: use the model's "
+                           "actuator names")
+        if act in logged:
+            raise LogError(f"{where}: held '{item}': {act} is in the log, which says what it did: "
+                           "drop it from held")
+        out[act] = value
+    if "" in out and len(out) > 1:
+        raise LogError(f"{where}: held '{text}' mixes one angle for all with per-actuator ones: give one form")
+    for act, value in out.items():
+        # a held angle past the joint's range is a typo or another unit, and the replay could not hold it
+        for a in [act] if act else [a for a in ranges if a not in logged]:
+            rng = ranges[a]
+            if rng is not None and not rng[0] <= value <= rng[1]:
+                raise LogError(f"{where}: the held angle {value:g} rad is outside {a}'s range [{rng[0]:.3g}, {rng[1]:.3g}] "
+                               "rad: give the angle the joint held, in rad, inside its range")
+    return out
+
+
+def finite(text: str, says: Callable[[bool], str]) -> float:
+    """``text`` as a finite number, else a LogError: ``says(True)`` where it
+    is a number but not finite, ``says(False)`` where it is none."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise LogError(says(False)) from None
+    if not math.isfinite(v):
+        raise LogError(says(True))
+    return v

@@ -33,6 +33,7 @@ rest has followed it), and the lowest goes on with the latency free."""
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
 from typing import Any
 
@@ -78,13 +79,40 @@ def parse_start(start: str | Mapping[str, float] | None, names: list[str]) -> di
         try:
             v = float(value)
         except (TypeError, ValueError):
-            raise FitError(f"--start {key}={value} is not a number") from None
+            raise FitError(_not_a_number(key, value)) from None
         _, lo, hi = PARAMS[key]
         if not (math.isfinite(v) and lo <= v <= hi):
             raise FitError(f"--start {key}={value} lies outside {key}'s bounds [{lo:g}, {hi:g}]: give a value "
                            "inside them")
         out[key] = v
     return out
+
+
+#: Time units a value may be written in by habit (``lag=5ms``), and their factor to s.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
+_WITH_UNIT = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\d\s.+-][^\s]*)\s*$")
+
+
+def _not_a_number(key: str, value: Any) -> str:
+    """--start KIND=VALUE's refusal: what the value is in and, where it was
+    written with a time unit, the number to write."""
+    unit = PARAMS[key][0]
+    said = f"{key} is in seconds" if unit == "s" else f"{key} is in {unit}" if unit else f"{key} is a plain ratio"
+    m = _WITH_UNIT.match(str(value))
+    if m and m.group(2) in TIME_UNITS:
+        if unit != "s":
+            return (f"--start {key}={value} is not a number: {said}, not a time; write the number alone, e.g. "
+                    f"--start {key}={_example(key)}")
+        v = float(m.group(1)) * TIME_UNITS[m.group(2)]
+        return f"--start {key}={value} is not a number: {said}; write it without the unit: --start {key}={v:g}"
+    if m:
+        return f"--start {key}={value} is not a number: {said}; write it without the unit: --start {key}={m.group(1)}"
+    return f"--start {key}={value} is not a number: {said}; write e.g. --start {key}={_example(key)}"
+
+
+def _example(key: str) -> str:
+    _, lo, hi = PARAMS[key]
+    return f"{(lo + hi) / 2 if lo > 0 else hi / 4:g}"
 
 
 def _delays(pb: _Problem) -> list[int]:
