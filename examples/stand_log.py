@@ -34,6 +34,7 @@ import gzip as _gzip
 import io
 import math
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -122,14 +123,16 @@ def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, f
               start: float = 1732600000.25, noise: float = 1e-3, held_columns: bool = False,
               clock: bool = True, velocity_lag: float = VELOCITY_LAG, amplitude: float = AMPLITUDE,
               gzip: bool = False, freqs: tuple[float, ...] = FREQS, motor_name: str = MOTOR,
-              prefix: str = "fr_knee") -> Path:
+              prefix: str = "fr_knee", real2sim: bool = False) -> Path:
     """Plays the stepped sine on the stand and writes the loop's log (no
     header lines: the gains are the command line's to give). ``truth``:
     the stand's values (TRUTH's keys; ``lag`` and ``latency`` default 0);
     ``clock``: rows on time, stamps late (else each row at its stamp);
     ``amplitude``: the sine's (rad); ``gzip``: compressed as the bench's tool does (``gzip -n -9``);
     ``freqs``: the stepped sine's frequencies (Hz; fewer make a shorter log);
-    ``motor_name``: the motor on the stand, its columns named ``prefix``_cmd, ``prefix``_pos, ...."""
+    ``motor_name``: the motor on the stand, its columns named ``prefix``_cmd, ``prefix``_pos, ....;
+    ``real2sim``: in the Pupper team's real2sim format instead (``REAL2SIM``: the motor by its index, the
+    columns' units in their names, the time since the sine faded in)."""
     truth = {"lag": 0.0, "latency": 0.0, **truth}
     m = hardware(kp, kd, truth, motor_name)
     d = mujoco.MjData(m)
@@ -166,6 +169,9 @@ def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, f
     qd = qd + 0.05 * rng.standard_normal(len(qd))
     with io.StringIO(newline="") as f:
         w = csv.writer(f, lineterminator="\n")
+        if real2sim:
+            _real2sim(w, ts - ts[0], cmd, q, qd, motor, amplitude, freqs)
+            return _written(path, f.getvalue().encode(), gzip)
         extra = ["fr_hip_cmd", "fr_hip_pos", "fr_hip_vel"] if held_columns else []
         w.writerow([f"{prefix}_{c}" for c in ("cmd", "kp", "kd", "pos", "vel", "effort")] + [*extra, "stamp"])
         for i in range(len(ts)):
@@ -173,6 +179,29 @@ def stand_log(path: Path, *, kp: float, kd: float, seed: int, truth: dict[str, f
             row += ["0.0", "0.0", "0.0"] if held_columns else []
             w.writerow(row + [f"{ts[i]:.6f}"])
         data = f.getvalue().encode()
+    return _written(path, data, gzip)
+
+
+#: The Pupper v3 real2sim logger's header (ros2_ws/src/real2sim_controller): the motor by its index in the
+#: robot's joint order, each column's unit in its name.
+REAL2SIM = ("time_since_fade_in (s)", "phase_", "amp (rad)", "freq (Hz)", "motor_idx", "policy_output",
+            "command (rad)", "motor_position (rad)", "motor_velocity (rad/s)")
+
+
+def _real2sim(w: Any, t: np.ndarray, cmd: np.ndarray, q: np.ndarray, qd: np.ndarray, motor: int,
+              amplitude: float, freqs: tuple[float, ...]) -> None:
+    """The rows as the real2sim logger writes them: the sine's phase,
+    amplitude and frequency beside the command it sent."""
+    w.writerow(REAL2SIM)
+    seg = segments(freqs)
+    for i in range(len(t)):
+        a, f = next(((a, f) for a, b, f in seg if a <= t[i] < b), (0.0, 0.0))
+        phase = 2 * math.pi * f * (t[i] - a) if f else 0.0
+        w.writerow([f"{t[i]:.6g}", f"{phase:.6g}", f"{amplitude:g}", f"{f:g}", motor, repr(float(cmd[i])),
+                    repr(float(cmd[i])), repr(float(q[i])), repr(float(qd[i]))])
+
+
+def _written(path: Path, data: bytes, gzip: bool) -> Path:
     if gzip:
         packed = bytearray(_gzip.compress(data, compresslevel=9, mtime=0))
         # the OS byte gzip writes on Linux (Python's module writes 255, "unknown")

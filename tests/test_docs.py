@@ -51,6 +51,9 @@ COMMAND_TIMEOUT_S = 600
 VOLATILE = [
     (re.compile(r"\b\d{8}-\d{6}\b"), "YYYYMMDD-HHMMSS"),  # runs/<time>-<axes>
     (re.compile(r"\b(in|took) \d+(\.\d+)? s\b"), r"\1 T s"),  # wall time
+    # off a terminal a run past 10 s says how far it is (issue 61, item 15):
+    # whether a line comes depends on the machine's speed, as a wall time does
+    (re.compile(r"(?m)^progress: .*\n?"), ""),
 ]
 
 

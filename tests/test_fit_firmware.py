@@ -169,3 +169,41 @@ def test_a_bad_motor_is_one_line(logs, tmp_path, run):
         lines = p.stderr.strip().splitlines()
         assert len(lines) == 1 and words in lines[0] and "--motor" in lines[0], p.stderr
         assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("spec", ["", "rate=250,filter=60,counts=16384,noload=25", "noise=0.002"])
+def test_the_fits_replay_is_the_rust_firmware_and_the_python_one_it_replaced(spec):
+    """Issue 60: the fit's replay runs the Rust core's firmware (torque
+    mode's own), batched over a Jacobian's rollouts, each with its own gains,
+    command delay, feedback latency, torque lag and limit; it is the
+    arithmetic the Python firmware did, to round-off, for every firmware
+    feature (rate, filter, encoder difference, torque-speed band, noise in
+    antithetic pairs)."""
+    from firmware_reference import reference_replay
+    from pupper_core._fit.replay import (DELAY_SLOT, KD_SLOT, KP_SLOT, LAG_SLOT, LATENCY_SLOT, _replay,
+                                           parse_motor)
+    from pupper_core._fit.robot import initial_state, load_robot, narrow, suspended_spec
+
+    robot = narrow(load_robot("pupper_v3"), {"leg_front_r_3"})
+    nu = len(robot.actuators)
+    spec_ = suspended_spec(robot, np.full(nu, 5.0), np.full(nu, 0.25), firmware=True)
+    m = spec_.compile()
+    models = []
+    for b in range(4):
+        mb = spec_.compile()
+        mb.actuator_gainprm[:, KP_SLOT] = 5 * (1 + 0.1 * b)
+        mb.actuator_gainprm[:, KD_SLOT] = 0.25 * (1 - 0.1 * b)
+        mb.actuator_gainprm[:, DELAY_SLOT] = 0.0137 + 0.001 * b
+        mb.actuator_gainprm[:, LATENCY_SLOT] = 0.0031 * b
+        mb.actuator_gainprm[:, LAG_SLOT] = 0.007 * (b % 3)
+        mb.actuator_forcelimited[:] = 1
+        mb.actuator_forcerange[:] = [-1.5 - 0.3 * b, 1.5 + 0.3 * b]
+        models.append(mb)
+    t = np.arange(600) * m.opt.timestep
+    one = np.stack([0.4 * np.sin(2 * np.pi * (2 + 3 * a) * t) for a in range(nu)], axis=1)
+    control = np.stack([one] * 4)
+    x0 = np.stack([initial_state(m, robot, np.zeros(nu), np.zeros(nu), one[0])] * 4)
+    fw = parse_motor(spec, m.opt.timestep) or __import__("pupper_core._fit.replay", fromlist=["Firmware"]).Firmware()
+    want, got = reference_replay(fw, models, control, x0), _replay(fw, models, control, x0)
+    assert np.abs(want[0]).max() > 0.1  # the joints moved
+    assert np.allclose(got[0], want[0], rtol=0, atol=1e-9) and np.allclose(got[1], want[1], rtol=0, atol=1e-9)

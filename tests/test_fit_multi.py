@@ -91,9 +91,10 @@ def test_two_motors_logs_fit_together_sharing_the_motors_parameters(bench):
     assert kp == pytest.approx(SCALE_KP, rel=0.03)
     assert float(fit["kp_scale"]["low95"]) <= SCALE_KP <= float(fit["kp_scale"]["high95"])
     assert float(fit["kd_scale"]["fitted"]) == pytest.approx(SCALE_KD, rel=0.06)
-    # a motor parameter goes to every motor of the type in calibrated.xml, a link's to its joint
+    # a motor parameter goes to every motor of the type in calibrated.xml, a link's to its joint and
+    # the same joint of the legs no log covers (the legs are built alike: issue 59)
     assert len(fit["kp_scale"]["actuators"].split()) == 12
-    assert fit[f"armature.{KNEE}"]["actuators"] == KNEE
+    assert fit[f"armature.{KNEE}"]["actuators"].split() == [KNEE, "leg_front_l_3", "leg_back_r_3", "leg_back_l_3"]
     # each log is compared on the motor it logs, and says so
     with open(d / "shared" / "residuals.csv", newline="") as f:
         per_log = {(r["log"], r["actuator"]) for r in csv.DictReader(f)}

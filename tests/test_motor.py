@@ -120,7 +120,8 @@ def test_a_torque_lag_costs_the_loop_its_phase():
         (["--mode", "torque", "--motor", "filtr=10"], "did you mean 'filter'"),
         (["--mode", "torque", "--motor", "delay=-0.1"], ">= 0"),
         (["--mode", "torque", "--motor", "counts=1.5"], "whole number"),
-        (["--mode", "torque", "--motor", "lag=0"], "> 0"),
+        # lag=0 is no lag (issue 61, item 8); 10, 10 ms typed bare, is refused
+        (["--mode", "torque", "--motor", "lag=10"], "write lag=0.01"),
     ],
 )
 def test_a_bad_motor_is_one_line_and_writes_nothing(run, tmp_path, args, words):

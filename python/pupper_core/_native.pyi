@@ -182,7 +182,14 @@ def pose(model: str = ..., variant: str = ..., depth: float | None = ...) -> dic
     """What `pupper pose --json` prints, as a dict."""
 
 def loop_margins(inertia: float, kp: float, kd: float, *, motor: str | None = ...,
-                 sensing_delay: float | None = ..., timestep: float) -> tuple[float, float]: ...
+                 sensing_delay: float | None = ..., timestep: float, damping: float = ...,
+                 lag: float = ..., latency: float = ..., fitted: bool = ...) -> tuple[float, float]: ...
+def fit_run(dir: str | PathLike[str]) -> str:
+    """The calibrated model of a `pupper fit` run, the run checked against its manifest first."""
+def loop_response(inertia: float, kp: float, kd: float, hz: Sequence[float], *, motor: str | None = ...,
+                  sensing_delay: float | None = ..., timestep: float, damping: float = ..., lag: float = ...,
+                  latency: float = ..., command_delay: float = ..., fitted: bool = ...) -> list[tuple[float, float]]:
+    """The closed loop of `loop_margins`' joint from its target: (gain dB, phase deg) per frequency."""
 def gains(model: str = ..., *, kp: float | None = ..., kd: float | None = ..., bandwidth: float | None = ...,
           damping: float = ..., pose: list[float] | None = ..., integrator: str | None = ...,
           motor: str | None = ..., sensing_delay: float | None = ...) -> dict[str, Any]:
@@ -292,6 +299,12 @@ def load_run(run_dir: str) -> SweepResult:
 
 def read_manifest(dir: str) -> dict[str, Any]:
     """The manifest of a run directory, as a dict."""
+
+def clear_run(dir: str) -> None:
+    """Every file an older run of any kind left in `dir` removed (--force)."""
+
+def check_kind(dir: str, kind: str) -> None:
+    """Refuses to resume `dir` as a `kind` run when another kind's run is there."""
 
 def builtin_model(name: str) -> Any:
     """A built-in model compiled as the CLI compiles it (a `mujoco.MjModel`)."""

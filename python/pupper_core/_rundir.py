@@ -221,6 +221,27 @@ def locked(out_dir: Path, error: Callable[[str], Exception]) -> Iterator[None]:
                 f.truncate(0)
 
 
+def clear_run(out_dir: Path) -> None:
+    """Every file an older run of any kind left in ``out_dir`` removed
+    (``--force``), and its ``plots/`` and ``robots/`` once empty, so that
+    nothing of it outlives the new run: the one rule every kind follows
+    (the list is Rust's, ``pupper_core::results::clear``). A user's own
+    files stay; a FIFO or a device where a run file would be is
+    `OutputError`, with nothing removed."""
+    from pupper_core import _native
+
+    _native.clear_run(os.fspath(out_dir))
+
+
+def check_kind(out_dir: Path, kind: str) -> None:
+    """Refuses to resume ``out_dir`` as a ``kind`` run when another kind's
+    run is there: a `PupperError` (kind ``resume_mismatch``), one line
+    naming both kinds."""
+    from pupper_core import _native
+
+    _native.check_kind(os.fspath(out_dir), kind)
+
+
 def sayer(progress: bool | Callable[[str], None]) -> Callable[[str], None]:
     """Where a kind's progress lines go: a callable of the caller's, stderr
     (True), or nowhere."""

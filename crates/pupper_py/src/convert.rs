@@ -18,7 +18,9 @@ pub(crate) fn to_dict<'py, T: serde::Serialize>(
     py: Python<'py>,
     v: &T,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let text = serde_json::to_string(v).map_err(|e| InternalError::new_err(e.to_string()))?;
+    // ±inf as Python's floats (serde_json writes null, losing the sign)
+    let text = pupper_core::results::json::to_python_text(v)
+        .map_err(|e| InternalError::new_err(e.to_string()))?;
     PyModule::import(py, "json")?
         .getattr("loads")?
         .call1((text,))

@@ -17,7 +17,7 @@ mod result;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use commands::{cli, hold, lab, model, record, response, runs, sweep};
+use commands::{cli, hold, lab, model, record, replay, response, runs, sweep};
 use error::{
     ClusterError, ConfigError, DisplayError, GridError, InternalError, ModelError, MujocoError,
     OutputError, PupperError,
@@ -54,11 +54,16 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(model::pose, m)?)?;
     m.add_function(wrap_pyfunction!(model::gains, m)?)?;
     m.add_function(wrap_pyfunction!(model::loop_margins, m)?)?;
+    m.add_function(wrap_pyfunction!(model::loop_response, m)?)?;
+    m.add_function(wrap_pyfunction!(model::fit_run, m)?)?;
+    m.add_function(wrap_pyfunction!(replay::firmware_replay, m)?)?;
     m.add_function(wrap_pyfunction!(progress::_shutdown, m)?)?;
     m.add_function(wrap_pyfunction!(runs::best_rows, m)?)?;
     m.add_function(wrap_pyfunction!(result::_result_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::sweep, m)?)?;
     m.add_function(wrap_pyfunction!(runs::read_manifest, m)?)?;
+    m.add_function(wrap_pyfunction!(runs::clear_run, m)?)?;
+    m.add_function(wrap_pyfunction!(runs::check_kind, m)?)?;
     m.add_function(wrap_pyfunction!(runs::load_run, m)?)?;
     m.add_function(wrap_pyfunction!(runs::merge, m)?)?;
     m.add_function(wrap_pyfunction!(lab::lab, m)?)?;

@@ -51,7 +51,7 @@ from pupper_core._rundir import flush_stdout, printing, say
 from pupper_core._fit.excitation import _excite, excite
 from pupper_core._fit.judge import _judge, disagreements, fit_entries, motor_types
 from pupper_core._fit.solve import _check_memory, _Progress, _solve
-from pupper_core._fit.firmware import Firmware, parse_motor
+from pupper_core._fit.replay import Firmware, parse_motor
 from pupper_core._fit.jacobian import jacobian_fn, rollouts_per_jacobian
 from pupper_core._fit.output import _write_run
 from pupper_core._fit.problem import FitResult, _Problem, _problem, _read_logs, _Solution, as_replayed, narrowed
@@ -59,6 +59,7 @@ from pupper_core._fit.robot import BUILTINS as BUILTINS
 from pupper_core._fit.robot import initial_state as initial_state
 from pupper_core._fit.robot import simulate as simulate
 from pupper_core._fit.robot import Robot, load_robot, suspended_spec
+from pupper_core._fit.robots import robots as drawn_robots
 from pupper_core._fit.start import GRID, parse_start, starts
 from pupper_core._fit.sysid import (
     Predictions,
@@ -181,10 +182,15 @@ def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Ma
         # outcome is checked and said below, numpy's warnings would only leak
         with np.errstate(all="ignore"):
             pb = _problem(sysid, robot, read, names, per, firmware)
-            sol = _solve(sysid, pb, max_iters, begin, _Progress(progress))
+            told = _Progress(progress)
+            sol = _solve(sysid, pb, max_iters, begin, told)
             val = validate_logs(sysid, pb, sol, held_out, names, per) if held_out else None
+            drawn = drawn_robots(pb, sol)
         result = _result(pb, sol, out_dir, time.perf_counter() - started, val, per)
-        result.notes = notes + pb.notes + _lag_notes(result.table, pb.robot.timestep)
+        result.robots = drawn
+        result.rollouts, result.replay_seconds = told.rollouts, told.once
+        result.notes = (notes + pb.notes + _lag_notes(result.table, pb.robot.timestep)
+                        + _timing_note(result.table, names, pb.logs, pb.robot.timestep))
         result.delay_scan = sol.scan
         if out_dir is not None:
             _write_run(out_dir, result, pb, sol, model, names, per, force, plot, val)
@@ -194,17 +200,30 @@ def fit(logs: Sequence[str | os.PathLike[str] | tuple[str | os.PathLike[str], Ma
 
 def _lag_notes(table: list[dict[str, Any]], timestep: float) -> list[str]:
     """Where the fit found a torque lag: how it reaches a simulation (the
-    firmware's, not the model's: MuJoCo's servo has none to set)."""
+    firmware's, not MuJoCo's servo: that has none to set)."""
     lags = [r for r in table if str(r["parameter"]).partition(".")[0] == "lag"
             and lag_matters(float(r["fitted"]), timestep)]
     if not lags:
         return []
-    most = max(float(r["fitted"]) for r in lags)
     each = ", ".join(f"{r['parameter']} {float(r['fitted']) * 1e3:.3g} ms" for r in lags)
-    return [f"the servo's torque lag ({each}) "
-            "is the firmware's: calibrated.xml keeps it as a pupper:lag numeric that pupper's simulations do not "
-            f"apply; run them in torque mode with --motor lag={most:.4g} (recommend --from-fit adds it)"]
+    return [f"the servo's torque lag ({each}) is in calibrated.xml (pupper:lag numerics): torque mode runs it "
+            "(--mode torque), and gains and recommend close the loop through it; MuJoCo's servo (servo mode) has "
+            "none"]
 
+
+def _timing_note(table: list[dict[str, Any]], names: Sequence[str], logs: Sequence[JointLog],
+                 timestep: float) -> list[str]:
+    """Where the fit read the logs' timing as a command delay alone: at one
+    kp a feedback latency (which costs the loop phase) looks the same in
+    the logs, so the loop's margins depend on a reading they cannot make."""
+    delays = [float(r["fitted"]) for r in table if str(r["parameter"]).partition(".")[0] == "delay"]
+    if "latency" in names or not delays or max(delays) <= timestep:
+        return []
+    kps = {round(float(v), 9) for lg in logs for v in np.ravel(lg.kp)}
+    how = ("logs at one kp cannot tell it from a feedback latency, which costs the loop phase (recommend states "
+           "the margins under both readings); logs at two kps and --params ...,latency tell them apart"
+           if len(kps) < 2 else "add latency to --params: the logs, at two kps, can tell a feedback latency apart")
+    return [f"the logs' timing is fitted as a command delay ({max(delays) * 1e3:.3g} ms): {how}"]
 
 
 def _log_options(columns: Any, kp: Any, kd: Any, held: Any) -> tuple[ColumnMap | None, dict[str, str | None]]:
@@ -264,6 +283,11 @@ def _cli_fit(args_json: str) -> list[str]:
             print(f"{name}: RMS angle error {b:.3f} -> {f:.3f} mrad (mean over {n} joint{'s' if n > 1 else ''})")
         if res.validation:
             print_table(res.validation)
+        if res.robots is not None:
+            r = res.robots
+            print(f"robots the logs allow: {len(r.rms)} drawn from the fit's joint distribution (robots.csv); "
+                  f"replayed on the logs, the worst's RMS angle error is {max(r.rms) * 1e3:.3f} mrad against the "
+                  f"fit's {r.fitted_rms * 1e3:.3f} (x{r.worst_ratio:.2f})")
         for note in res.notes:
             say(f"note: {note}")
         for w in res.warnings:
@@ -274,6 +298,8 @@ def _cli_fit(args_json: str) -> list[str]:
     wrote = [str(res.out / n) for n in ("fit.csv", "residuals.csv", "calibrated.xml")]
     if res.validation:
         wrote += [str(res.out / n) for n in ("validation.csv", "validation_bode.csv") if (res.out / n).is_file()]
+    if res.robots is not None:
+        wrote.append(str(res.out / "robots.csv"))
     if res.warnings:
         wrote.append(str(res.out / "warnings.csv"))
     if (res.out / "plots").is_dir():

@@ -156,7 +156,7 @@ def _draw_spread(sysid: Any, pb: _Problem, opt: Any, jac: np.ndarray, r_star: li
     logs' damping by 0.9 % (1 sigma) against the hardware's noise's 1.3 %."""
     from dataclasses import replace
 
-    from pupper_core._fit.firmware import DRAWS
+    from pupper_core._fit.replay import DRAWS
 
     assert pb.firmware is not None
     x = opt.as_vector()
@@ -219,8 +219,8 @@ def _judge(pb: _Problem, sol: _Solution, table: list[dict[str, Any]]) -> list[st
     if "latency" in kinds and "delay" in kinds and (math.isinf(float(sol.half[kinds["latency"]]))
                                                    or math.isnan(float(sol.half[kinds["latency"]]))):
         out.append("latency and delay: the logs cannot tell the feedback latency (inside the loop: it changes "
-                   "the resonance) from the command delay (outside it: a pure lag); add a log at another kp or kd, "
-                   "or fit one of them")
+                   "the resonance) from the command delay (outside it: a pure lag); add a log at another kp (another kd "
+                   "does not separate them: at one kp a latency reads as less damping), or fit one of them")
     if sol.source == "model error":
         rms = float(np.mean([np.mean(a) for a in sol.after])) * 1e3
         out.append(f"the residual ({rms:.3g} mrad RMS) is structure the model cannot follow, not noise: each "
@@ -261,7 +261,8 @@ def _confounded(pb: _Problem, sol: _Solution) -> list[str]:
             if apart:
                 out.append(f"{a_name} and {b_name} are confounded (correlation {c:+.2f}): the logs cannot tell "
                            "the feedback latency (inside the loop: it changes the resonance) from the command "
-                           "delay (outside it: a pure lag); add a log at another kp or kd, or fit one of them")
+                           "delay (outside it: a pure lag); add a log at another kp (another kd does not separate "
+                           "them: at one kp a latency reads as less damping), or fit one of them")
             elif a_mem == b_mem and {a_kind, b_kind} == {"damping", "kd_scale"}:
                 out.append(f"{a_name} and {b_name} are confounded (correlation {c:+.2f}): the logs "
                            "show only their sum; add a log at another kd (pupper excite --kd) or a torque column")

@@ -5,6 +5,8 @@ behind the intervals (``judge``)."""
 
 from __future__ import annotations
 
+import math
+
 import io
 import sys
 import time
@@ -14,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from pupper_core._rundir import say
+from pupper_core._run.progress import EVERY_S, FIRST_S, clock
 from pupper_core._fit.jacobian import jacobian_fn
 from pupper_core._fit.problem import _Problem
 from pupper_core._fit.start import GRID
@@ -146,18 +149,45 @@ class _Progress:
             self.say = say
         else:
             self.say = None
+        # off a terminal (nohup, CI, a pipe): a plain line now and then, as
+        # build tools print; a fit shorter than FIRST_S prints none
+        self.plain = bool(progress) and not callable(progress) and self.say is None
         self.rollouts = 0
+        #: one replay of every log (s), timed before the fit starts
+        self.once = math.nan
         self.started = time.perf_counter()
         self.stage = ""
+        self.expected = ""
+        self.due = FIRST_S
 
     def __call__(self, line: str) -> None:
         if self.say is not None:
             self.say(f"fit: {line}")
+        elif self.plain:
+            self.tick(line)
+
+    def tick(self, line: str | None = None) -> None:
+        """Off a terminal: ``line`` (or where the fit stands) on stderr once
+        FIRST_S seconds have passed, then every EVERY_S; the first says
+        what the fit is and how long it should take."""
+        spent = time.perf_counter() - self.started
+        if line is not None and not self.expected:
+            self.expected = line  # the first line a fit says: its expected time
+        if not self.plain or spent < self.due:
+            return
+        now = line or f"{self.rollouts} rollouts{f' ({self.stage})' if self.stage else ''}"
+        if self.due == FIRST_S:
+            head = f"running for {clock(spent)}: {self.expected}; " if self.expected != now else ""
+            say(f"progress: fit {head}{now}; a line every {EVERY_S:.0f} s")
+        else:
+            say(f"progress: fit {now}, {clock(spent)}")
+        self.due = spent + EVERY_S
 
     def counting(self, residual_fn: Any, logs: int) -> Any:
         """``residual_fn``, counting its rollouts (a column of x per log)."""
         def counted(x: np.ndarray, params: Any, **kw: Any) -> Any:
             self.rollouts += logs * (1 if np.ndim(x) == 1 else int(np.shape(x)[1]))
+            self.tick()
             return residual_fn(x, params, **kw)
         return counted
 
@@ -165,6 +195,7 @@ class _Progress:
         """The expected time, from one replay of every log (``once`` s): a
         Levenberg–Marquardt iteration replays them about (parameters + 2)
         times, and a fit takes TYPICAL_ITERS iterations or so."""
+        self.once = once
         n = len(pb.labels)
         per_iter = once * (n + 2)
         typical = once * GRID + per_iter * min(TYPICAL_ITERS, max_iters)
@@ -174,7 +205,7 @@ class _Progress:
 
     def iteration(self, trace: list[Any]) -> None:
         _lean(trace)
-        if self.say is None:
+        if self.say is None and not self.plain:
             return
         stage = f" ({self.stage})" if self.stage else ""
         self(f"iteration {len(trace)}{stage}: cost {float(trace[-1].objective):.6g}, {self.rollouts} rollouts, "

@@ -5,6 +5,7 @@ written beside it and moved in whole."""
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import os
 import shutil
@@ -13,12 +14,12 @@ from typing import Any
 
 import numpy as np
 
-from pupper_core._rundir import refuse_non_regular
-from pupper_core._fit.cover import type_sets
+from pupper_core._rundir import clear_run, refuse_non_regular
+from pupper_core._fit.cover import LINK_KINDS, type_sets
 from pupper_core._fit.problem import FitResult, _Problem, _Solution
 from pupper_core._fit.robot import Robot, _history_samples
 from pupper_core._fit.sysid import _predictions
-from pupper_core._fit.terms import NOISE_FLOOR, SCALE_NUMERIC, FitError
+from pupper_core._fit.terms import GROUPS, NOISE_FLOOR, SCALE_NUMERIC, FitError
 from pupper_core._fit.validate import Validation
 from pupper_core._fit.validate import write as write_validation
 
@@ -39,9 +40,8 @@ def _write_run(out: Path, res: FitResult, pb: _Problem, sol: _Solution, model: A
         if val is not None:
             write_validation(stage, val)
         out.mkdir(parents=True, exist_ok=True)
-        # a --force run's validation is this run's, or none
-        for old in [out / "validation.csv", out / "validation_bode.csv", *out.glob("plots/validate_*.png")]:
-            old.unlink(missing_ok=True)
+        # nothing of an older run (--force, of any kind) outlives this one
+        clear_run(out)
         staged = [f for f in sorted(stage.rglob("*")) if f.is_file()]
         # none moved over a FIFO or a device: all refused before any moves
         for f in staged:
@@ -92,6 +92,8 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
                                 repr(res.rms_after[lg.path.name][k])])
 
     atomic_write(out / "residuals.csv", residuals)
+    if res.robots is not None:
+        _write_robots(out, res)
     _write_warnings(out, res)
     xml = _calibrated_xml(robot.full, _whole_labels(robot, pb.labels, per), x)
     atomic_write(out / "calibrated.xml", lambda tmp: _write_text(tmp, xml))
@@ -113,6 +115,10 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
                       "floored": res.floored, "correlation_time_samples": res.correlation_time,
                       "source": res.interval_source},
         "versions": {"mujoco": mujoco.__version__, "pupper": _version()},
+        **({"robots": res.robots.manifest()} if res.robots is not None else {}),
+        # the bytes of what a reader believes (recommend and gains --from-fit check them)
+        "outputs": {n: hashlib.sha256((out / n).read_bytes()).hexdigest()
+                    for n in ("fit.csv", "calibrated.xml", "robots.csv") if (out / n).is_file()},
     }
     atomic_write(out / "manifest.json", lambda tmp: _write_text(tmp, json.dumps(manifest, indent=2) + "\n"))
 
@@ -120,6 +126,25 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
 def _write_text(path: Path, text: str) -> None:
     # a log's name that is not UTF-8 keeps its bytes
     path.write_text(text, errors="surrogateescape")
+
+
+def _write_robots(out: Path, res: FitResult) -> None:
+    """robots.csv: the robots the logs allow (``robots``), a row each with
+    its value of every fit.csv parameter and its RMS angle error over the
+    logs."""
+    from pupper_core._rundir import atomic_write
+
+    drawn = res.robots
+    names = [str(r["parameter"]) for r in res.table]
+
+    def write(tmp: Path) -> None:
+        with tmp.open("w", newline="") as f:
+            w = csv.writer(f, lineterminator="\n")
+            w.writerow(["robot", *names, "rms_rad"])
+            for k, (x, rms) in enumerate(zip(drawn.x, drawn.rms)):
+                w.writerow([k, *(repr(float(v)) for v in x), repr(float(rms))])
+
+    atomic_write(out / "robots.csv", write)
 
 
 def _write_warnings(out: Path, res: FitResult) -> None:
@@ -149,11 +174,34 @@ def _whole_labels(robot: Robot, labels: list[tuple[str, str, list[int], float]],
     (``robot.narrow``): a value per all or per group goes to every
     joint of the whole robot it stands for, as if every leg were stepped."""
     if robot.whole is None:
-        return labels
+        return _alike_joints(robot, labels)
     # a fit of several motors' logs shares the motor's parameters by type (``cover.type_sets``)
     whole = {**dict(type_sets(robot.full)), **dict(robot.full.members(per))}
-    return [(name, kind, whole.get(name[len(kind):], [robot.full.actuators.index(robot.actuators[i]) for i in members]),
-             nom) for name, kind, members, nom in labels]
+    return _alike_joints(robot, [(name, kind, whole.get(name[len(kind):], [robot.full.actuators.index(
+        robot.actuators[i]) for i in members]), nom) for name, kind, members, nom in labels])
+
+
+def _alike_joints(robot: Robot, labels: list[tuple[str, str, list[int], float]]
+                  ) -> list[tuple[str, str, list[int], float]]:
+    """The labels with a joint's own values (the link's: armature and
+    damping, fitted per joint) given to the same joint of every leg the
+    logs did not cover: the legs are built alike, and one leg's bench logs
+    calibrate the robot's (a value per joint of an unlogged leg would stay
+    nominal). A joint some label of its kind covers keeps its own; of
+    several logged joints of a group, the first label's goes to the rest."""
+    full = robot.full
+    covered: dict[str, set[int]] = {}
+    for _, kind, members, _ in labels:
+        covered.setdefault(kind, set()).update(members)
+    out = []
+    for name, kind, members, nom in labels:
+        if kind in LINK_KINDS and len(members) == 1 and full.groups[members[0]] in GROUPS:
+            group = full.groups[members[0]]
+            alike = [k for k, g in enumerate(full.groups) if g == group and k not in covered[kind]]
+            covered[kind].update(alike)
+            members = members + alike
+        out.append((name, kind, members, nom))
+    return out
 
 
 def _calibrated_xml(robot: Robot, labels: list[tuple[str, str, list[int], float]], x: np.ndarray,

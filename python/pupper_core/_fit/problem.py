@@ -4,6 +4,8 @@ nominal values, the signals compared), where the fit ended, and its result."""
 
 from __future__ import annotations
 
+import math
+
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -12,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from pupper_core._fit.firmware import Firmware
+from pupper_core._fit.replay import Firmware
 from pupper_core._fit.cover import differ, parameter_sets, sensors_by_log
 from pupper_core._fit.robot import Robot, initial_state, narrow, suspended_spec
 from pupper_core._fit.sysid import _held, _modifier, _residual_by_log, _residual_fn
@@ -52,6 +54,11 @@ class FitResult:
     delay_scan: dict[str, Any] = field(default_factory=dict)
     #: where the logs cover different actuators: the ones each log's RMS errors are of (else ``actuators``)
     log_actuators: dict[str, list[str]] = field(default_factory=dict)
+    #: the robots the logs allow (``robots``): draws from the fit's joint distribution, replayed on the logs
+    robots: Any = None
+    #: what the fit cost: the rollouts of a log it ran, and one replay of every log (s)
+    rollouts: int = 0
+    replay_seconds: float = math.nan
 
     def actuators_of(self, log: str) -> list[str]:
         """The actuators log ``log``'s RMS errors are of."""
@@ -145,6 +152,8 @@ class _Solution:
     scan: dict[str, Any] = field(default_factory=dict)
     #: where the intervals come from: "noise", "model error" (``_fit_intervals``), "floored", "none"
     source: str = "noise"
+    #: the residual's Jacobian where the fit ended (None where it kept the nominal values)
+    jac: np.ndarray | None = None
 
 
 def _read_logs(paths: Sequence[Any], robot: Robot, columns: ColumnMap | None = None,

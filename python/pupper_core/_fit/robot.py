@@ -245,7 +245,7 @@ def _torque_motor(act: Any, kp: float, kd: float) -> None:
     delay in its unused gain parameters (gainprm[1:4])."""
     import mujoco
 
-    from pupper_core._fit.firmware import DELAY_SLOT, KD_SLOT, KP_SLOT
+    from pupper_core._fit.replay import DELAY_SLOT, KD_SLOT, KP_SLOT
 
     act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
     act.biastype = mujoco.mjtBias.mjBIAS_NONE

@@ -95,7 +95,7 @@ def _solve(sysid: Any, pb: _Problem, max_iters: int, start: dict[str, float] | N
     half, corr, source, tau = _intervals(sysid, pb, residual_fn, opt, res, weights, ended)
     after = before if ended is None else _rms(ended, by_log, nu)
     return _Solution(x, half, corr, residual_fn, opt, before, after, source == "floored", warnings, tau, scan,
-                     source)
+                     source, None if res is None else np.asarray(res.jac))
 
 
 

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from pupper_core._fit.firmware import Firmware, rollout_fn
+from pupper_core._fit.replay import Firmware, rollout_fn
 from pupper_core._fit.robot import Robot
 from pupper_core._fit.terms import NOISE_FLOOR, FitError
 
@@ -54,7 +54,7 @@ def _held(t: np.ndarray, target: np.ndarray, dt: float) -> tuple[np.ndarray, np.
 
 def _modifier(kind: str, members: list[int], robot: Robot, gains: dict[int, tuple[np.ndarray, np.ndarray]],
               firmware: bool = False) -> Any:
-    from pupper_core._fit.firmware import DELAY_SLOT, KD_SLOT, KP_SLOT, LAG_SLOT, LATENCY_SLOT
+    from pupper_core._fit.replay import DELAY_SLOT, KD_SLOT, KP_SLOT, LAG_SLOT, LATENCY_SLOT
 
     slot = {"kp_scale": KP_SLOT, "kd_scale": KD_SLOT, "delay": DELAY_SLOT, "latency": LATENCY_SLOT, "lag": LAG_SLOT}
 

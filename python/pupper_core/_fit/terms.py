@@ -64,7 +64,7 @@ MEMORY_FRACTION = 0.5
 MEMORY_COPIES = 2.5
 #: The files a fit writes in its run directory (and removes if it stops).
 RUN_FILES = ("fit.csv", "residuals.csv", "calibrated.xml", "manifest.json", "warnings.csv", "report.html",
-             "validation.csv", "validation_bode.csv")
+             "validation.csv", "validation_bode.csv", "robots.csv")
 
 
 

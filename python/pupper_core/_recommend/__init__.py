@@ -30,7 +30,8 @@ from pupper_core._recommend.search import best_of, robot_model_files, windows
 from pupper_core._recommend.search import search as search_candidates
 from pupper_core._recommend.search import polish as polish_pick
 from pupper_core._recommend.result import Recommendation
-from pupper_core._rundir import is_ours_to_ignore, locked, sayer, stop_on_signals
+from pupper_core._recommend.short import NO_ANSWER, best_margins, closest
+from pupper_core._rundir import clear_run, is_ours_to_ignore, locked, sayer, stop_on_signals
 
 __all__ = ["recommend", "Recommendation", "RecommendError"]
 
@@ -149,7 +150,7 @@ def _run_in(p: Plan, out_dir: Path, force: bool, say: Callable[[str], None]) -> 
         kept = f"the candidates run so far, if any, are in {out_dir / 'trials.csv'}"
         with locked(out_dir, RecommendError), stop_on_signals("recommend", kept):
             if not made:
-                _clear(out_dir)
+                clear_run(out_dir)
             try:
                 return _run(p, out_dir, say, keep=True)
             except KeyboardInterrupt as e:
@@ -164,25 +165,6 @@ def _run_in(p: Plan, out_dir: Path, force: bool, say: Callable[[str], None]) -> 
 
             shutil.rmtree(out_dir, ignore_errors=True)
         raise
-
-
-#: What a recommend run writes in its directory (robots/ too, with --from-fit; calibrated.xml with several).
-OUTPUTS = ("recommend.csv", "trials.csv", "tradeoffs.csv", "recommended.yaml", "recommended.xml", "manifest.json",
-           "report.html", "calibrated.xml")
-
-
-def _clear(d: Path) -> None:
-    """An existing run directory (--force), before anything runs: every
-    file a run writes there refused if it is not a regular file, then the
-    older run's removed, so none of its answer (its candidates, its report)
-    outlives it whatever the new run finds."""
-    from pupper_core._rundir import refuse_non_regular
-
-    robots = sorted((d / "robots").glob("robot_*.xml")) if (d / "robots").is_dir() else []
-    for f in [d / n for n in OUTPUTS] + robots:
-        refuse_non_regular(f)
-    for f in [d / n for n in OUTPUTS] + robots:
-        f.unlink(missing_ok=True)
 
 
 def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommendation:
@@ -202,6 +184,11 @@ def _run(p: Plan, d: Path, say: Callable[[str], None], keep: bool) -> Recommenda
         rec.current = in_use(p, models, say)
         rec.cards, rec.neighbours, rec.warnings, rec.pick = card_of(p, pick, near, d, say)
         p.task.after(rec, models, say, wins)
+    else:
+        # no answer: the best available, and the gains in use beside it
+        rec.nearest = closest(p, every) or best_margins(p)
+        rec.current = in_use(p, models, say)
+        rec.short_lines = p.task.unanswered(rec, models, say)
     if keep:
         write_trials(d, p, every)
     rec.yaml, rec.mjcf = write_outputs(rec, d, keep, time.time() - started)
@@ -233,8 +220,10 @@ def _cli(args_json: str) -> list[str]:
     # card (a full disk) leaves the run whole, and says so in one line
     with printing():
         print_card(rec)
+    # no gains named is its own exit status (after the files, as they are written)
+    status = [] if rec.pick is not None else [f"status:{NO_ANSWER}"]
     if rec.out is None:
-        return []
+        return status
     merged = ("calibrated.xml",) if rec.plan.merged_xml else ()
     return [str(rec.out / f) for f in (*merged, "recommend.csv", "trials.csv", "tradeoffs.csv", "recommended.yaml",
-                                       "recommended.xml", "report.html") if (rec.out / f).exists()]
+                                       "recommended.xml", "report.html") if (rec.out / f).exists()] + status

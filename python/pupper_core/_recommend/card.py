@@ -15,6 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from pupper_core._rundir import atomic_write, atomic_write_text
+from pupper_core._recommend import short
+from pupper_core._recommend.fits import readings_line
 from pupper_core._recommend.plan import Plan
 from pupper_core._recommend.result import Card, Recommendation
 from pupper_core._recommend.search import (Candidate, better, gains_key, gains_per_actuator, simulate, slowest_hz,
@@ -30,8 +32,9 @@ EDGE = 0.05
 
 
 def _step_response(plan: Plan, xml: Path) -> dict[str, dict[str, float]]:
-    """Each group's step response at the recommended gains on the nominal
-    robot hung in the air, through the firmware (its command delay too)."""
+    """Each group's step response at the recommended gains on the model's
+    robot hung in the air (the calibrated one, with a fit), through the
+    firmware (its command delay, and a calibrated model's lag and latency)."""
     import warnings
 
     from pupper_core._run import response
@@ -76,7 +79,8 @@ def _on_margin(plan: Plan, pick: Candidate) -> list[str]:
         return []
     return [f"{', '.join(on)} sit(s) on the margin limit (phase >= {plan.min_phase_margin:g}°, gain >= "
             f"{plan.min_gain_margin:g} dB at the spread's worst corner): they hold for the firmware and the "
-            f"{plan.sensing_delay:g} s of sensing delay assumed, no more; measure the robot's latency, or raise "
+            + (f"{plan.sensing_delay:g} s of sensing delay assumed" if plan.sensing_delay is not None
+               else "latency the fit found") + ", no more; measure the robot's latency, or raise "
             "--min-phase-margin for room"]
 
 
@@ -118,7 +122,7 @@ def card_of(plan: Plan, pick: Candidate, near: Sequence[tuple[str, Candidate]], 
     if winners:
         warnings.append(f"the polish made its last move with {len(winners)} neighbour(s) that would still win "
                         f"({', '.join(winners)}): the pick may lie short of the best; raise --polish or --trials")
-    if not plan.fit_draws:
+    if not plan.fit_robots:
         # the card's robots are the exported MJCF's: MjSpec writes numbers to
         # six digits, which moves a chaotic push dip in its fourth
         pick = _on_export(plan, pick, xml, say, warnings)
@@ -242,7 +246,7 @@ def ros2_yaml(plan: Plan, pick: Candidate) -> str:
         "kds": [per[n][1] for n in plan.joint_order],
     }}}
     head = ("# " + _comment(f"pupper recommend: {plan.model}, {plan.robots} drawn robots, firmware "
-                            f"{plan.motor or 'ideal'}, sensing delay {plan.sensing_delay:g} s")
+                            f"{plan.motor or 'ideal'}, {plan.latency_words()}")
             + f"\n# kps, kds: the gains to command{_delivered_note(plan)}\n")
     return head + str(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=100))
 
@@ -350,6 +354,11 @@ def _manifest(rec: Recommendation, wall: float) -> dict[str, Any]:
             "p95_peak_torque": rec.current.p95_peak_torque, "phase_margin_deg": rec.current.phase_deg,
             "gain_margin_db": rec.current.gain_db},
         **task.manifest(rec),
+        "nearest": None if rec.nearest is None else {
+            "gains": {g: {"kp": kp, "kd": kd} for g, (kp, kd) in rec.nearest.gains.items()},
+            "how": rec.nearest.stage, "short": short.shortfall(rec.plan, rec.nearest),
+            "phase_margin_deg": rec.nearest.phase_deg, "gain_margin_db": rec.nearest.gain_db,
+            "lines": rec.short_lines},
         "candidates": len(rec.candidates),
         "cell_steps": sum(c.cell_steps for c in rec.candidates),
         "complete": True,
@@ -365,7 +374,7 @@ def constraints_line(plan: Plan) -> str:
     return (f"none fell, saturation under {100 * plan.max_saturation:g} % of steps, {sag}{plan.task.constraints()}"
             f"phase margin >= "
             f"{plan.min_phase_margin:g}°, gain margin >= {plan.min_gain_margin:g} dB (firmware {plan.motor or 'ideal'}, "
-            f"sensing delay {plan.sensing_delay:g} s)")
+            f"{plan.latency_words()})")
 
 
 def print_card(rec: Recommendation) -> None:
@@ -375,6 +384,18 @@ def print_card(rec: Recommendation) -> None:
     steps = sum(c.cell_steps for c in rec.candidates)
     if pick is None:
         print(_no_pick(rec, len(ran)))
+        if rec.nearest is not None:
+            print(short.line(plan, rec.nearest))
+        for line in rec.short_lines:
+            print(line)
+        if rec.current is not None:
+            print(in_use_line(plan, rec.current))
+        if plan.latency_from:
+            print(plan.latency_from)
+        other = readings_line(plan, rec.nearest.gains if rec.nearest else None,
+                              rec.current.gains if rec.current else None, "the best available")
+        if other:
+            print(other)
         return
     print(f"recommended gains{plan.task.heading()}, holding on each of {plan.robots} drawn robots: "
           f"{constraints_line(plan)}")
@@ -393,10 +414,13 @@ def print_card(rec: Recommendation) -> None:
         print(fits_line(plan))
     if plan.latency_from:
         print(plan.latency_from)
+    other = readings_line(plan, pick.gains, rec.current.gains if rec.current else None)
+    if other:
+        print(other)
     c0 = rec.cards[0]
     print(f"{plan.task.card_line(plan, pick, rec.searched)}; peak torque p95 {pick.p95_peak_torque:.3g} N·m of "
           f"{min(c.torque_limit for c in rec.cards):.3g} ({c0.torque_headroom_pct:.0f} % headroom); "
-          "step response: the nominal robot hung in the air")
+          f"step response: {'the calibrated' if plan.calibrated else 'the nominal'} robot hung in the air")
     if rec.current is not None:
         print(in_use_line(plan, rec.current))
     if rec.neighbours:

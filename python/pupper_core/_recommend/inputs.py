@@ -13,8 +13,9 @@ from pathlib import Path
 from typing import Any
 
 from pupper_core._fit.terms import lag_matters
-from pupper_core._recommend.fits import FitRuns, actuators, fit_runs, kind, robot_of
-from pupper_core._recommend.plan import DEFAULT_MOTOR, DEFAULT_SPREAD, FIT_MODELS, Group, Plan, RecommendError, Task
+from pupper_core._recommend.fits import (FitRuns, actuators, fit_motor, fit_robots, fit_runs, kind, robot_loops,
+                                         robot_of)
+from pupper_core._recommend.plan import DEFAULT_MOTOR, DEFAULT_SPREAD, Group, Loop, Plan, RecommendError, Task
 from pupper_core._recommend.robot_config import config_gains, current_gains, joint_order_of, read_robot_config
 from pupper_core._recommend.stand import Stand
 from pupper_core._recommend.walk import WalkTask
@@ -83,11 +84,29 @@ def _gain_scale(actuator: Mapping[str, Any]) -> tuple[float, float]:
     return float(kp), float(kd)
 
 
+def _model_loops(inf: Mapping[str, Any], rep: Mapping[str, Any], names: Sequence[str]) -> list[Loop]:
+    """Each actuator's loop on the model as it is (``rep``: its `gains`
+    report at the stand pose): its gain scales, reflected inertia, and on a
+    calibrated model its damping, torque lag and feedback latency."""
+    by_name = {str(j["actuator"]): j for j in rep["joints"]}
+    out = []
+    for a, name in zip(inf["actuators"], names):
+        j = by_name[name]
+        sp, sd = _gain_scale(a)
+        damping = float((j.get("loop") or {}).get("damping", 0.0)) if rep.get("fitted") else 0.0
+        out.append(Loop(sp, sd, float(j["inertia"]), damping, float(a.get("lag", 0.0)), float(a.get("latency", 0.0))))
+    return out
+
+
 def _groups(model: str, inf: Mapping[str, Any], kp_max: float | None, kd_max: float | None, leg: float,
-            armature_low: Mapping[str, float]) -> tuple[list[str], list[Group], float, bool]:
+            fit: tuple[Sequence[Mapping[str, str]], Sequence[Sequence[float]]] | None
+            ) -> tuple[list[str], list[Group], float, bool]:
     """The model's actuators (from its `info`), its joint groups with their
     searched ranges, its timestep, and whether motor caps bound every
-    group's kp and kd."""
+    group's kp and kd. Each group's loops: its joints on the model, their
+    link's part lightest and heaviest over the leg-mass spread; with a fit
+    (its rows and the robots its logs allow), its joints on every drawn
+    robot and on the fitted one."""
     from pupper_core._run import gains
 
     names = [str(a["name"]) for a in inf["actuators"]]
@@ -95,23 +114,26 @@ def _groups(model: str, inf: Mapping[str, Any], kp_max: float | None, kd_max: fl
     own_kd = [-float(a["biasprm"][2]) for a in inf["actuators"]]
     rep = gains(model, kp=max(own_kp[0], 1e-3), kd=max(own_kd[0], 0.0))
     numerics = _numerics(model)
+    base = _model_loops(inf, rep, names)
+    group_of = {names.index(str(j["actuator"])): str(j["group"]) for j in rep["joints"]}
     members: dict[str, list[int]] = {}
-    lo_i: dict[str, float] = {}
-    hi_i: dict[str, float] = {}
-    # a group's inertia extremes by the pair of gain scales its joints' motors have
-    loops: dict[str, dict[tuple[float, float], tuple[float, float]]] = {}
-    for j in rep["joints"]:
-        a, g, inertia = names.index(j["actuator"]), str(j["group"]), float(j["inertia"])
-        members.setdefault(g, []).append(a)
-        # the links' part scales with leg mass; a fit's armature may be as
-        # low as its interval allows (armature_low: how much lower)
-        light = max((inertia - armature_low.get(names[a], 0.0)) * (1 - leg), 1e-9)
-        heavy = inertia * (1 + leg)
-        lo_i[g] = min(lo_i.get(g, math.inf), light)
-        hi_i[g] = max(hi_i.get(g, 0.0), heavy)
-        pair = _gain_scale(inf["actuators"][a])
-        lo, hi = loops.setdefault(g, {}).get(pair, (math.inf, 0.0))
-        loops[g][pair] = (min(lo, light), max(hi, heavy))
+    for a in sorted(group_of):
+        members.setdefault(group_of[a], []).append(a)
+    if fit is not None:
+        rows, drawn = fit
+        armature = [float(j) for j in _armature(model, names)]
+        robots = [base] + [robot_loops(base, armature, rows, x, names) for x in drawn]
+        per: list[list[Loop]] = [[r[a] for r in robots] for a in range(len(names))]
+    else:
+        # the joints' least and most inertia over the leg-mass spread (the
+        # armature scaled with the link: the conservative side)
+        per = [[lp._replace(inertia=lp.inertia * (1 - leg)), lp._replace(inertia=lp.inertia * (1 + leg))]
+               for lp in base]
+    lo_i = {g: min(lp.inertia for a in m for lp in per[a]) for g, m in members.items()}
+    hi_i = {g: max(lp.inertia for a in m for lp in per[a]) for g, m in members.items()}
+    # joints alike but for round-off (a leg and its mirror) close one loop
+    loops = {g: tuple(dict.fromkeys(Loop(*(float(f"{v:.9g}") for v in lp)) for a in m for lp in per[a]))
+             for g, m in members.items()}
     # a position servo's own gains (kp, and kv as -biasprm[2]); a <motor>
     # has none (gain 1, no bias): its range comes from the caps alone
     servo = [float(a["gainprm"][0]) > 0 and float(a["biasprm"][1]) == -float(a["gainprm"][0])
@@ -140,9 +162,16 @@ def _groups(model: str, inf: Mapping[str, Any], kp_max: float | None, kd_max: fl
                                  "(kp_max= and kd_max= in Python), or pupper:kp_max:ACT and pupper:kd_max:ACT "
                                  "numerics in the model")
         groups.append(Group(name, tuple(acts), (lo_p, hi_p), (lo_d, hi_d), (lo_i[name], hi_i[name]),
-                            min(_limit(inf["actuators"][a]) for a in acts),
-                            tuple((sp, sd, lo, hi) for (sp, sd), (lo, hi) in sorted(loops[name].items()))))
+                            min(_limit(inf["actuators"][a]) for a in acts), loops[name]))
     return names, groups, float(rep["timestep"]), capped
+
+
+def _armature(model: str, names: Sequence[str]) -> list[float]:
+    """Each actuator's joint armature in the model (kg·m²)."""
+    from pupper_core.render import _load_model
+
+    m = _load_model(model)
+    return [float(m.dof_armature[m.jnt_dofadr[m.actuator_trnid[m.actuator(n).id, 0]]]) for n in names]
 
 
 def _motor(motor: str | None, command_delay: float) -> str:
@@ -155,60 +184,43 @@ def _motor(motor: str | None, command_delay: float) -> str:
     return spec
 
 
-def _torque_lag(spec: str, rows: Sequence[Mapping[str, str]], timestep: float) -> tuple[str, str]:
-    """The firmware spec with the fit's torque lag in it (``lag=``: the
-    fitted value, the largest where joints differ), and the card's words on
-    it; a ``lag=`` in --motor stands. The fitted value, not its interval's
-    upper end: on real logs the lag trades against the joint's damping
-    (correlation 0.998 on a Pupper v3 abduction motor, its interval 0.8 to
-    16 ms), and a lag at its upper end without the damping that goes with
-    it is no robot the logs allow; no gains then kept any margin, where the
-    real robot stands at its gains."""
-    lags = [(float(r["fitted"]), *_interval(r)) for r in rows if kind(r) == "lag"]
-    # a lag well under a step is none (``pupper fit`` says nothing of it either)
-    if not lags or not lag_matters(max(v for v, _, _ in lags), timestep):
-        return spec, ""
-    fitted = ", ".join(f"{v:.3g} s [{a:.3g}, {b:.3g}]" for v, a, b in lags)
-    if re.search(r"(^|,)\s*lag\s*=", spec):
-        return spec, f"; torque lag given by --motor (the fit measured {fitted})"
-    lag = max(v for v, _, _ in lags)
-    spec = f"{spec},lag={lag:.6g}" if spec else f"lag={lag:.6g}"
-    return spec, f"; torque lag {lag:.3g} s in the firmware (--motor lag=), the fit's (fit.csv: lag {fitted})"
-
-
-#: The feedback latency assumed where neither --sensing-delay nor a fit says one (s).
+#: The feedback latency assumed where neither --sensing-delay nor a calibrated model says one (s).
 SENSING_DELAY = 0.002
 
 
-def _latency(rows: Sequence[Mapping[str, str]], given: float | None) -> tuple[float, str]:
-    """The feedback latency the margins assume (s), and with a fit where
-    it and the command delay come from: a fitted latency's upper end (the
-    oldest measurements the logs allow) unless --sensing-delay is given."""
-    if not rows:
-        return (SENSING_DELAY if given is None else given), ""
-    lat = [(float(r["fitted"]), *_interval(r)) for r in rows if kind(r) == "latency"]
-    # an interval the logs could not bound places no latency
-    unplaced = [r for r in rows if kind(r) == "latency"
-                and not all(math.isfinite(float(r[k] or "nan")) for k in ("low95", "high95"))]
-    if given is not None:
-        said = f"{given:g} s, given by --sensing-delay"
-        if lat:
-            said += f" (the fit measured {max(v for v, _, _ in lat):.3g} s)"
-        sensing = given
-    elif lat and not unplaced:
-        sensing = max(0.0, max(b for _, _, b in lat))
-        said = (f"{sensing:.3g} s, the upper end of the fit's feedback latency (fit.csv: latency "
-                + ", ".join(f"{v:.3g} s [{a:.3g}, {b:.3g}]" for v, a, b in lat) + ")")
+def _values(rows: Sequence[Mapping[str, str]], k: str) -> list[tuple[float, float, float]]:
+    """The fit's rows of kind ``k``: (fitted, low95, high95)."""
+    return [(float(r["fitted"]), *_interval(r)) for r in rows if kind(r) == k]
+
+
+def _timing_words(rows: Sequence[Mapping[str, str]], sensing: float | None, motor: str | None,
+                  timestep: float) -> str:
+    """The card's line on the loop's timing with a fit: the torque lag, the
+    feedback latency and the command delay it runs, each the fit's (every
+    robot its own, drawn with the rest) or the one a flag gave instead."""
+    def said(vals: list[tuple[float, float, float]], unit: float = 1e3) -> str:
+        return ", ".join(f"{v * unit:.3g} ms [{a * unit:.3g}, {b * unit:.3g}]" for v, a, b in vals)
+
+    lags = [v for v in _values(rows, "lag") if lag_matters(v[0], timestep)]
+    if motor is not None and re.search(r"(^|,)\s*lag\s*=", motor):
+        lag = "torque lag given by --motor" + (f" (the fit measured {said(lags)})" if lags else "")
     else:
-        sensing = SENSING_DELAY
-        said = (f"{sensing:g} s, the default: the fit could not bound its feedback latency (add a log at "
-                "another kp)" if unplaced else
-                f"{sensing:g} s, the default: the fit measured no feedback latency (fit it: --params ...,latency)")
-    delays = [(float(r["fitted"]), *_interval(r)) for r in rows if kind(r) == "delay"]
-    command = ("command delay " + ", ".join(dict.fromkeys(f"{a:.3g} to {b:.3g} s" for _, a, b in delays))
-               + " drawn per robot, the fit's delay interval (fit.csv: delay)" if delays and
-               max(b for _, _, b in delays) > 1e-9 else "no command delay (the fit found none)")
-    return sensing, f"latency assumed: sensing (feedback) {said}; {command}"
+        lag = f"torque lag the fit's, each robot its own (fit.csv: lag {said(lags)})" if lags else "no torque lag"
+    lat = _values(rows, "latency")
+    unplaced = any(not all(math.isfinite(float(r[k] or "nan")) for k in ("low95", "high95"))
+                   for r in rows if kind(r) == "latency")
+    if sensing is not None:
+        latency = f"feedback latency {sensing:g} s, given by --sensing-delay" + (
+            f" (the fit measured {said(lat)})" if lat else "")
+    elif lat and not unplaced:
+        latency = f"feedback latency the fit's, each robot its own (fit.csv: latency {said(lat)})"
+    else:
+        latency = "no feedback latency (" + ("the fit could not place it: its logs are at one kp" if unplaced
+                                             else "the fit did not fit one: --params ...,latency") + ")"
+    delays = [v for v in _values(rows, "delay") if v[2] > 1e-9]
+    command = (f"command delay the fit's, each robot its own (fit.csv: delay {said(delays)})" if delays
+               else "no command delay (the fit found none)")
+    return f"the loop the fit found: {lag}; {latency}; {command}"
 
 
 def _interval(r: Mapping[str, str], floor: float = 0.0) -> tuple[float, float]:
@@ -223,49 +235,14 @@ def _interval(r: Mapping[str, str], floor: float = 0.0) -> tuple[float, float]:
     return max(a, floor), max(b, floor)
 
 
-def _scale_factors(rows: Sequence[Mapping[str, str]], parameter: str) -> tuple[float, float]:
-    """What the motors deliver of a gain, relative to the calibrated
-    model's fitted scale: the widest interval over the fit's rows."""
-    lo, hi = 1.0, 1.0
-    for r in rows:
-        if kind(r) == parameter:
-            a, b = _interval(r, 1e-6)
-            v = float(r["fitted"])
-            lo, hi = min(lo, a / v), max(hi, b / v)
-    return lo, hi
-
-
-def _actuators_of(r: Mapping[str, str], names: Sequence[str]) -> list[str]:
-    return [a for a in actuators(r) if a in names] or list(names)
-
-
-def _fit_draws(rows: Sequence[Mapping[str, str]], names: Sequence[str],
-               seed: int) -> list[list[tuple[str, list[str], float]]]:
-    """FIT_MODELS joint models, each fitted joint parameter drawn uniformly
-    inside its interval (a generator per model, keyed by the seed)."""
-    import numpy as np
-
-    draws = []
-    for k in range(FIT_MODELS):
-        rng = np.random.default_rng([seed, k])
-        one = []
-        for r in rows:
-            if kind(r) in ("armature", "damping", "frictionloss"):
-                a, b = _interval(r)
-                one.append((kind(r), _actuators_of(r, names), float(rng.uniform(a, b))))
-        draws.append(one)
-    return draws
-
-
-def _armature_low(rows: Sequence[Mapping[str, str]], names: Sequence[str]) -> dict[str, float]:
-    """By how much each actuator's armature may lie below its fitted value."""
-    out: dict[str, float] = {}
-    for r in rows:
-        if kind(r) == "armature":
-            a, _ = _interval(r)
-            for n in _actuators_of(r, names):
-                out[n] = max(out.get(n, 0.0), float(r["fitted"]) - a)
-    return out
+def _spread(spread: Sequence[str] | None, fitted: bool) -> list[str]:
+    """What differs between robots besides the fit: the given spread or
+    the default; with a fit, without what each drawn robot carries of its
+    own (its motor's gains and command delay)."""
+    base = list(DEFAULT_SPREAD if spread is None else spread)
+    if fitted:
+        base = [s for s in base if not s.strip().startswith(("motor_gain=", "motor_delay="))]
+    return base
 
 
 def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int, seed: int, seconds: float | None,
@@ -290,43 +267,36 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
     fit_dir = runs[0] if len(runs) == 1 else None
     rows, merged_xml, fitted = robot_of(runs)
     model = os.fspath(fitted or model)
-    base = list(DEFAULT_SPREAD if spread is None else spread)
+    base = _spread(spread, bool(rows))
     g, leg = _relative(base, "motor_gain"), _relative(base, "leg_mass")
-    kp_f, kd_f = _scale_factors(rows, "kp_scale"), _scale_factors(rows, "kd_scale")
-    if rows:
-        # the fit's gain scales stand for motor_gain: a draw within their interval
-        w = max(kp_f[1] - 1, 1 - kp_f[0], kd_f[1] - 1, 1 - kd_f[0])
-        base = [s for s in base if not s.strip().startswith("motor_gain=")]
-        if w > 1e-4:
-            base.append(f"motor_gain=±{100 * w:.4g}%")
-        g = 0.0
-        delays = [_interval(r) for r in rows if kind(r) == "delay"]
-        # a delay interval of round-off around 0 (a noise-free fit) is no delay
-        if delays and max(b for _, b in delays) > 1e-9:
-            base.append(f"motor_delay={min(a for a, _ in delays):.6g}:{max(b for _, b in delays):.6g}")
-    sensing_delay, latency_from = _latency(rows, sensing_delay)
+    drawn, worst = fit_robots(runs, rows) if rows else ([], math.nan)
     from pupper_core._run import info
 
     inf = info(model)
     _standing_robot(model, inf)
-    low = _armature_low(rows, [str(a["name"]) for a in inf["actuators"]])
-    names, groups, dt, capped = _groups(model, inf, kp_max, kd_max, leg, low)
-    motor_spec, lag_from = _torque_lag(_motor(motor, command_delay), rows, dt)
-    latency_from += lag_from
+    names, groups, dt, capped = _groups(model, inf, kp_max, kd_max, leg, (rows, drawn) if rows else None)
+    calibrated = any(a.get("lag") or a.get("latency") for a in inf["actuators"])
+    if rows or calibrated:
+        # the loop the fit found: its firmware, each robot's own lag and latency (the model's), no default latency
+        motor_spec = _motor(fit_motor(runs) if motor is None and rows else motor if motor is not None else "",
+                            command_delay)
+        latency_from = _timing_words(rows, sensing_delay, motor, dt) if rows else ""
+    else:
+        motor_spec = _motor(motor, command_delay)
+        sensing_delay, latency_from = (SENSING_DELAY if sensing_delay is None else sensing_delay), ""
     _servo_delay(motor_spec)
     from pupper_core._native import loop_margins, stance
 
     loop_margins(1.0, 1.0, 0.1, motor=motor_spec, sensing_delay=sensing_delay, timestep=dt)  # checks the spec
-    steps = math.ceil(sensing_delay / dt - 1e-9)
+    steps = math.ceil((sensing_delay or 0.0) / dt - 1e-9)
     if any(s.strip().startswith("delay=") for s in base):
         raise RecommendError("the sensing latency is --sensing-delay (drawn 0 to it in whole steps): "
                              "drop delay= from --spread")
-    drawn = base + ([f"delay=0:{steps}"] if steps else [])
-    kp_factors = (kp_f[0] * (1 - g), kp_f[1] * (1 + g))
-    kd_factors = (kd_f[0] * (1 - g), kd_f[1] * (1 + g))
-    if robots % max(1, FIT_MODELS if rows else 1):
-        raise RecommendError(f"--robots {robots}: with --from-fit the robots are {FIT_MODELS} drawn joint models "
-                             f"with an equal share each: give a multiple of {FIT_MODELS}")
+    drawn_spread = base + ([f"delay=0:{steps}"] if steps else [])
+    kp_factors, kd_factors = (1 - g, 1 + g), (1 - g, 1 + g)
+    if rows and robots % len(drawn):
+        raise RecommendError(f"--robots {robots}: with --from-fit the robots stand on the {len(drawn)} the fit drew "
+                             f"(its robots.csv) with an equal share each: give a multiple of {len(drawn)}")
     config = None if robot_config is None else read_robot_config(Path(robot_config), controller, names)
     if config is not None and joint_order is None:
         joint_order = config[0]
@@ -338,13 +308,13 @@ def plan(model: str | os.PathLike[str], *, robots: int, trials: int, batch: int,
     else:
         now, now_from = current_gains(current, inf, groups)
     p = Plan(model=model, actuators=names, groups=groups, timestep=dt, motor=motor_spec,
-                sensing_delay=sensing_delay, command_delay=command_delay, spread=drawn, kp_factors=kp_factors,
+                sensing_delay=sensing_delay, command_delay=command_delay, spread=drawn_spread, kp_factors=kp_factors,
                 kd_factors=kd_factors, robots=robots, trials=trials, batch=batch, seed=seed, seconds=seconds,
                 push_force=push_force, min_phase_margin=min_phase_margin, min_gain_margin=min_gain_margin,
                 max_saturation=max_saturation, joint_order=order, controller=controller, polish=polish,
                 max_sag=max_sag, stance=stance(model=model), from_fit=fit_dir, fit_rows=rows,
                 fit_runs=runs if merged_xml else [], merged_xml=merged_xml,
-                fit_draws=_fit_draws(rows, names, seed) if rows else [], current=now, current_from=now_from,
+                fit_robots=drawn, fit_robots_worst=worst, current=now, current_from=now_from,
                 caps=capped, latency_from=latency_from, task=ranked)
     ranked.check(p)
     return p

@@ -15,7 +15,7 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from pupper_core._native import ConfigError
 
@@ -130,9 +130,28 @@ class Task:
         """The card's closing lines of the task."""
         return []
 
+    def unanswered(self, rec: Any, models: Sequence[str], say: Callable[[str], None]) -> list[str]:
+        """With no gains named: what the task finds the best available can
+        still do (the walk task: the gait they walk best), as card lines."""
+        return []
+
     def manifest(self, rec: Any) -> dict[str, Any]:
         """What the manifest records of the task's own findings."""
         return {}
+
+
+class Loop(NamedTuple):
+    """One joint's servo loop, as the margins close it: what its motor
+    delivers of a commanded kp and kd, its reflected inertia (kg·m²) and
+    viscous damping (N·m·s/rad), and its fitted torque lag and feedback
+    latency (s; 0 on a model no fit calibrated)."""
+
+    kp_scale: float
+    kd_scale: float
+    inertia: float
+    damping: float = 0.0
+    lag: float = 0.0
+    latency: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -150,16 +169,16 @@ class Group:
     #: the smallest torque limit of its actuators (N·m): the force range,
     #: else (a motor) the control range, as the runs take it
     torque_limit: float
-    #: its loops by what their motors deliver of a commanded kp and kd:
-    #: (kp scale, kd scale, least inertia, most inertia), each distinct pair
-    #: of scales once with the inertia of its joints (the model's gain
-    #: scales, `pupper:kp_scale:ACT`: a fit's; (1, 1) on an uncalibrated
-    #: model). The loop is closed on the delivered gains.
-    loops: tuple[tuple[float, float, float, float], ...] = ()
+    #: its joints' loops the margins are checked on (``Loop``): each kind of
+    #: motor's scales (the model's gain scales, `pupper:kp_scale:ACT`: a
+    #: fit's; (1, 1) on an uncalibrated model) on its joints' least and most
+    #: inertia, or with a fit every drawn robot's joints as the logs allow
+    #: them. The loop is closed on the delivered gains.
+    loops: tuple[Loop, ...] = ()
 
     @property
     def scales(self) -> tuple[tuple[float, float], ...]:
-        return tuple((sp, sd) for sp, sd, _, _ in self.loops) or ((1.0, 1.0),)
+        return tuple(dict.fromkeys((lp.kp_scale, lp.kd_scale) for lp in self.loops)) or ((1.0, 1.0),)
 
     @property
     def scaled(self) -> bool:
@@ -183,7 +202,9 @@ class Plan:
     groups: list[Group]
     timestep: float
     motor: str
-    sensing_delay: float
+    #: the feedback latency given (--sensing-delay, s); None: the model's
+    #: own (a fit's, per robot; none on an uncalibrated model)
+    sensing_delay: float | None
     command_delay: float
     spread: list[str]
     #: the least and most of a commanded kp and kd the motors deliver,
@@ -213,8 +234,10 @@ class Plan:
     from_fit: Path | None
     #: the fitted values and intervals (rows of fit.csv)
     fit_rows: list[dict[str, str]] = field(default_factory=list)
-    #: with a fit: each drawn joint model's values, (parameter, actuators, value)
-    fit_draws: list[list[tuple[str, list[str], float]]] = field(default_factory=list)
+    #: with a fit: the robots its logs allow (its robots.csv), each one's value of every fit row
+    fit_robots: list[list[float]] = field(default_factory=list)
+    #: with a fit: how far the worst drawn robot is from the logs (its RMS error over the fit's)
+    fit_robots_worst: float = math.nan
     #: the gains the robot runs today, per group, set beside the pick on the
     #: card (empty: none known), and where they came from
     current: dict[str, tuple[float, float]] = field(default_factory=dict)
@@ -231,6 +254,19 @@ class Plan:
     #: what the gains are ranked for (--task)
     task: Task = field(kw_only=True)
 
+    @property
+    def calibrated(self) -> bool:
+        """Whether the robot is a calibrated model (a fit's, or a model with
+        fitted gain scales or servo times): never "the nominal robot"."""
+        return bool(self.fit_rows) or any(lp.lag or lp.latency or (lp.kp_scale, lp.kd_scale) != (1.0, 1.0)
+                                          for g in self.groups for lp in g.loops)
+
+    def latency_words(self) -> str:
+        """The feedback latency the margins assume, in a few words."""
+        if self.sensing_delay is not None:
+            return f"sensing delay {self.sensing_delay:g} s"
+        return "the fit's own latency" if self.fit_rows else "the model's own latency"
+
     def sags(self, height: float) -> bool:
         """Whether a robot whose lowest final base height is `height` (m)
         sags past the limit (never, on a fixed base)."""
@@ -240,7 +276,7 @@ class Plan:
     def per_model(self) -> int:
         """Robots per joint model: all on the one model, or an equal share
         of each drawn from a fit."""
-        return self.robots // max(1, len(self.fit_draws))
+        return self.robots // max(1, len(self.fit_robots))
 
     def sweep_options(self) -> dict[str, Any]:
         """The sweep every candidate runs: torque mode through the firmware,
@@ -265,7 +301,9 @@ class Plan:
             "joint_order": self.joint_order, "controller": self.controller, "polish": self.polish,
             "from_fit": ([os.fspath(d) for d in self.fit_runs] if self.fit_runs else
                          None if self.from_fit is None else os.fspath(self.from_fit)),
-            "fit_draws": [[[p, a, v] for p, a, v in d] for d in self.fit_draws],
+            "fit_robots": {"values": self.fit_robots, "worst_rms_over_fitted": self.fit_robots_worst,
+                           "from": "the fit's robots.csv: draws from its joint distribution"}
+            if self.fit_robots else None,
             # what the motors deliver of a commanded gain, per group: the loop is closed on it
             "delivered": {g.name: {"kp": [self.kp_factors[0] * g.kp_scale[0], self.kp_factors[1] * g.kp_scale[1]],
                                    "kd": [self.kd_factors[0] * g.kd_scale[0], self.kd_factors[1] * g.kd_scale[1]]}

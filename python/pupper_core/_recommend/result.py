@@ -33,6 +33,10 @@ class Recommendation:
     #: the groups whose loop margins hold nowhere in their searched ranges
     #: (then no candidate is asked at all)
     no_window: list[str] = field(default_factory=list)
+    #: with no pick: the best available gains (``short``), and how they fall short
+    nearest: Candidate | None = None
+    #: with no pick: what the task finds the best available can still do (``Task.unanswered``)
+    short_lines: list[str] = field(default_factory=list)
     #: what the task found beside the pick (`Task.after`; the walk task:
     #: the pick beside --task stand's); None for the stand task
     beside: Any = None

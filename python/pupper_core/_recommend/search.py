@@ -77,22 +77,23 @@ class Candidate:
 
 
 def margins(plan: Plan, g: Group, kp: float, kd: float) -> tuple[float, float]:
-    """The worst phase (deg) and gain (dB) margin of a group's loop over the
-    spread's corners: what the motors deliver of kp and kd (the model's gain
-    scales, a fit's, times the spread about them), the joints' least and
-    most inertia, the firmware's feedback path with the full sensing delay.
-    The loop sees kp/J and kd/J, so these corners bound it."""
+    """The worst phase (deg) and gain (dB) margin of a group's loops
+    (``Group.loops``: its joints as each kind of motor delivers the gains,
+    lightest and heaviest, or with a fit on every robot its logs allow)
+    times the spread's motor gains, through the firmware's feedback path
+    (the sensing delay given, else each joint's own fitted latency)."""
     from pupper_core._native import loop_margins
 
     worst_p, worst_g = math.inf, math.inf
-    # each kind of motor's own pair of scales, on its own joints' inertia
-    for sp, sd, *inertias in g.loops:
-        for fp in plan.kp_factors:
-            for fd in plan.kd_factors:
-                for inertia in inertias:
-                    p, d = loop_margins(inertia, kp * fp * sp, kd * fd * sd, motor=plan.motor,
-                                        sensing_delay=plan.sensing_delay, timestep=plan.timestep)
-                    worst_p, worst_g = min(worst_p, p), min(worst_g, d)
+    for lp in g.loops:
+        for fp in set(plan.kp_factors):
+            for fd in set(plan.kd_factors):
+                p, d = loop_margins(lp.inertia, kp * fp * lp.kp_scale, kd * fd * lp.kd_scale, motor=plan.motor,
+                                    sensing_delay=plan.sensing_delay, timestep=plan.timestep,
+                                    damping=lp.damping, lag=lp.lag, latency=lp.latency, fitted=plan.calibrated)
+                # a loop without margins (NaN) is the worst of all, never skipped by min()
+                worst_p = p if not p >= worst_p else worst_p
+                worst_g = d if not d >= worst_g else worst_g
     return worst_p, worst_g
 
 
@@ -103,9 +104,19 @@ def check_margins(plan: Plan, c: Candidate) -> None:
         pm, gm = margins(plan, g, kp, kd)
         c.phase_deg[g.name], c.gain_db[g.name] = pm, gm
         if not c.failed and not pm >= plan.min_phase_margin:
-            c.failed = f"{g.name} phase margin {pm:.1f}° < {plan.min_phase_margin:g}°"
+            c.failed = f"{g.name} phase margin {_below(pm, plan.min_phase_margin)}° < {plan.min_phase_margin:g}°"
         elif not c.failed and not gm >= plan.min_gain_margin:
-            c.failed = f"{g.name} gain margin {gm:.1f} dB < {plan.min_gain_margin:g} dB"
+            c.failed = f"{g.name} gain margin {_below(gm, plan.min_gain_margin)} dB < {plan.min_gain_margin:g} dB"
+
+
+def _below(v: float, limit: float) -> str:
+    """A value under its limit, with the digits that show it under
+    (29.98 reads 29.98, not 30.0)."""
+    for digits in (1, 2, 3):
+        text = f"{v:.{digits}f}"
+        if float(text) < limit:
+            return text
+    return f"{v:.4g}"
 
 
 #: The grid a group's margin map is computed on (log kp x log kd).
@@ -528,25 +539,17 @@ def why_lost(plan: Plan, label: str, c: Candidate, pick: Candidate) -> str:
 
 def robot_model_files(plan: Plan, out: Path) -> list[str]:
     """The joint models the robots are drawn on: the model itself, or with
-    --from-fit one MJCF per draw of the fitted joint parameters (written
-    into out/robots/, kept: a sweep reproduces any robot from it)."""
-    if not plan.fit_draws:
+    --from-fit one MJCF per robot its logs allow (the fit's robots.csv),
+    written into out/robots/ and kept: a sweep reproduces any robot from it."""
+    if not plan.fit_robots:
         return [plan.model]
-    import mujoco
+    from pupper_core._recommend.fits import robot_xml
 
     out.mkdir(parents=True, exist_ok=True)
     files = []
-    for k, draw in enumerate(plan.fit_draws):
-        spec = mujoco.MjSpec.from_file(plan.model)
-        for parameter, acts, v in draw:
-            for a in acts:
-                joint = spec.joint(spec.actuator(a).target)
-                if parameter == "damping":
-                    joint.damping[0] = v
-                else:
-                    setattr(joint, parameter, v)
+    for k, values in enumerate(plan.fit_robots):
         path = out / f"robot_{k}.xml"
-        path.write_text(spec.to_xml())
+        path.write_text(robot_xml(plan.model, plan.fit_rows, values))
         files.append(str(path))
     return files
 

@@ -84,7 +84,7 @@ class Stand(Task):
 
     def reproduce(self, plan: Plan, d: Path) -> str:
         """The sweep that gives the card's push dip again, to the digit."""
-        if plan.fit_draws:
+        if plan.fit_robots:
             return ""
         args = ["pupper", "sweep", "--model", str(d / "recommended.xml"), "--mode", "torque", "--motor", plan.motor,
                 "--seconds", f"{plan.seconds:g}", "--replicates", str(plan.robots), "--seed", str(plan.seed),

@@ -41,7 +41,7 @@ def _pct(xs: Sequence[float], q: float) -> float:
 
 
 def simulate_walk(task: WalkTask, plan: Plan, cands: Sequence[Candidate], robot_models: Sequence[str],
-                  say: Callable[[str], None], own_gains: bool = False) -> None:
+                  say: Callable[[str], None], own_gains: bool = False, step_height: float | None = None) -> None:
     """Walks the candidates (margins already checked) on every drawn robot,
     the robots drawn alike for every candidate, and judges each: falls,
     saturation, sag (the final base height against the stance), tilt; its
@@ -57,7 +57,8 @@ def simulate_walk(task: WalkTask, plan: Plan, cands: Sequence[Candidate], robot_
     for model in robot_models:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            res = walk(cells, model=model, replicates=plan.per_model, progress=False, **task.run_options(plan))
+            res = walk(cells, model=model, replicates=plan.per_model, progress=False, step_height=step_height,
+                       **task.run_options(plan))
         for w in caught:
             say(f"note: {w.message}")
         reps = res.replicates if res.replicates is not None else res
@@ -104,6 +105,46 @@ def check_walk(task: WalkTask, plan: Plan) -> None:
         walk(cells, model=plan.model, progress=False, **opts)
     except ConfigError as e:
         raise RecommendError(f"--task walk: {e}") from None
+
+
+#: The gaits the best available gains walk when none holds: the gait frequency (Hz) and the step
+#: height (m), slower and higher than the classical 2 Hz, 6 cm trot (on the nominal model at kp 5, a
+#: 1.25 Hz trot with a 7 cm step halves the 2 Hz trot's shortfall).
+GAIT_FREQUENCIES = (1.0, 1.25, 1.5, 2.0)
+STEP_HEIGHTS = (0.04, 0.06, 0.08)
+
+
+def gait_search(task: WalkTask, plan: Plan, c: Candidate, models: Sequence[str],
+                say: Callable[[str], None]) -> list[str]:
+    """The best available gains ``c`` walking each gait of GAIT_FREQUENCIES
+    x STEP_HEIGHTS on the same robots: the card's lines on the one that
+    walks best (the lowest p95 speed error among those every robot walks
+    without falling, else the least short), beside the gait asked."""
+    say(f"no gains walk the {task.frequency:g} Hz {task.gait}: the best available walking "
+        f"{len(GAIT_FREQUENCIES) * len(STEP_HEIGHTS)} slower or higher-stepping gaits on the same robots")
+    tried = []
+    for hz in GAIT_FREQUENCIES:
+        for h in STEP_HEIGHTS:
+            g = replace(task, frequency=hz)
+            cand = Candidate(dict(c.gains), dict(c.phase_deg), dict(c.gain_db), stage="gait")
+            simulate_walk(g, plan, [cand], models, say, step_height=h)
+            tried.append((hz, h, cand))
+    ok = [t for t in tried if not t[2].fell and math.isfinite(t[2].score)]
+    if not ok:
+        return [f"at the best available gains no gait of {GAIT_FREQUENCIES[0]:g} to {GAIT_FREQUENCIES[-1]:g} Hz "
+                f"with a {STEP_HEIGHTS[0] * 100:g} to {STEP_HEIGHTS[-1] * 100:g} cm step walks on every robot "
+                "without a fall: these motors need stiffer gains (--kp-max) to walk"]
+    hz, h, best = min(ok, key=lambda t: (bool(t[2].failed), t[2].score))
+    held = ("holds every constraint walking it" if not best.failed else f"still breaks one: {best.failed}")
+    w = best.figures
+    asked = next((t[2] for t in tried if t[0] == task.frequency and abs(t[1] - 0.06) < 1e-9), None)
+    than = (f" (the {task.frequency:g} Hz, 6 cm trot asked: {asked.score:.3g} %)"
+            if asked is not None and math.isfinite(asked.score) else "")
+    return [f"the gait these gains walk best on the same robots: a {task.gait} at {hz:g} Hz, its steps "
+            f"{h * 100:g} cm high, p95 speed error {best.score:.3g} % of the {task.speed:g} m/s{than}, lowest robot "
+            f"{best.min_height_m * 1000:.1f} mm, p95 pitch {w.get('p95_pitch_rms_deg', math.nan):.3g}°; it "
+            f"{held}: where the motors keep the gains soft, a slower, higher-stepping gait is what still moves "
+            f"(pupper walk --frequency {hz:g} --step-height {h:g})"]
 
 
 @dataclass
@@ -323,7 +364,7 @@ class WalkTask(Task):
 
     def reproduce(self, plan: Plan, d: Path) -> str:
         """The walk that gives the card's figures again, to the digit."""
-        if plan.fit_draws:
+        if plan.fit_robots:
             return ""
         args = ["pupper", "walk", "--model", str(d / "recommended.xml"), "--mode", "torque", "--motor", plan.motor,
                 "--seconds", f"{plan.seconds:g}", "--replicates", str(plan.robots), "--seed", str(plan.seed),
@@ -344,6 +385,15 @@ class WalkTask(Task):
 
     def lines(self, rec: Any) -> list[str]:
         return list(rec.beside.lines) if rec.beside else []
+
+    def unanswered(self, rec: Any, models: Sequence[str], say: Callable[[str], None]) -> list[str]:
+        """Where the robot's gains cannot walk this gait, the gait is what
+        can still move (the chapter re-tunes gains for the gait frequency):
+        the best available gains walk slower and higher-stepping trots on
+        the same robots, and the card says which gait they walk best."""
+        if rec.nearest is None or not rec.nearest.robots:
+            return []
+        return gait_search(self, rec.plan, rec.nearest, models, say)
 
     def manifest(self, rec: Any) -> dict[str, Any]:
         cmp: Comparison | None = rec.beside

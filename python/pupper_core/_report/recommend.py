@@ -38,8 +38,10 @@ def sections(page: Page) -> list[str]:
                if inp.get("max_sag") is not None and math.isfinite(float(inp.get("stance_m") or "nan")) else "")
             + "phase "
             f"margin >= {inp.get('min_phase_margin_deg')}° and gain margin >= {inp.get('min_gain_margin_db')} dB "
-            f"for the loop the firmware ({inp.get('motor')}) closes with {inp.get('sensing_delay')} s of sensing "
-            "delay; push dips within 2 % tie, won by the faster slowest group")
+            f"for the loop the firmware ({inp.get('motor') or 'ideal'}) closes with "
+            + (f"{inp.get('sensing_delay')} s of sensing delay" if inp.get("sensing_delay") is not None
+               else "the model's own feedback latency (a fit's: each robot its own)")
+            + "; push dips within 2 % tie, won by the faster slowest group")
     task = TASKS[str(inp.get("task", "stand"))]
     rule = task.rule(inp, rule)
     if cards:
@@ -52,7 +54,13 @@ def sections(page: Page) -> list[str]:
                                                {"phase margin": [num(c["phase_margin_deg"]) for c in cards]},
                                                "phase margin at the spread's worst corner (deg)", unit="°"))
     else:
-        page.answer.append(f"<p class='pick'>No gains held every constraint.</p><p>Rule: {html.escape(rule)}.</p>")
+        near = manifest.get("nearest") or {}
+        best = ("" if not near else "<p>Best available (not an answer): " + html.escape(", ".join(
+            f"{g} kp {v['kp']:.4g} kd {v['kd']:.4g}" for g, v in near.get("gains", {}).items())) + "; "
+            + html.escape(str(near.get("short", ""))) + ".</p>")
+        page.answer.append(f"<p class='pick'>No gains held every constraint: none to put on the robot.</p>{best}"
+                           f"<p>Rule: {html.escape(rule)}.</p>"
+                           + in_use(manifest.get("current"), math.nan, task))
     fh, front = read_table(d / "tradeoffs.csv")
     th, trials = read_table(d / "trials.csv")
     parts.append(tradeoff_figure(inp, trials, front, manifest.get("pick") or {}, task))
@@ -87,8 +95,8 @@ def in_use(current: dict[str, Any] | None, picked: float, task: TaskWords) -> st
         return ""
     gains = ", ".join(f"{g} kp {v['kp']:.4g} kd {v['kd']:.4g}" for g, v in current["gains"].items())
     ran = (f"{current['fell']} robot(s) fell" if current.get("fell") else
-           f"{task.objective} {num(str(current.get(task.column))):.4g} {task.unit} (the pick's {picked:.4g} "
-           f"{task.unit})")
+           f"{task.objective} {num(str(current.get(task.column))):.4g} {task.unit}"
+           + (f" (the pick's {picked:.4g} {task.unit})" if math.isfinite(picked) else ""))
     held = "holds every constraint" if not current.get("failed") else f"breaks one: {current['failed']}"
     return f"<p>In use today ({html.escape(gains)}): {html.escape(ran)}; {html.escape(held)}.</p>"
 

@@ -12,7 +12,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from pupper_core._rundir import LOCK, atomic_write_text, is_ours_to_ignore
+from pupper_core._rundir import LOCK, atomic_write_text, clear_run, is_ours_to_ignore
 from pupper_core._tune.plan import INPUT_KEYS, STUDY, TuneError, _compared, _Plan
 from pupper_core._tune.tables import _spent, _write, _write_manifest
 
@@ -101,8 +101,8 @@ def _discard(out_dir: Path, made: bool) -> None:
 
 def _started(optuna: Any, out_dir: Path, plan: _Plan, force: bool) -> Any:
     if force:
-        for name in (*STUDY_FILES, "report.html"):
-            (out_dir / name).unlink(missing_ok=True)
+        # every file of the older run, whatever kind wrote it
+        clear_run(out_dir)
     # the manifest first: a kill before it leaves no file but the lock, and
     # the same command starts again; a kill at any later moment leaves a
     # study to resume (without a journal yet, from no generation)

@@ -1,9 +1,10 @@
 //! Flag groups that several commands share, each defined once and
 //! `#[command(flatten)]`ed into the commands that take it.
 
+use std::marker::PhantomData;
 use std::path::PathBuf;
 
-use clap::{Args, ValueEnum};
+use clap::{Arg, ArgAction, ArgMatches, Args, Command, FromArgMatches, ValueEnum};
 use pupper_core::Result;
 use pupper_core::plan::mode::Mode;
 use pupper_core::request::spec::{self, GridInput, SweepSpec};
@@ -124,7 +125,8 @@ pub(super) struct SimArgs {
     /// counts=N (encoder counts per revolution; the derivative is then the encoder's
     /// difference), delay=S (command delay: the PD tracks the target of S ago), noload=RAD_S
     /// (torque limit falling linearly to 0 at this speed), lag=S (the torque's first-order lag
-    /// behind the PD: a current loop's; `pupper fit` measures it). E.g. rate=1000,filter=100,counts=16384
+    /// behind the PD: a current loop's, in seconds up to 0.05; 0: none; `pupper fit` measures
+    /// it). E.g. rate=1000,filter=100,counts=16384
     /// [default: ideal, the PD every physics step on the exact state]
     #[arg(long, value_name = "SPEC")]
     pub(super) motor: Option<String>,
@@ -215,6 +217,112 @@ pub(super) struct OutputArgs {
     pub(super) force: bool,
 }
 
+/// What a run command keeps, draws and ranks by: `--trace`, `--plot`,
+/// `--render` and `--rank` (in that order in `--help`), each in the words of
+/// the command `S` flattens it into ([`Shows`]); a flag that command does
+/// not take is not there, and false (or None) here.
+#[derive(Debug)]
+pub(super) struct ShowArgs<S> {
+    pub(super) trace: bool,
+    pub(super) plot: bool,
+    pub(super) render: bool,
+    pub(super) rank: Option<String>,
+    shows: PhantomData<S>,
+}
+
+impl<S> ShowArgs<S> {
+    /// Whether the run keeps its traces: asked for, or drawn by the plots.
+    pub(super) fn traces(&self) -> bool {
+        self.trace || self.plot
+    }
+}
+
+/// A command's help for each flag of [`ShowArgs`] (`None`: the command
+/// does not take the flag).
+pub(super) struct Shown {
+    pub(super) trace: Option<&'static str>,
+    pub(super) plot: Option<&'static str>,
+    pub(super) render: Option<&'static str>,
+    pub(super) rank: Option<RankHelp>,
+}
+
+/// `--rank`'s help, its value's name, and an older name it answers to.
+pub(super) struct RankHelp {
+    pub(super) help: &'static str,
+    pub(super) value_name: &'static str,
+    pub(super) alias: Option<&'static str>,
+}
+
+/// The command a [`ShowArgs`] is flattened into, by its words.
+pub(super) trait Shows {
+    const SHOWN: Shown;
+}
+
+/// `--trace` of the kinds whose traces are the base height (hold, walk).
+pub(super) const TRACE_HEIGHT: &str =
+    "Record each cell's base height every --trace-every steps (traces.csv)";
+
+impl<S: Shows> Args for ShowArgs<S> {
+    fn augment_args(cmd: Command) -> Command {
+        let shown = S::SHOWN;
+        let flag = |id: &'static str, help: Option<&'static str>| {
+            help.map(|h| Arg::new(id).long(id).action(ArgAction::SetTrue).help(h))
+        };
+        let rank = shown.rank.map(|r| {
+            let arg = Arg::new("rank")
+                .long("rank")
+                .value_name(r.value_name)
+                .value_parser(clap::value_parser!(String))
+                .action(ArgAction::Set)
+                .help(r.help);
+            match r.alias {
+                Some(alias) => arg.alias(alias),
+                None => arg,
+            }
+        });
+        let flags = [
+            flag("trace", shown.trace),
+            flag("plot", shown.plot),
+            flag("render", shown.render),
+            rank,
+        ];
+        cmd.args(flags.into_iter().flatten())
+    }
+
+    fn augment_args_for_update(cmd: Command) -> Command {
+        Self::augment_args(cmd)
+    }
+}
+
+impl<S: Shows> FromArgMatches for ShowArgs<S> {
+    fn from_arg_matches(m: &ArgMatches) -> std::result::Result<Self, clap::Error> {
+        Self::from_arg_matches_mut(&mut m.clone())
+    }
+
+    fn from_arg_matches_mut(m: &mut ArgMatches) -> std::result::Result<Self, clap::Error> {
+        let shown = S::SHOWN;
+        // only a flag the command takes is asked for: another is unknown
+        let mut flag = |id: &str, help: Option<&str>| {
+            help.is_some() && m.remove_one::<bool>(id).unwrap_or(false)
+        };
+        Ok(ShowArgs {
+            trace: flag("trace", shown.trace),
+            plot: flag("plot", shown.plot),
+            render: flag("render", shown.render),
+            rank: match shown.rank {
+                Some(_) => m.remove_one::<String>("rank"),
+                None => None,
+            },
+            shows: PhantomData,
+        })
+    }
+
+    fn update_from_arg_matches(&mut self, m: &ArgMatches) -> std::result::Result<(), clap::Error> {
+        *self = Self::from_arg_matches(m)?;
+        Ok(())
+    }
+}
+
 /// The run directory a command writes to without `-o`:
 /// `runs/<local time>-<suffix>`.
 pub(super) fn rundir_name(suffix: &str) -> PathBuf {
@@ -256,7 +364,8 @@ pub(super) struct PopulationArgs {
     /// with a push (sweep, not lab): push_force=-35:-15 (N), push_at=1.5:3 (s). Torque mode only: q_noise=N(0,0.002) (rad,
     /// on the angles the PD reads, every step), delay=0:3 (whole control steps the PD reads
     /// late), and the --motor model's motor_delay=0:0.01 (s), motor_filter=50:200 (Hz),
-    /// motor_noload=20:40 (rad/s), motor_lag=0.004:0.01 (s). `+-10%` may stand for `±10%`.
+    /// motor_noload=20:40 (rad/s), motor_lag=0.004:0.01 (s, up to 0.05; not beside --motor
+    /// lag=). `+-10%` may stand for `±10%`.
     #[arg(long, value_name = "QUANTITY=DIST", allow_hyphen_values = true)]
     pub(super) randomize: Vec<String>,
     /// Every cell's replicate r is the same robot (its draws keyed without the cell id):
@@ -301,6 +410,9 @@ pub(super) struct RunArgs {
     /// No progress bar.
     #[arg(long, short = 'q')]
     pub(super) quiet: bool,
+    /// Refuse grids with more cells (times replicates) than this.
+    #[arg(long, default_value_t = SweepSpec::default().max_cells, value_name = "N")]
+    pub(super) max_cells: usize,
 }
 
 impl RunArgs {
@@ -311,6 +423,7 @@ impl RunArgs {
             trace,
             trace_every: self.trace_every,
             shard: self.shard.clone(),
+            max_cells: self.max_cells,
             ..spec
         }
     }
@@ -323,9 +436,10 @@ pub(super) struct BatchArgs {
     #[arg(long, short = 'j', default_value_t = SweepSpec::default().threads, value_name = "N")]
     pub(super) threads: usize,
     /// Most cells per batch [default: 256 on the cpu backend, whose batches
-    /// hold about 10 s of work so a stop loses little; on warp, as many as
-    /// the device's memory holds]. Fewer cells bound memory. Never changes
-    /// the numbers.
+    /// aim at about 10 s of work (sized from the speed measured so far, the
+    /// first from a cautious guess), so a stop loses about that much; on
+    /// warp, as many as the device's memory holds]. Fewer cells bound
+    /// memory. Never changes the numbers.
     #[arg(long, value_name = "N")]
     pub(super) chunk_cells: Option<usize>,
 }

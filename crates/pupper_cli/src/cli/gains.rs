@@ -27,7 +27,7 @@ period); no viscous damping (the conservative case). phase_margin_deg: 180 plus 
 the open loop where its gain is 1 (below 0: the real joint oscillates or runs away however the
 simulation looks); gain_margin_db: how much more loop gain makes it unstable (inf: none does;
 -inf: the phase starts past -180°, kd/kp shorter than the lag and latency, and no gain is stable;
-null in --json). A command delay
+\"inf\" and \"-inf\" in --json, floats in pc.gains; NaN is null). A command delay
 (delay=S) is not in the loop: it shifts the step response, not these margins.
 On a calibrated model (gain scales pupper:kp_scale:ACT, pupper:kd_scale:ACT: `pupper fit`'s)
 kp and kd are what to command; motor kp and motor kd are what each motor delivers of them, and
@@ -41,6 +41,10 @@ Examples:
 pub(super) struct GainsArgs {
     #[command(flatten)]
     model: ModelArg,
+    /// A `pupper fit` run directory: its calibrated model, the loop the fit found (checked
+    /// against the run's manifest first). In place of --model.
+    #[arg(long, value_name = "DIR", conflicts_with = "model")]
+    from_fit: Option<std::path::PathBuf>,
     /// The −3 dB bandwidth (Hz) the gains should give.
     #[arg(long, value_name = "HZ", allow_negative_numbers = true, conflicts_with_all = ["kp", "kd"])]
     bandwidth: Option<f64>,
@@ -90,8 +94,14 @@ impl GainsArgs {
             Some(spec::PoseInput::Angles(p)) => Some(p),
             _ => None,
         };
+        let source = match &self.from_fit {
+            Some(dir) => pupper_core::robot::model::ModelSource::Path(
+                pupper_core::results::fit_run::calibrated(dir)?,
+            ),
+            None => self.model.source()?,
+        };
         let r = api::gains(
-            &self.model.source()?,
+            &source,
             pose,
             ask,
             self.integrator.as_deref(),

@@ -10,7 +10,9 @@ use pupper_core::request::hold::{HoldInput, seconds, spec};
 use pupper_core::request::spec::SweepSpec;
 use pupper_core::results::best;
 
-use super::args::{GridArg, OutputArgs, RunnerArgs, SimArgs};
+use super::args::{
+    GridArg, OutputArgs, RankHelp, RunnerArgs, ShowArgs, Shown, Shows, SimArgs, TRACE_HEIGHT,
+};
 use super::sweep::{Job, run_job};
 
 #[derive(Args, Debug)]
@@ -59,19 +61,25 @@ pub(super) struct HoldArgs {
     /// How long the shove acts (s).
     #[arg(long, default_value_t = pupper_core::plan::hold::SHOVE_DURATION, value_name = "S", allow_negative_numbers = true)]
     shove_duration: f64,
-    /// Rank cells by this summary column instead of compliance_mm_per_n (lowest wins).
-    #[arg(long, value_name = "METRIC")]
-    rank: Option<String>,
     #[command(flatten)]
     output: OutputArgs,
-    /// Record each cell's base height every --trace-every steps (traces.csv).
-    #[arg(long)]
-    trace: bool,
-    /// Write plots into DIR/plots (compliance heatmap, base height under the load).
-    #[arg(long)]
-    plot: bool,
+    #[command(flatten)]
+    show: ShowArgs<HoldArgs>,
     #[command(flatten)]
     runner: RunnerArgs,
+}
+
+impl Shows for HoldArgs {
+    const SHOWN: Shown = Shown {
+        trace: Some(TRACE_HEIGHT),
+        plot: Some("Write plots into DIR/plots (compliance heatmap, base height under the load)"),
+        render: None,
+        rank: Some(RankHelp {
+            help: "Rank cells by this summary column instead of compliance_mm_per_n (lowest wins)",
+            value_name: "METRIC",
+            alias: None,
+        }),
+    };
 }
 
 impl HoldArgs {
@@ -93,7 +101,7 @@ impl HoldArgs {
             seconds: self.sim.seconds.unwrap_or_else(|| seconds(&input)),
             force: self.output.force,
             // the height plot draws the traces
-            ..self.runner.apply(self.trace || self.plot, sim)
+            ..self.runner.apply(self.show.traces(), sim)
         };
         Ok(spec(base, &input))
     }
@@ -110,6 +118,7 @@ pub(super) fn run(a: HoldArgs, stop: &'static AtomicBool) -> Result<u8> {
         &input,
     );
     let metric = a
+        .show
         .rank
         .clone()
         .unwrap_or_else(|| baseline.experiment.plan().default_metric().to_string());
@@ -117,7 +126,7 @@ pub(super) fn run(a: HoldArgs, stop: &'static AtomicBool) -> Result<u8> {
         Job {
             resume_alone: a.grid.grid.is_empty(),
             preset: Some("hold".into()),
-            plot: a.plot,
+            plot: a.show.plot,
             rule: Some(best::Rule::new(&metric, &[])),
             ..Job::new(a.spec()?, baseline, a.output.out, &a.runner.run)
         },

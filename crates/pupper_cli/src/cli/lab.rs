@@ -9,7 +9,9 @@ use pupper_core::request::spec::{self, SweepSpec};
 use pupper_core::results::best;
 use pupper_core::{Error, Result};
 
-use super::args::{BackendArgs, GridArg, ModelArg, PopulationArgs, rundir_name};
+use super::args::{
+    BackendArgs, GridArg, ModelArg, PopulationArgs, RankHelp, ShowArgs, Shown, Shows, rundir_name,
+};
 use super::python::python_command;
 use super::sweep::{Job, run_job};
 use crate::pyargs;
@@ -48,10 +50,8 @@ pub(super) struct LabArgs {
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
     #[arg(long, default_value_t = pupper_core::results::best::MAX_SATURATION, value_name = "FRACTION")]
     max_saturation: f64,
-    /// The metric each body's best gains are ranked by (lower is better) [default:
-    /// last_1s_std_mm; with replicates p95:last_1s_std_mm].
-    #[arg(long, value_name = "[STAT:]METRIC")]
-    rank: Option<String>,
+    #[command(flatten)]
+    show: ShowArgs<LabArgs>,
     /// Run directory (default runs/<time>-lab).
     #[arg(long, short = 'o', value_name = "DIR", conflicts_with = "resume")]
     out: Option<PathBuf>,
@@ -64,15 +64,15 @@ pub(super) struct LabArgs {
     /// Batch threads; 0 uses all cores. Never changes the numbers.
     #[arg(long, short = 'j', default_value_t = SweepSpec::default().threads, value_name = "N")]
     threads: usize,
-    /// Also write the GIF of the bodies at their best gains.
-    #[arg(long)]
-    render: bool,
     /// Print the rows as JSON instead of a line per body.
     #[arg(long)]
     json: bool,
     /// No progress bar.
     #[arg(long, short = 'q')]
     quiet: bool,
+    /// Refuse grids with more cells (times bodies and replicates) than this.
+    #[arg(long, default_value_t = SweepSpec::default().max_cells, value_name = "N")]
+    max_cells: usize,
     /// Answer the lab's question per body by a search (pupper tune; the tune extra) over
     /// kp 10-120 x kd 0.5-5 (log) instead of the 4x4 grid: a study per body in DIR/<body>/,
     /// each body's best gains in DIR/best.csv.
@@ -91,6 +91,20 @@ pub(super) struct LabArgs {
     population: PopulationArgs,
 }
 
+impl Shows for LabArgs {
+    const SHOWN: Shown = Shown {
+        trace: None,
+        plot: None,
+        render: Some("Also write the GIF of the bodies at their best gains"),
+        rank: Some(RankHelp {
+            help: "The metric each body's best gains are ranked by (lower is better) [default: \
+                   last_1s_std_mm; with replicates p95:last_1s_std_mm]",
+            value_name: "[STAT:]METRIC",
+            alias: None,
+        }),
+    };
+}
+
 /// `pupper lab`.
 pub(super) fn run(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
     let sine = spec::parse_sine(&a.sine)?;
@@ -103,6 +117,7 @@ pub(super) fn run(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
         depth: a.depth,
         motor: a.motor.clone(),
         force: a.force,
+        max_cells: a.max_cells,
         ..a.backend
             .apply(a.population.apply(pupper_core::request::lab::spec(
                 &a.variants,
@@ -111,7 +126,7 @@ pub(super) fn run(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
                 sine,
             )))
     };
-    let metric = a.rank.clone().unwrap_or_default();
+    let metric = a.show.rank.clone().unwrap_or_default();
     run_job(
         Job {
             spec,
@@ -128,7 +143,7 @@ pub(super) fn run(a: LabArgs, stop: &'static AtomicBool) -> Result<u8> {
             quiet: a.quiet,
             json: a.json,
             plot: true,
-            render: a.render,
+            render: a.show.render,
             rule: Some(best::Rule {
                 max_saturation: a.max_saturation,
                 ..best::Rule::new(&metric, &["variant".to_string()])
@@ -144,6 +159,7 @@ fn tune(a: &LabArgs, sine: [f64; 2]) -> Result<u8> {
     let call = TuneCall {
         variants: &a.variants,
         objective: a
+            .show
             .rank
             .clone()
             .unwrap_or_else(|| pupper_core::results::best::DEFAULT_METRIC.into()),

@@ -37,6 +37,7 @@ mod hold;
 mod lab;
 mod merge;
 mod model;
+mod progress;
 mod python;
 mod recommend;
 mod render;

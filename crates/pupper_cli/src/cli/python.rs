@@ -8,17 +8,25 @@ use pupper_mujoco::bridge::calls::{self, PyCall};
 /// A command whose work is in pupper's Python package: its flags as JSON
 /// to `module.func`, which returns the files it wrote (said on stderr).
 pub(super) fn python_command(call: &PyCall, args_json: &str) -> Result<u8> {
-    write_files(call, args_json)?;
-    Ok(0)
+    write_files(call, args_json)
 }
 
+/// What a Python command returns after its files to set the exit status
+/// (`status:3`: recommend found no gains to name); no item: 0.
+const STATUS: &str = "status:";
+
 /// Calls `call` with its one argument (a command's flags as JSON, or a run
-/// directory) and says each file it wrote on stderr.
-pub(super) fn write_files(call: &PyCall, arg: &str) -> Result<()> {
+/// directory), says each file it wrote on stderr, and returns the exit
+/// status it asks for (0 unless it returns `status:N`).
+pub(super) fn write_files(call: &PyCall, arg: &str) -> Result<u8> {
+    let mut status = 0;
     for p in bridge::call_helper(call, &[arg.to_string()], &serde_json::json!({}))? {
-        errln!("wrote {p}");
+        match p.strip_prefix(STATUS).and_then(|n| n.parse::<u8>().ok()) {
+            Some(n) => status = n,
+            None => errln!("wrote {p}"),
+        }
     }
-    Ok(())
+    Ok(status)
 }
 
 /// Writes DIR/report.html. The path crosses as its bytes (hex), so a

@@ -99,13 +99,14 @@ pub(super) struct RecommendArgs {
     /// The push's vertical force (N) [default: sweep's].
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = finite)]
     push_force: Option<f64>,
-    /// The servo firmware, as --motor takes it (rate=HZ,filter=HZ,counts=N,noload=RAD_S,lag=S;
-    /// with --from-fit a fitted torque lag is added as lag=).
-    #[arg(long, default_value = "rate=500,counts=16384", value_name = "SPEC")]
-    motor: String,
+    /// The servo firmware, as --motor takes it (rate=HZ,filter=HZ,counts=N,noload=RAD_S,lag=S)
+    /// [default: rate=500,counts=16384; with --from-fit, or on a calibrated model, the firmware the
+    /// fit replayed, the model's fitted lag and latency in it (a lag= here stands instead)]
+    #[arg(long, value_name = "SPEC")]
+    motor: Option<String>,
     /// Age of the measurements the firmware's PD reads (s): in the loop margins, and drawn 0 to it
-    /// (whole physics steps) on the robots [default: 0.002, or with --from-fit the upper end of the
-    /// fit's feedback latency where it fitted one; the card says which]
+    /// (whole physics steps) on the robots [default: 0.002; with --from-fit, or on a calibrated
+    /// model, none on top of the fit's own feedback latency; the card says which]
     #[arg(long, value_name = "S", allow_negative_numbers = true, value_parser = finite)]
     sensing_delay: Option<f64>,
     /// Delay of the commanded target (s): the firmware's command delay; shifts the step response.

@@ -7,7 +7,9 @@ use clap::Args;
 use pupper_core::Result;
 use pupper_core::request::spec::SweepSpec;
 
-use super::args::{GridArg, OutputArgs, PopulationArgs, RunnerArgs, SimArgs};
+use super::args::{
+    GridArg, OutputArgs, PopulationArgs, RunnerArgs, ShowArgs, Shown, Shows, SimArgs,
+};
 use super::sweep::{Job, run_job};
 
 #[derive(Args, Debug)]
@@ -61,21 +63,30 @@ pub(super) struct ResponseArgs {
     /// in the air.
     #[arg(long)]
     standing: bool,
-    /// Keep each excited joint's angle after the hold (response_traces.csv), every
-    /// --trace-every-th step.
-    #[arg(long)]
-    trace: bool,
-    /// Write plots into DIR/plots: step responses per joint group (target dashed, the 2 %
-    /// band shaded), Bode gain and phase per group (sine, chirp), heatmaps of rise time,
-    /// overshoot and settling time over Kp x Kd.
-    #[arg(long)]
-    plot: bool,
+    #[command(flatten)]
+    show: ShowArgs<ResponseArgs>,
     #[command(flatten)]
     output: OutputArgs,
     #[command(flatten)]
     runner: RunnerArgs,
     #[command(flatten)]
     population: PopulationArgs,
+}
+
+impl Shows for ResponseArgs {
+    const SHOWN: Shown = Shown {
+        trace: Some(
+            "Keep each excited joint's angle after the hold (response_traces.csv), every \
+             --trace-every-th step",
+        ),
+        plot: Some(
+            "Write plots into DIR/plots: step responses per joint group (target dashed, the 2 % \
+             band shaded), Bode gain and phase per group (sine, chirp), heatmaps of rise time, \
+             overshoot and settling time over Kp x Kd",
+        ),
+        render: None,
+        rank: None,
+    };
 }
 
 impl ResponseArgs {
@@ -99,7 +110,7 @@ impl ResponseArgs {
                 .unwrap_or(pupper_core::request::response::SECONDS),
             force: self.output.force,
             // the step plots draw the traces
-            ..self.runner.apply(self.trace || self.plot, sim)
+            ..self.runner.apply(self.show.traces(), sim)
         };
         pupper_core::request::response::spec(
             base,
@@ -129,7 +140,7 @@ pub(super) fn run(a: ResponseArgs, stop: &'static AtomicBool) -> Result<u8> {
         Job {
             resume_alone: a.grid.grid.is_empty(),
             preset: Some("response".into()),
-            plot: a.plot,
+            plot: a.show.plot,
             ..Job::new(a.spec()?, baseline, a.output.out, &a.runner.run)
         },
         stop,

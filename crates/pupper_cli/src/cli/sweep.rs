@@ -2,21 +2,23 @@
 //! the run, what it prints and writes after, and its progress bar.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 use pupper_core::plan::config::SweepConfig;
 use pupper_core::request::spec::{GridInput, Sweep, SweepSpec};
 use pupper_core::results::best;
 use pupper_core::results::output;
 use pupper_core::results::rundir::Existing;
-use pupper_core::sim::runner::Hooks;
 use pupper_core::{Error, Result};
-use pupper_mujoco::api::{self, SweepOutcome, SweepRequest, SweepUi};
+use pupper_mujoco::api::{self, SweepOutcome, SweepRequest};
 use pupper_mujoco::bridge;
 
-use super::args::{GridArg, PopulationArgs, RunArgs, RunnerArgs, SetupArgs, rundir_name};
+use super::args::{
+    GridArg, PopulationArgs, RankHelp, RunArgs, RunnerArgs, SetupArgs, ShowArgs, Shown, Shows,
+    rundir_name,
+};
+use super::progress::Progress;
 use super::python::{write_files, write_report};
 use crate::print;
 use pupper_mujoco::bridge::calls;
@@ -49,15 +51,6 @@ pub(super) struct SweepArgs {
     preset: Option<String>,
     #[command(flatten)]
     setup: SetupArgs,
-    /// Keep base-z traces (traces.csv), every --trace-every-th step.
-    #[arg(long)]
-    trace: bool,
-    /// Refuse grids with more cells than this.
-    #[arg(long, default_value_t = SweepSpec::default().max_cells, value_name = "N")]
-    max_cells: usize,
-    /// Write plots (base-z curves, heatmaps or bars) into DIR/plots.
-    #[arg(long)]
-    plot: bool,
     /// Stop stepping a robot once it has fallen (base below 30 % of its stance height or
     /// tilted past 60 deg) or diverged, within one batch call (0.5 s at most in servo mode, at
     /// once in torque mode): its row keeps its status (fell) and the metrics up to the stop;
@@ -65,9 +58,6 @@ pub(super) struct SweepArgs {
     /// collapse is judged on the last second, so it runs to the end.)
     #[arg(long)]
     stop_fallen: bool,
-    /// Render the effects GIF and final-frame PNG of the cells (up to 6) into DIR/plots.
-    #[arg(long)]
-    render: bool,
     /// Pick the best cell of each group of these axes (e.g. kd, or leg_scale,torso_mass_scale):
     /// printed a line per group and written to DIR/best.csv. Rule: among cells that stood
     /// (status ok or saturated; with replicates: none fell or diverged), whose metric is a number
@@ -76,11 +66,8 @@ pub(super) struct SweepArgs {
     /// are tied and the smaller push dip decides, then the first cell in grid order.
     #[arg(long, value_name = "AXIS[,AXIS]", value_delimiter = ',')]
     best_by: Option<Vec<String>>,
-    /// The metric --best-by ranks by (lower is better): a summary.csv column. With replicates,
-    /// a statistic over them: mean:METRIC or p95:METRIC (worst side), e.g.
-    /// p95:last_1s_std_mm [default: last_1s_std_mm; with replicates p95:last_1s_std_mm].
-    #[arg(long, alias = "best-metric", value_name = "[STAT:]METRIC")]
-    rank: Option<String>,
+    #[command(flatten)]
+    show: ShowArgs<SweepArgs>,
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
     #[arg(long, default_value_t = pupper_core::results::best::MAX_SATURATION, value_name = "FRACTION")]
     max_saturation: f64,
@@ -89,6 +76,24 @@ pub(super) struct SweepArgs {
     runner: RunnerArgs,
     #[command(flatten)]
     population: PopulationArgs,
+}
+
+impl Shows for SweepArgs {
+    const SHOWN: Shown = Shown {
+        trace: Some("Keep base-z traces (traces.csv), every --trace-every-th step"),
+        plot: Some("Write plots (base-z curves, heatmaps or bars) into DIR/plots"),
+        render: Some(
+            "Render the effects GIF and final-frame PNG of the cells (up to 6) into DIR/plots",
+        ),
+        rank: Some(RankHelp {
+            help: "The metric --best-by ranks by (lower is better): a summary.csv column. With \
+                   replicates, a statistic over them: mean:METRIC or p95:METRIC (worst side), \
+                   e.g. p95:last_1s_std_mm [default: last_1s_std_mm; with replicates \
+                   p95:last_1s_std_mm]",
+            value_name: "[STAT:]METRIC",
+            alias: Some("best-metric"),
+        }),
+    };
 }
 
 impl SweepArgs {
@@ -105,10 +110,9 @@ impl SweepArgs {
                 None => self.grid.input(),
             },
             stop_fallen: self.stop_fallen,
-            max_cells: self.max_cells,
             force: self.setup.output.force,
             // plots draw the base-z curves from the traces
-            ..self.runner.apply(self.trace || self.plot, sim)
+            ..self.runner.apply(self.show.traces(), sim)
         })
     }
 }
@@ -162,7 +166,7 @@ impl Job {
 /// `pupper sweep`.
 pub(super) fn run(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
     // no --rank: chosen in run_job, once the run's config is known
-    let metric = a.rank.clone().unwrap_or_default();
+    let metric = a.show.rank.clone().unwrap_or_default();
     let rule = a.best_by.as_ref().map(|by| best::Rule {
         max_saturation: a.max_saturation,
         ..best::Rule::new(&metric, by)
@@ -177,8 +181,8 @@ pub(super) fn run(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
             preset: a.preset,
             quiet: a.runner.run.quiet,
             json: a.runner.run.json,
-            plot: a.plot,
-            render: a.render,
+            plot: a.show.plot,
+            render: a.show.render,
             rule,
             lab: false,
         },
@@ -212,11 +216,12 @@ pub(super) fn run_job(mut a: Job, stop: &'static AtomicBool) -> Result<u8> {
         )?;
     }
     let req = SweepRequest { sweep, command };
-    let mut ui = Progress {
-        bar: None,
-        quiet: a.quiet || a.json,
-        stop,
+    let what = if a.lab {
+        "lab"
+    } else {
+        a.spec.experiment.name()
     };
+    let mut ui = Progress::new(what, a.quiet || a.json, stop);
     let outcome = api::run_sweep(&req, &mut ui)?;
     for n in &outcome.notes {
         errln!("note: {n}");
@@ -248,6 +253,8 @@ fn build(a: &Job) -> Result<Sweep> {
                 ..a.spec.clone()
             }
             .build()?;
+            // another kind's run: refused before its inputs are taken
+            pupper_core::results::clear::check_kind(dir, &s.kind)?;
             let m = output::read_manifest(dir)?;
             refuse_other_inputs(dir, &a.baseline, &s.config, &m.config)?;
             s.config = m.config;
@@ -414,52 +421,4 @@ fn default_out(preset: &Option<String>, cfg: &SweepConfig) -> PathBuf {
             .join("-"),
     };
     rundir_name(&name)
-}
-
-/// Progress bar on stderr (hidden when stderr is not a terminal) and the
-/// Ctrl-C flag.
-struct Progress {
-    bar: Option<ProgressBar>,
-    quiet: bool,
-    stop: &'static AtomicBool,
-}
-
-impl SweepUi for Progress {
-    fn start(&mut self, cells: usize, steps: u64) {
-        if self.quiet {
-            return;
-        }
-        let bar = ProgressBar::new(steps);
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{spinner} {msg} [{bar:30}] {percent:>3}% {elapsed} (eta {eta})",
-            )
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-        );
-        bar.set_message(format!("{cells} cells"));
-        self.bar = Some(bar);
-    }
-
-    fn finish(&mut self) {
-        if let Some(b) = self.bar.take() {
-            b.finish_and_clear();
-        }
-    }
-
-    fn hooks(&mut self) -> &mut dyn Hooks {
-        self
-    }
-}
-
-impl Hooks for Progress {
-    fn progress(&mut self, steps: u64) {
-        if let Some(b) = &self.bar {
-            b.inc(steps);
-        }
-    }
-
-    fn should_stop(&mut self) -> bool {
-        self.stop.load(Ordering::SeqCst)
-    }
 }

@@ -12,7 +12,10 @@ use pupper_core::results::{best, output};
 
 use serde::Serialize;
 
-use super::args::{GridArg, OutputArgs, PopulationArgs, RunnerArgs, SimArgs, finite};
+use super::args::{
+    GridArg, OutputArgs, PopulationArgs, RankHelp, RunnerArgs, ShowArgs, Shown, Shows, SimArgs,
+    TRACE_HEIGHT, finite,
+};
 use super::sweep::{Job, run_job};
 
 #[derive(Args, Debug)]
@@ -82,27 +85,35 @@ pub(super) struct WalkArgs {
     /// feet at most 85 % of the legs' reach below the hips]
     #[arg(long, value_name = "M", allow_negative_numbers = true)]
     height: Option<f64>,
-    /// Rank cells by this summary column instead of speed_error_pct (lowest wins; with
-    /// replicates a statistic, e.g. p95:roll_rms_deg).
-    #[arg(long, value_name = "[STAT:]METRIC")]
-    rank: Option<String>,
     #[command(flatten)]
     output: OutputArgs,
-    /// Record each cell's base height every --trace-every steps (traces.csv).
-    #[arg(long)]
-    trace: bool,
-    /// Write plots into DIR/plots (speed achieved against commanded, the metric per cell, base
-    /// height while walking).
-    #[arg(long)]
-    plot: bool,
-    /// Render a walking cell (the best, up to 6 cells) as an effects GIF and PNG into DIR/plots.
-    #[arg(long)]
-    render: bool,
+    #[command(flatten)]
+    show: ShowArgs<WalkArgs>,
     // last: their help headings would hold every option after them
     #[command(flatten)]
     runner: RunnerArgs,
     #[command(flatten)]
     population: PopulationArgs,
+}
+
+impl Shows for WalkArgs {
+    const SHOWN: Shown = Shown {
+        trace: Some(TRACE_HEIGHT),
+        plot: Some(
+            "Write plots into DIR/plots (speed achieved against commanded, the metric per cell, \
+             base height while walking)",
+        ),
+        render: Some(
+            "Render a walking cell (the best, up to 6 cells) as an effects GIF and PNG into \
+             DIR/plots",
+        ),
+        rank: Some(RankHelp {
+            help: "Rank cells by this summary column instead of speed_error_pct (lowest wins; \
+                   with replicates a statistic, e.g. p95:roll_rms_deg)",
+            value_name: "[STAT:]METRIC",
+            alias: None,
+        }),
+    };
 }
 
 impl WalkArgs {
@@ -127,7 +138,7 @@ impl WalkArgs {
             seconds: self.sim.seconds.unwrap_or_else(|| seconds(&input)),
             force: self.output.force,
             // the height plot draws the traces
-            ..self.runner.apply(self.trace || self.plot, sim)
+            ..self.runner.apply(self.show.traces(), sim)
         };
         spec(base, &input)
     }
@@ -153,25 +164,28 @@ pub(super) fn run(a: WalkArgs, stop: &'static AtomicBool) -> Result<u8> {
     )?;
     // no --rank: the kind's metric (over the replicates when there are
     // some), chosen in run_job once the run's config is known
-    let metric = a.rank.clone().unwrap_or_default();
+    let metric = a.show.rank.clone().unwrap_or_default();
     let alone = a.grid.grid.is_empty();
     // `--resume DIR` alone: the run's own grid picks per gait setting
     let grid = match (&a.runner.run.resume, alone) {
-        (Some(dir), true) => output::read_manifest(dir)?
-            .config
-            .grid
-            .axes
-            .iter()
-            .map(|x| x.axis)
-            .collect(),
+        (Some(dir), true) => {
+            pupper_core::results::clear::check_kind(dir, "walk")?;
+            output::read_manifest(dir)?
+                .config
+                .grid
+                .axes
+                .iter()
+                .map(|x| x.axis)
+                .collect()
+        }
         _ => axes(&a.grid.grid),
     };
     run_job(
         Job {
             resume_alone: alone,
             preset: Some("walk".into()),
-            plot: a.plot,
-            render: a.render,
+            plot: a.show.plot,
+            render: a.show.render,
             rule: Some(best::Rule::new(&metric, &best_by(&grid))),
             ..Job::new(a.spec()?, baseline, a.output.out, &a.runner.run)
         },

@@ -154,10 +154,16 @@ fn notes(s: &mut String, r: &GainsReport, scaled: bool) {
     }
     if r.fitted {
         let range = |f: &dyn Fn(&pupper_core::robot::gains::LoopTerms) -> f64| {
-            let v: Vec<f64> = r.joints.iter().filter_map(|j| j.loop_terms.as_ref().map(f)).collect();
-            let (lo, hi) = v.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
-                (a.min(x), b.max(x))
-            });
+            let v: Vec<f64> = r
+                .joints
+                .iter()
+                .filter_map(|j| j.loop_terms.as_ref().map(f))
+                .collect();
+            let (lo, hi) = v
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                    (a.min(x), b.max(x))
+                });
             if (hi - lo).abs() <= 1e-12 * hi.abs().max(1.0) {
                 format!("{}", Sig(lo))
             } else {
@@ -166,9 +172,22 @@ fn notes(s: &mut String, r: &GainsReport, scaled: bool) {
         };
         let _ = writeln!(
             s,
-            "PM/GM: phase and gain margin of the loop the fit found (the model's calibrated servo): torque lag {} ms, feedback latency {} ms (its own and the PD's update), joint damping {} N·m·s/rad; --motor and --sensing-delay stand in for the fitted terms they name (see --help)",
+            "PM/GM: phase and gain margin of the loop the fit found (the model's calibrated servo{}): torque lag {} ms, feedback latency {} ms, joint damping {} N·m·s/rad; --motor and --sensing-delay stand in for the fitted terms they name (see --help)",
+            match r
+                .joints
+                .first()
+                .and_then(|j| j.loop_terms)
+                .and_then(|t| t.feedback.sampled)
+            {
+                Some(s) => format!(", its PD every {} ms physics step", Sig(s.step * 1000.0)),
+                None => String::new(),
+            },
             range(&|t| t.feedback.torque_lag * 1000.0),
-            range(&|t| t.feedback.latency * 1000.0),
+            range(&|t| t
+                .feedback
+                .sampled
+                .map_or(t.feedback.latency, |s| s.late * s.step)
+                * 1000.0),
             range(&|t| t.damping),
         );
     } else if let Some(fb) = &r.feedback {

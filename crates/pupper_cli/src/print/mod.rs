@@ -18,7 +18,9 @@ use pupper_mujoco::api::SweepOutcome;
 use serde::Serialize;
 
 pub fn json<T: Serialize>(v: &T) -> Result<String> {
-    serde_json::to_string_pretty(v).map_err(|e| Error::Internal(format!("json: {e}")))
+    // ±inf as "inf" and "-inf" (serde_json's null would lose the sign)
+    let v = pupper_core::results::json::to_value(v)?;
+    serde_json::to_string_pretty(&v).map_err(|e| Error::Internal(format!("json: {e}")))
 }
 
 /// An axis value in at most 8 characters: as written when it fits, else

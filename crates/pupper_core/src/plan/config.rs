@@ -155,12 +155,35 @@ impl SweepConfig {
                 ));
             }
         }
+        self.check_motor_draws()?;
         if self.integrator.is_some() && !self.backend.is_cpu() {
             return Err(Error::Config(
                 "--integrator runs on --backend cpu (the warp backend keeps the model's own integrator): drop one of them".into(),
             ));
         }
         self.backend.check(self.mode, &self.replicates)
+    }
+
+    /// Refuses a --motor key that a --randomize quantity also sets: the
+    /// draw would replace the given value without a word.
+    fn check_motor_draws(&self) -> Result<()> {
+        use crate::plan::randomize::Quantity;
+        let m = &self.motor;
+        let given = [
+            ("delay", m.delay != 0.0, Quantity::MotorDelay),
+            ("filter", m.filter.is_some(), Quantity::MotorFilter),
+            ("noload", m.noload.is_some(), Quantity::MotorNoload),
+            ("lag", m.lag.is_some(), Quantity::MotorLag),
+        ];
+        for (key, set, q) in given {
+            if set && self.replicates.randomize.iter().any(|r| r.quantity == q) {
+                let name = q.name();
+                return Err(Error::Config(format!(
+                    "--motor {key}= and --randomize {name}= both set the motor's {key} (each replicate's draw would replace the given value): keep one of them"
+                )));
+            }
+        }
+        Ok(())
     }
 
     /// The replicates of each cell.

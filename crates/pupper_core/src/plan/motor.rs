@@ -25,7 +25,7 @@ pub const KEYS: [(&str, &str); 6] = [
     ),
     (
         "lag",
-        "the torque's first-order lag behind the PD (s): a current loop's",
+        "the torque's first-order lag behind the PD (s, at most 0.05; 0: none): a current loop's",
     ),
 ];
 
@@ -81,11 +81,13 @@ pub fn feedback_of(
     ))
 }
 
-/// The feedback path of one actuator's loop on a calibrated model: the
-/// firmware `motor` with the actuator's fitted torque `lag` where `motor`
-/// sets none, and its fitted feedback `latency` where no `sensing` delay is
-/// given (a user's `--motor lag=` or `--sensing-delay` stands instead), the
-/// latency read as torque mode's firmware reads it ([`Motor::late_steps`]).
+/// The feedback path of one actuator's loop on a calibrated model (the
+/// sampled loop where its PD acts every step: [`Motor::sampled_feedback`]):
+/// the firmware `motor` with the actuator's fitted torque `lag` where
+/// `motor` sets none, and its fitted feedback `latency` where no `sensing`
+/// delay is given (a user's `--motor lag=` or `--sensing-delay` stands
+/// instead), the latency read as torque mode's firmware reads it
+/// ([`Motor::late_steps`]).
 pub fn fitted_feedback(
     motor: &Motor,
     sensing: Option<f64>,
@@ -97,11 +99,11 @@ pub fn fitted_feedback(
     if m.lag.is_none() && lag > 0.0 {
         m.lag = Some(lag);
     }
-    let mut fb = m.feedback(sensing.unwrap_or(latency), dt);
-    if let (None, Some(s)) = (sensing, fb.sampled.as_mut()) {
-        s.late = m.late_steps(latency, dt);
-    }
-    fb
+    let late = match sensing {
+        Some(s) => s / dt,
+        None => m.late_steps(latency, dt),
+    };
+    m.sampled_feedback(late, dt)
 }
 
 /// How much later (physics steps) a PD updated every step and held over
@@ -133,30 +135,41 @@ impl Motor {
     /// `sensing` s old, the physics stepping at `dt`: the sensing delay
     /// plus half an update period (the PD's output is held for one: `rate`,
     /// else every step), the derivative's filter, and half a period more on
-    /// the derivative when it is an encoder's difference over a period. A
-    /// PD that acts every physics step closes the sampled loop the
-    /// simulation steps ([`crate::math::margins::Sampled`]): its state
-    /// `sensing` old, the encoder's difference over a step the velocity
-    /// semi-implicit Euler steps with. The command delay is not feedback:
-    /// it moves the target, not the loop.
+    /// the derivative when it is an encoder's difference over a period.
+    /// The continuous loop: on a model no fit calibrated, a conservative
+    /// stand-in for hardware that the simulation's step discretises
+    /// coarsely. The command delay is not feedback: it moves the target,
+    /// not the loop.
     pub fn feedback(&self, sensing: f64, dt: f64) -> crate::math::margins::Feedback {
         let period = self.period(dt);
-        let every = self.every_step(dt);
         crate::math::margins::Feedback {
             latency: sensing + 0.5 * period,
             filter_hz: self.filter,
-            derivative_delay: if self.counts.is_some() && !every {
+            derivative_delay: if self.counts.is_some() {
                 0.5 * period
             } else {
                 0.0
             },
             torque_lag: self.lag.unwrap_or(0.0),
             hold: 0.5 * period,
-            sampled: every.then_some(crate::math::margins::Sampled {
-                step: dt,
-                late: sensing / dt,
-            }),
+            sampled: None,
         }
+    }
+
+    /// The feedback path of a calibrated servo (`pupper fit` identified it
+    /// through the simulation, whose loop it then is): a PD that acts every
+    /// physics step closes the sampled loop the simulation steps
+    /// ([`crate::math::margins::Sampled`]), its state `late` steps old and
+    /// the encoder's difference over a step the very velocity semi-implicit
+    /// Euler steps with; a slower one, the continuous loop of
+    /// [`Motor::feedback`].
+    pub fn sampled_feedback(&self, late: f64, dt: f64) -> crate::math::margins::Feedback {
+        let mut fb = self.feedback(late * dt, dt);
+        if self.every_step(dt) {
+            fb.derivative_delay = 0.0;
+            fb.sampled = Some(crate::math::margins::Sampled { step: dt, late });
+        }
+        fb
     }
 
     pub fn is_ideal(&self) -> bool {
@@ -219,7 +232,18 @@ impl Motor {
                 "filter" => m.filter = Some(number(true)?),
                 "delay" => m.delay = number(false)?,
                 "noload" => m.noload = Some(number(true)?),
-                "lag" => m.lag = Some(number(true)?),
+                "lag" => {
+                    // 0 is no lag (a fitted 0 pasted back); past a servo's
+                    // plausible lag is most often milliseconds typed bare
+                    let v = number(false)?;
+                    if let Some((why, meant)) = crate::robot::model::servo_time_typo(v) {
+                        let fix = meant.map_or("e.g. lag=0.007 for 7 ms".into(), |s| {
+                            format!("for {v} ms write lag={s}")
+                        });
+                        return Err(bad(format!("--motor lag={value}: {why}: {fix}")));
+                    }
+                    m.lag = Some(v).filter(|&l| l > 0.0);
+                }
                 _ => {
                     m.counts = Some(match value.parse::<u32>() {
                         Ok(c) if c >= 2 => c,
@@ -335,7 +359,9 @@ mod tests {
         assert!(e("filter=abc").contains("not a number"));
         assert!(e("counts=1").contains(">= 2"));
         assert!(e("counts=2.5").contains("whole number"));
-        assert!(e("lag=0").contains("> 0"));
+        // 0 is no lag (a fitted 0 pasted back); 10 is 10 ms typed bare
+        assert!(Motor::parse("lag=0").unwrap().is_ideal());
+        assert!(e("lag=10").contains("write lag=0.01"), "{}", e("lag=10"));
         assert!(e("rate=1,rate=2").contains("twice"));
         assert!(!e("wind=3").contains('\n'));
         let m = Motor::parse("rate=1000").unwrap();

@@ -240,6 +240,16 @@ fn uniform(spec: &str, q: Quantity, t: &str) -> Result<Dist> {
             "the range reaches values that make no sense",
         ));
     }
+    // a lag past a servo's plausible one: most often milliseconds typed bare
+    if q == Quantity::MotorLag
+        && let Some((why, meant)) = crate::robot::model::servo_time_typo(hi)
+    {
+        let ms = match meant {
+            Some(s) => format!(" (for {lo} to {hi} ms, motor_lag={}:{s})", lo / 1000.0),
+            None => String::new(),
+        };
+        return Err(bad(spec, Some(q), &format!("HIGH {why}{ms}")));
+    }
     Ok(Dist::Uniform(lo, hi))
 }
 
@@ -547,6 +557,11 @@ mod tests {
         assert!(e("torso_mass=abc").contains("±P%"));
         assert!(e("friction=-1:2").contains("make no sense"));
         assert!(e("motor_lag=-0.001:0.01").contains("make no sense"));
+        assert!(
+            e("motor_lag=0:10").contains("motor_lag=0:0.01"),
+            "{}",
+            e("motor_lag=0:10")
+        );
         assert!(e("push_at=3:1").contains("LOW is above HIGH"));
         assert!(e("delay=0:-1").contains("whole number"));
         assert!(

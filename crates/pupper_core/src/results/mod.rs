@@ -2,7 +2,10 @@
 //! directory (atomic writes, resume, merge) and the ranking rule.
 
 pub mod best;
+pub mod clear;
 pub mod files;
+pub mod fit_run;
+pub mod json;
 pub mod kinds;
 pub mod merge;
 pub mod output;

@@ -270,6 +270,9 @@ impl RunWriter {
                 w.lock = Some(lock(dir)?);
             }
             Existing::Resume => {
+                // another kind's run is refused before its manifest is parsed
+                // (a tune's or a fit's is not a sweep's)
+                crate::results::clear::check_kind(dir, &w.manifest.kind)?;
                 let old = read_manifest(dir)?;
                 w.lock = Some(lock(dir)?);
                 // read under the lock: no writer is changing it now
@@ -357,31 +360,10 @@ impl RunWriter {
         };
         remove_stale_temps(&dir);
         if self.existing == Existing::Overwrite {
-            // an overwritten run must not keep files of the old one: its
-            // tables, its ranking, MuJoCo's log, the figures pupper drew
-            for name in [
-                TRACES,
-                REPLICATES,
-                RESPONSE,
-                BODE,
-                RESPONSE_TRACES,
-                crate::results::output::BEST,
-                "MUJOCO_LOG.TXT",
-            ] {
-                let _ = std::fs::remove_file(dir.join(name));
-            }
-            if let Ok(entries) = std::fs::read_dir(dir.join("plots")) {
-                for e in entries.flatten() {
-                    let p = e.path();
-                    let drawn = p
-                        .extension()
-                        .and_then(|x| x.to_str())
-                        .is_some_and(|x| matches!(x, "png" | "gif" | "csv"));
-                    if drawn && p.is_file() {
-                        let _ = std::fs::remove_file(&p);
-                    }
-                }
-            }
+            // an overwritten run keeps no file of the old one, whatever
+            // kind wrote it (a fit's calibrated.xml under a walk's manifest
+            // would be read as this run's)
+            crate::results::clear::clear_run(&dir)?;
         }
         // a resume's files are rewritten from what was read: sorted, without
         // a truncated last line or traces of cells that must run again

@@ -138,6 +138,10 @@ pub struct LegInfo {
     pub hip_to_foot: f64,
     /// First size of the foot geom (a sphere's radius).
     pub foot_radius: f64,
+    /// Whether the foot geom is a sphere, whose centre and radius say where
+    /// the foot touches the floor (a capsule's centre is mid-calf).
+    #[serde(default = "yes")]
+    pub foot_sphere: bool,
     /// Index of the foot geom.
     #[serde(default)]
     pub foot_geom: usize,
@@ -399,6 +403,16 @@ pub const SERVO_TIMES: ActuatorNumeric = ActuatorNumeric {
 /// upper bound `pupper fit` fits them within.
 pub const MAX_SERVO_TIME: f64 = 0.05;
 
+/// Why a torque lag `v` (s) past [`MAX_SERVO_TIME`] is refused, and the
+/// value likely meant: milliseconds typed bare ("10" for 10 ms) are
+/// `v / 1000` s, where that is a plausible lag. None for a plausible lag.
+pub fn servo_time_typo(v: f64) -> Option<(String, Option<f64>)> {
+    let why = format!(
+        "{v} s is past the {MAX_SERVO_TIME} s a servo's torque lag can be (the bound `pupper fit` fits it within); it is in seconds"
+    );
+    (v > MAX_SERVO_TIME).then(|| (why, Some(v / 1000.0).filter(|&s| s <= MAX_SERVO_TIME)))
+}
+
 /// The largest gain scale a model may declare: a fit that lands past it has
 /// found no servo but a different robot.
 pub const MAX_GAIN_SCALE: f64 = 100.0;
@@ -492,15 +506,17 @@ impl ModelInfo {
     /// actuator delay) or gain scales on some actuator. Its loop margins
     /// are then of that servo and the model's joint damping.
     pub fn calibrated(&self) -> bool {
-        self.actuators.iter().any(|a| {
-            a.lag > 0.0 || a.latency > 0.0 || a.delay > 0.0 || a.gain_scale != [1.0, 1.0]
-        })
+        self.actuators
+            .iter()
+            .any(|a| a.lag > 0.0 || a.latency > 0.0 || a.delay > 0.0 || a.gain_scale != [1.0, 1.0])
     }
 
     /// Whether some actuator has a fitted torque lag or feedback latency:
     /// a servo only torque mode's firmware runs (MuJoCo's servo has none).
     pub fn fitted_servo_times(&self) -> bool {
-        self.actuators.iter().any(|a| a.lag > 0.0 || a.latency > 0.0)
+        self.actuators
+            .iter()
+            .any(|a| a.lag > 0.0 || a.latency > 0.0)
     }
 
     /// What a standing run should know of the ground: a note when the

@@ -371,6 +371,7 @@ mod tests {
                 knee_axis: [0.0, y, 0.0],
                 hip_to_foot: 0.2,
                 foot_radius: 0.01,
+                foot_sphere: true,
                 foot_geom: 0,
                 abduction: [0.0, 0.1 * y, 0.3],
                 abduction_axis: [1.0, 0.0, 0.0],

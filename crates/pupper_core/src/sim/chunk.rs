@@ -4,10 +4,10 @@
 use crate::error::Result;
 use crate::plan::config::SweepConfig;
 use crate::plan::grid::Cell;
+use crate::plan::mode::Mode;
 use crate::plan::schedule::Schedule;
 use crate::plan::setup::CellSetup;
 use crate::robot::model::ModelInfo;
-use crate::plan::mode::Mode;
 use crate::sim::firmware::{Sensing, firmware, latency_steps};
 
 /// Torque-mode simulations stepped together per thread (see `run_chunk`):

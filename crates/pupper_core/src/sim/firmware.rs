@@ -62,7 +62,7 @@ pub(crate) fn firmware(
         f.follow = info
             .actuators
             .iter()
-            .map(|a| (a.lag > 0.0).then(|| lag_weight(a.lag, dt)))
+            .map(|a| lag_weight(a.lag, dt))
             .collect();
     }
     Some(f)
@@ -82,9 +82,14 @@ pub(crate) fn latency_steps(motor: &Motor, info: &ModelInfo, dt: f64) -> Vec<f64
 }
 
 /// The lag's weight of a new torque per physics step: the exact
-/// discretisation of `T·dy/dt = x − y` over `dt`.
-fn lag_weight(t: f64, dt: f64) -> f64 {
-    -(-dt / t).exp_m1()
+/// discretisation of `T·dy/dt = x − y` over `dt`; None where it is 1 to
+/// the last bit (a lag thousands of times shorter than the step), which is
+/// no lag at all: `y + 1·(x − y)` may differ from `x` in its last bit, and
+/// a fit's finite differences on a lag at its bound of 0 would read that
+/// round-off as a slope.
+fn lag_weight(t: f64, dt: f64) -> Option<f64> {
+    let w = -(-dt / t).exp_m1();
+    (t > 0.0 && w < 1.0).then_some(w)
 }
 
 /// One simulation's servo firmware ([`Motor`]): the PD updated at its own
@@ -111,10 +116,15 @@ pub(crate) struct Firmware {
     /// the first step: it starts at the PD's).
     follow: Vec<Option<f64>>,
     lagged: Vec<f64>,
+    /// Whether the encoder rounds the angle to its counts (torque mode);
+    /// `pupper fit`'s replay keeps the difference velocity but not the
+    /// rounding, which would make the replay a staircase in the
+    /// parameters that no finite-difference Jacobian can follow.
+    quantize: bool,
 }
 
 impl Firmware {
-    fn new(motor: &Motor, nu: usize, dt: f64) -> Firmware {
+    pub(crate) fn new(motor: &Motor, nu: usize, dt: f64) -> Firmware {
         let period = motor.period(dt);
         Firmware {
             motor: motor.clone(),
@@ -125,9 +135,19 @@ impl Firmware {
             filtered: vec![f64::NAN; nu],
             last_angle: vec![f64::NAN; nu],
             delays: vec![motor.delay; nu],
-            follow: vec![motor.lag.map(|t| lag_weight(t, dt)); nu],
+            follow: vec![motor.lag.and_then(|t| lag_weight(t, dt)); nu],
             lagged: vec![f64::NAN; nu],
+            quantize: true,
         }
+    }
+
+    /// This firmware for `pupper fit`'s replay: the encoder's difference
+    /// velocity without its rounding, and each actuator's own torque lag
+    /// (s; 0: none) at physics step `dt`.
+    pub(crate) fn smooth(mut self, lags: &[f64], dt: f64) -> Firmware {
+        self.quantize = false;
+        self.follow = lags.iter().map(|&t| lag_weight(t, dt)).collect();
+        self
     }
 
     /// True when the PD updates on the step starting at time `t`.
@@ -146,7 +166,11 @@ impl Firmware {
     pub(crate) fn update(&mut self, a: usize, kp: f64, kd: f64, target: f64, q: f64, v: f64) {
         let (q, v) = match self.motor.counts {
             Some(c) => {
-                let q = motor::quantize(q, c);
+                let q = if self.quantize {
+                    motor::quantize(q, c)
+                } else {
+                    q
+                };
                 let last = self.last_angle[a];
                 self.last_angle[a] = q;
                 // the encoder's difference; the sensor's velocity at first
@@ -226,6 +250,15 @@ impl Sensing {
     /// Records the state just read, for the sensing delay; what the PD sees
     /// of an actuator is then `read`'s.
     pub(crate) fn remember(&mut self, layout: &Layout, qpos: &[f64], qvel: &[f64]) {
+        self.remember_with(|q, v| {
+            q.extend(layout.act_qpos.iter().map(|&i| qpos[i]));
+            v.extend(layout.act_dof.iter().map(|&i| qvel[i]));
+        });
+    }
+
+    /// Records the actuated joints' angles and velocities `fill` writes
+    /// into the two (emptied) buffers it is given.
+    pub(crate) fn remember_with(&mut self, fill: impl FnOnce(&mut Vec<f64>, &mut Vec<f64>)) {
         if self.exact() {
             return;
         }
@@ -236,9 +269,8 @@ impl Sensing {
             Default::default()
         };
         q.clear();
-        q.extend(layout.act_qpos.iter().map(|&i| qpos[i]));
         v.clear();
-        v.extend(layout.act_dof.iter().map(|&i| qvel[i]));
+        fill(&mut q, &mut v);
         self.history.push_back((q, v));
     }
 
@@ -250,33 +282,39 @@ impl Sensing {
         qpos: &[f64],
         qvel: &[f64],
     ) -> (f64, f64) {
-        let (q, v) = if self.exact() || self.history.is_empty() {
-            (qpos[layout.act_qpos[a]], qvel[layout.act_dof[a]])
-        } else {
-            // `delay + latency` steps before the newest state, between the
-            // two recorded states around it (the oldest before the start)
-            let back = self.delay as f64 + self.latency.get(a).copied().unwrap_or(0.0);
-            let at = (self.history.len() - 1) as f64 - back;
-            if at <= 0.0 {
-                let (q, v) = &self.history[0];
-                (q[a], v[a])
-            } else {
-                let i = at.floor() as usize;
-                let frac = at - i as f64;
-                let (q0, v0) = &self.history[i];
-                match self.history.get(i + 1) {
-                    Some((q1, v1)) if frac > 0.0 => (
-                        q0[a] * (1.0 - frac) + q1[a] * frac,
-                        v0[a] * (1.0 - frac) + v1[a] * frac,
-                    ),
-                    _ => (q0[a], v0[a]),
-                }
-            }
-        };
+        let (q, v) = self
+            .late(a)
+            .unwrap_or((qpos[layout.act_qpos[a]], qvel[layout.act_dof[a]]));
         match &mut self.noise {
             Some(noise) => (q + noise.sample(), v),
             None => (q, v),
         }
+    }
+
+    /// Actuator `a`'s recorded angle and velocity `delay + latency` steps
+    /// before the newest state, between the two recorded states around it
+    /// (the oldest before the start); None where it reads the state as it
+    /// is (no delay, latency or noise).
+    pub(crate) fn late(&self, a: usize) -> Option<(f64, f64)> {
+        if self.exact() || self.history.is_empty() {
+            return None;
+        }
+        let back = self.delay as f64 + self.latency.get(a).copied().unwrap_or(0.0);
+        let at = (self.history.len() - 1) as f64 - back;
+        if at <= 0.0 {
+            let (q, v) = &self.history[0];
+            return Some((q[a], v[a]));
+        }
+        let i = at.floor() as usize;
+        let frac = at - i as f64;
+        let (q0, v0) = &self.history[i];
+        Some(match self.history.get(i + 1) {
+            Some((q1, v1)) if frac > 0.0 => (
+                q0[a] * (1.0 - frac) + q1[a] * frac,
+                v0[a] * (1.0 - frac) + v1[a] * frac,
+            ),
+            _ => (q0[a], v0[a]),
+        })
     }
 }
 

@@ -6,9 +6,8 @@
 use crate::math::stats::Settle;
 use crate::plan::hold::Load;
 use crate::plan::schedule::Schedule;
-use crate::sim::probe::{Finish, Probe, Sample};
-use crate::sim::result::CellResult;
-use crate::sim::stand::StandProbe;
+use crate::sim::probe::Sample;
+use crate::sim::stand::Figures;
 
 /// The hold kind's figures, in the order of [`HoldProbe`]'s `figures`.
 pub fn figure_names(load: &Load) -> Vec<String> {
@@ -47,8 +46,9 @@ impl Mean {
     }
 }
 
+/// The hold's own figures, on the stand's recorder
+/// ([`crate::sim::stand::OnStand`]).
 pub struct HoldProbe {
-    stand: StandProbe,
     free: (f64, f64),
     loaded: (f64, f64),
     /// From the shove's start until its dip is known (s).
@@ -72,7 +72,7 @@ pub struct HoldProbe {
 }
 
 impl HoldProbe {
-    pub fn new(stand: StandProbe, load: &Load, schedule: &Schedule, dt: f64) -> HoldProbe {
+    pub fn new(load: &Load, schedule: &Schedule, dt: f64) -> HoldProbe {
         let names = load.group_names();
         let group_of = load
             .groups
@@ -91,7 +91,6 @@ impl HoldProbe {
             .zip(schedule.dip_end())
             .map(|(p, end)| (p.start, end));
         HoldProbe {
-            stand,
             free: load.free_window(),
             loaded: load.loaded_window(schedule),
             shoved,
@@ -112,7 +111,9 @@ impl HoldProbe {
             dt,
         }
     }
+}
 
+impl Figures for HoldProbe {
     fn figures(&self) -> Vec<f64> {
         let sag = (self.z_free.value() - self.z_loaded.value()) * 1000.0;
         let mut out = vec![
@@ -134,16 +135,8 @@ impl HoldProbe {
         }
         out
     }
-}
 
-fn inside(t: f64, (from, to): (f64, f64)) -> bool {
-    // samples are taken at the end of each step
-    t > from + 1e-12 && t <= to + 1e-12
-}
-
-impl Probe for HoldProbe {
     fn observe(&mut self, s: &Sample<'_>) {
-        self.stand.observe(s);
         let Some(q) = s.layout.base.qpos else {
             return;
         };
@@ -183,20 +176,9 @@ impl Probe for HoldProbe {
             }
         }
     }
+}
 
-    fn fallen(&self) -> bool {
-        self.stand.fallen()
-    }
-
-    fn diverge(&mut self, t: f64) {
-        self.stand.diverge(t);
-    }
-
-    fn finish(self: Box<Self>, cell: &mut CellResult, done: Finish<'_>) {
-        let figures = self.figures();
-        if done.replicate == 0 {
-            cell.figures = figures;
-        }
-        Box::new(self.stand).finish(cell, done);
-    }
+fn inside(t: f64, (from, to): (f64, f64)) -> bool {
+    // samples are taken at the end of each step
+    t > from + 1e-12 && t <= to + 1e-12
 }

@@ -11,6 +11,7 @@ pub mod joints;
 pub mod metrics;
 pub mod physics;
 pub mod probe;
+pub mod replay;
 pub mod response;
 pub mod result;
 pub mod runner;

@@ -17,6 +17,33 @@ pub enum Force<'a> {
     PerStep(&'a [[f64; 3]]),
 }
 
+/// A batch to start: the cells (which share a timestep), their mode, where
+/// they start, and the threads that step them.
+pub struct BatchStart<'a> {
+    pub cells: &'a [CellSetup],
+    pub mode: Mode,
+    pub initial: &'a InitialState,
+    pub threads: usize,
+}
+
+/// One open-loop advance: simulations `ids` (sorted) by `nstep` steps, the
+/// base force, and with `ctrl` each simulation's ctrl for every step
+/// (`nstep` rows of `nu` per simulation, simulation-major): servo targets
+/// that move on a schedule known in advance.
+pub struct Advance<'a> {
+    pub ids: &'a [usize],
+    pub nstep: usize,
+    pub force: Force<'a>,
+    pub ctrl: Option<&'a [f64]>,
+}
+
+/// One closed-loop step: simulations `ids` (sorted) and the base force on
+/// each.
+pub struct Controlled<'a> {
+    pub ids: &'a [usize],
+    pub force: &'a [[f64; 3]],
+}
+
 /// Rows handed to an observer after each step: the simulation's position in
 /// the call's ids, the step within the call, qpos, and actuator forces.
 pub type Observer<'a> = dyn FnMut(usize, usize, &[f64], &[f64]) + 'a;
@@ -27,14 +54,8 @@ pub type Controller<'a> = dyn FnMut(usize, &[f64], &[f64], &mut [f64]) + 'a;
 pub trait Physics {
     fn info(&self) -> &ModelInfo;
     fn layout(&self) -> &Layout;
-    /// Starts simulations for `cells` (which share a timestep) at `initial`.
-    fn start(
-        &self,
-        cells: &[CellSetup],
-        mode: Mode,
-        initial: &InitialState,
-        threads: usize,
-    ) -> Result<Box<dyn SimBatch + '_>>;
+    /// Starts the simulations of `batch`'s cells at its initial state.
+    fn start(&self, batch: &BatchStart<'_>) -> Result<Box<dyn SimBatch + '_>>;
     /// The most simulations one batch should hold (a device's memory);
     /// None: batches are sized by measured speed.
     fn batch_limit(&self) -> Option<usize> {
@@ -60,27 +81,21 @@ pub trait SimBatch {
     fn stance(&self, sim: usize) -> f64;
     /// The current qpos of simulation `sim`.
     fn qpos(&self, sim: usize) -> Result<Vec<f64>>;
-    /// Open-loop advance of simulations `ids` (sorted) by `nstep` steps,
-    /// observing after each; with `ctrl`, each simulation's ctrl for every
-    /// step (`nstep` rows of `nu` per simulation, simulation-major): servo
-    /// targets that move on a schedule known in advance. Returns
+    /// The open-loop advance `call`, observing after each step. Returns
     /// `(position in ids, step)` of simulations that diverged; they are not
     /// observed from that step on.
     fn advance(
         &mut self,
-        ids: &[usize],
-        nstep: usize,
-        force: Force<'_>,
-        ctrl: Option<&[f64]>,
+        call: Advance<'_>,
         observe: &mut Observer<'_>,
     ) -> Result<Vec<(usize, usize)>>;
-    /// One closed-loop step: `control` writes each simulation's ctrl from its
-    /// state, then all step once, then `observe` sees the new state. Returns
-    /// the positions in ids of simulations that diverged.
+    /// One closed-loop step of `call`'s simulations: `control` writes each
+    /// simulation's ctrl from its state, then all step once, then `observe`
+    /// sees the new state. Returns the positions in ids of simulations that
+    /// diverged.
     fn step_controlled(
         &mut self,
-        ids: &[usize],
-        force: &[[f64; 3]],
+        call: Controlled<'_>,
         control: &mut Controller<'_>,
         observe: &mut Observer<'_>,
     ) -> Result<Vec<usize>>;

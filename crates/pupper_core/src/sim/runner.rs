@@ -13,11 +13,12 @@ use crate::sim::chunk::{ChunkPlan, Resolved, lanes};
 use crate::sim::frames::{FrameRecorder, frame_count};
 use crate::sim::hold::HoldProbe;
 use crate::sim::metrics::{Metrics, Recorder};
-use crate::sim::physics::{Physics, SimBatch};
+use crate::sim::physics::{BatchStart, Physics, SimBatch};
 use crate::sim::probe::{Finish, Probe, Start};
 use crate::sim::response::JointProbe;
-use crate::sim::stand::StandProbe;
+use crate::sim::stand::{OnStand, StandProbe};
 use crate::sim::stepping::{ChunkState, Stepping, step_lane};
+use crate::sim::walk::WalkProbe;
 
 pub use crate::sim::hooks::{Hooks, NoHooks};
 pub use crate::sim::result::{CellResult, Replicate};
@@ -150,6 +151,12 @@ struct Pace {
     threads: usize,
     /// Steps per wall second of one thread.
     lane_rate: f64,
+    /// Whether a batch has been timed: before one, the guess is taken as
+    /// the rate of the whole batch, not of each thread, since a kind whose
+    /// every step runs Rust per simulation (a walk's targets and feet, torque
+    /// mode's PD) does not get faster with threads (a 256-cell first walk
+    /// batch on 16 threads took 45 s).
+    measured: bool,
 }
 
 impl Pace {
@@ -164,12 +171,14 @@ impl Pace {
             // 40 µs per step: Pupper on a slow core (measured again after
             // the first batch)
             lane_rate: 2.5e4,
+            measured: false,
         }
     }
 
     /// Simulations of `steps` steps for the next batch.
     fn sims(&self, steps: usize) -> usize {
-        let fit = self.seconds * self.lane_rate * self.threads as f64 / steps.max(1) as f64;
+        let lanes = if self.measured { self.threads } else { 1 };
+        let fit = self.seconds * self.lane_rate * lanes as f64 / steps.max(1) as f64;
         (fit.floor() as usize).max(self.threads).max(1)
     }
 
@@ -178,6 +187,7 @@ impl Pace {
         if seconds > 0.05 {
             let lanes = sims.min(self.threads).max(1);
             self.lane_rate = (sims * steps) as f64 / seconds / lanes as f64;
+            self.measured = true;
         }
     }
 }
@@ -186,13 +196,8 @@ impl Pace {
 fn probe(cfg: &SweepConfig, s: &Start<'_>) -> Box<dyn Probe> {
     match (&cfg.experiment, s.excited) {
         (Experiment::Response(e), Some(a)) => Box::new(JointProbe::new(s, a, e.hold)),
-        (Experiment::Hold(l), _) => Box::new(HoldProbe::new(
-            StandProbe::new(Recorder::new(s.schedule, s.dt, s.stance)),
-            l,
-            s.schedule,
-            s.dt,
-        )),
-        (Experiment::Walk(w), _) => Box::new(crate::sim::walk::WalkProbe::new(s, w)),
+        (Experiment::Hold(l), _) => Box::new(OnStand::new(s, HoldProbe::new(l, s.schedule, s.dt))),
+        (Experiment::Walk(w), _) => Box::new(OnStand::new(s, WalkProbe::new(s, w))),
         _ => Box::new(StandProbe::new(Recorder::new(s.schedule, s.dt, s.stance))),
     }
 }
@@ -215,7 +220,12 @@ fn run_chunk(
         .iter()
         .map(|s| s.torque_limits(info))
         .collect::<Result<_>>()?;
-    let mut batch = physics.start(&plan.setups, cfg.mode, &schedule.initial, opts.threads)?;
+    let mut batch = physics.start(&BatchStart {
+        cells: &plan.setups,
+        mode: cfg.mode,
+        initial: &schedule.initial,
+        threads: opts.threads,
+    })?;
     let layout = physics.layout().clone();
     let n = plan.len();
     let probes = probes(cfg, cells, &plan, batch.as_ref(), &layout, &limits, dt);

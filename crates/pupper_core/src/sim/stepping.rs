@@ -12,7 +12,7 @@ use crate::sim::chunk::ChunkPlan;
 use crate::sim::firmware::Sensing;
 use crate::sim::frames::FrameRecorder;
 use crate::sim::hooks::Hooks;
-use crate::sim::physics::{Force, SimBatch};
+use crate::sim::physics::{Advance, Controlled, Force, SimBatch};
 use crate::sim::probe::{Probe, Sample};
 use crate::sim::torque::{Delivered, Motors};
 
@@ -311,7 +311,13 @@ fn advance_open_loop(
         );
     };
     let given = st.moving.then_some(&ctrl[..]);
-    batch.advance(alive, nstep, force, given, &mut observe)
+    let call = Advance {
+        ids: alive,
+        nstep,
+        force,
+        ctrl: given,
+    };
+    batch.advance(call, &mut observe)
 }
 
 /// One controlled step of the simulations `alive` at time `t`: torque
@@ -334,8 +340,10 @@ fn step_controlled(
     let rows: RefCell<Vec<(f64, Vec<f64>)>> =
         RefCell::new((0..alive.len()).map(|_| (f64::NAN, Vec::new())).collect());
     batch.step_controlled(
-        alive,
-        forces,
+        Controlled {
+            ids: alive,
+            force: forces,
+        },
         &mut |pos, qpos, qvel, ctrl| {
             let sim = alive[pos];
             let motors = Motors {

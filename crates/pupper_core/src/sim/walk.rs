@@ -10,9 +10,8 @@ use nalgebra::{Quaternion, Unit, UnitQuaternion, Vector3};
 use crate::plan::walk::Walk;
 use crate::plan::walk::gait::Gait;
 use crate::plan::walk::leg::{Leg, V3};
-use crate::sim::probe::{Finish, Probe, Sample, Start};
-use crate::sim::result::CellResult;
-use crate::sim::stand::StandProbe;
+use crate::sim::probe::{Sample, Start};
+use crate::sim::stand::Figures;
 
 /// The walk's figures, in the order of [`WalkProbe`]'s.
 pub const FIGURES: [&str; 13] = [
@@ -69,8 +68,9 @@ struct Last {
     feet: Vec<Foot>,
 }
 
+/// The walk's own figures, on the stand's recorder
+/// ([`crate::sim::stand::OnStand`]).
 pub struct WalkProbe {
-    stand: StandProbe,
     gait: Gait,
     legs: Vec<Leg>,
     gears: Vec<f64>,
@@ -102,12 +102,8 @@ pub struct WalkProbe {
 impl WalkProbe {
     pub fn new(s: &Start<'_>, walk: &Walk) -> WalkProbe {
         let gait = walk.gait_of(s.cell);
-        let stand = StandProbe::new(crate::sim::metrics::Recorder::new(
-            s.schedule, s.dt, s.stance,
-        ));
         let nu = s.layout.nu;
         WalkProbe {
-            stand,
             gait,
             legs: walk.legs.clone(),
             gears: walk.gears.clone(),
@@ -163,7 +159,9 @@ impl WalkProbe {
             })
             .collect()
     }
+}
 
+impl Figures for WalkProbe {
     fn figures(&self) -> Vec<f64> {
         let (from, to) = self.window;
         let span = to - from;
@@ -230,11 +228,8 @@ impl WalkProbe {
             },
         ]
     }
-}
 
-impl Probe for WalkProbe {
     fn observe(&mut self, s: &Sample<'_>) {
-        self.stand.observe(s);
         let Some(b) = s.layout.base.qpos else {
             return;
         };
@@ -305,26 +300,6 @@ impl Probe for WalkProbe {
             }
         }
         self.last = Some(Last { pos, yaw, q, feet });
-    }
-
-    fn fallen(&self) -> bool {
-        self.stand.fallen()
-    }
-
-    fn diverge(&mut self, t: f64) {
-        self.stand.diverge(t);
-    }
-
-    fn finish(self: Box<Self>, cell: &mut CellResult, done: Finish<'_>) {
-        let figures = self.figures();
-        let replicated = !done.cfg.replicates.is_plain();
-        if done.replicate == 0 {
-            cell.figures = figures.clone();
-        }
-        Box::new(self.stand).finish(cell, done);
-        if replicated && let Some(r) = cell.replicates.last_mut() {
-            r.figures = figures;
-        }
     }
 }
 

@@ -126,7 +126,8 @@ pub fn run_sweep(req: &SweepRequest, ui: &mut dyn SweepUi) -> Result<SweepOutcom
         let mark = bound.as_ref().map(|b| move |r: &mut CellResult| b.mark(r));
         // hung in the air, a response run needs no floor
         let standing = !cfg.experiment.plan().suspended();
-        let note = check_start(info, &cfg.schedule.initial, standing)?;
+        let mut note = check_start(info, &cfg.schedule.initial, standing)?;
+        note.extend(servo_note(cfg, info));
         cfg.check_motor(info)?;
         // Warp and its device are checked before anything is written; on
         // Ray the workers run the physics
@@ -464,4 +465,23 @@ impl MujocoLog {
             };
         }
     }
+}
+
+/// A calibrated model's fitted servo (its torque lag, feedback latency)
+/// that a servo-mode run does not run, said: MuJoCo's servo has none.
+fn servo_note(cfg: &SweepConfig, info: &pupper_core::robot::model::ModelInfo) -> Option<String> {
+    use pupper_core::plan::mode::Mode;
+    if cfg.mode != Mode::Servo || !info.fitted_servo_times() {
+        return None;
+    }
+    // in ms, to the microsecond
+    let most = |f: fn(&pupper_core::robot::model::ActuatorInfo) -> f64| {
+        (info.actuators.iter().map(f).fold(0.0_f64, f64::max) * 1e6).round() / 1e3
+    };
+    Some(format!(
+        "{} carries a calibrated servo (torque lag up to {} ms, feedback latency up to {} ms, pupper fit's) that MuJoCo's servo cannot run: this servo-mode run leaves them out; --mode torque runs them",
+        info.source,
+        most(|a| a.lag),
+        most(|a| a.latency)
+    ))
 }

@@ -6,8 +6,8 @@ use pyo3::prelude::*;
 use super::python::{Mujoco, PyResultExt};
 use pupper_core::error::{Error, Result};
 use pupper_core::robot::model::{
-    ActuatorInfo, GAIN_SCALE, JointInfo, KeyframeInfo, LegInfo, MOTOR_CONSTANT, ModelInfo, SERVO_TIMES,
-    ModelSource, SensorInfo,
+    ActuatorInfo, GAIN_SCALE, JointInfo, KeyframeInfo, LegInfo, MOTOR_CONSTANT, ModelInfo,
+    ModelSource, SERVO_TIMES, SensorInfo,
 };
 
 impl<'py> Mujoco<'py> {
@@ -324,6 +324,7 @@ impl<'py> Mujoco<'py> {
         };
         let (anchor, axis, gpos) = (rows("xanchor")?, rows("xaxis")?, rows("geom_xpos")?);
         let gsize: Vec<[f64; 3]> = get("geom_size")?.extract()?;
+        let gtype: Vec<i64> = get("geom_type")?.extract()?;
         let nbody = parent.len();
         let children =
             |b: usize| -> Vec<usize> { (1..nbody).filter(|&c| parent[c] == b).collect() };
@@ -361,6 +362,8 @@ impl<'py> Mujoco<'py> {
                 knee_axis: axis[kfe],
                 hip_to_foot: d,
                 foot_radius: gsize[foot_geom][0],
+                // mjGEOM_SPHERE
+                foot_sphere: gtype[foot_geom] == 2,
                 foot_geom,
                 abduction: anchor[haa],
                 abduction_axis: axis[haa],

@@ -8,6 +8,7 @@ mod inspect;
 pub mod model;
 pub mod python;
 pub mod ray;
+pub mod replay;
 mod setup;
 pub mod warp;
 

@@ -6,6 +6,7 @@ pub(crate) mod hold;
 pub(crate) mod lab;
 pub(crate) mod model;
 pub(crate) mod record;
+pub(crate) mod replay;
 pub(crate) mod response;
 pub(crate) mod runs;
 pub(crate) mod sweep;

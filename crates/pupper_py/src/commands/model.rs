@@ -82,12 +82,58 @@ pub(crate) fn gains<'py>(
     to_dict(py, &r)
 }
 
+/// The servo loop of one joint from its reflected inertia alone (no model
+/// loaded): the firmware `motor` with `sensing_delay` s of feedback latency
+/// (the continuous loop), or with `fitted` a calibrated joint's (`gains`
+/// on a calibrated model): its fitted servo (`lag`, `latency`: read as
+/// torque mode and `pupper fit` read them, where `motor`'s lag= and
+/// `sensing_delay` give none) as the sampled loop the simulation steps.
+/// `damping`: the joint's viscous damping in the loop.
+#[allow(clippy::too_many_arguments)]
+fn servo_loop(
+    inertia: f64,
+    kp: f64,
+    kd: f64,
+    motor: Option<&str>,
+    sensing_delay: Option<f64>,
+    timestep: f64,
+    damping: f64,
+    lag: f64,
+    latency: f64,
+    fitted: bool,
+) -> PyResult<pupper_core::math::margins::ServoLoop> {
+    let good = |v: f64| v.is_finite() && v >= 0.0;
+    if !(inertia.is_finite() && inertia > 0.0 && timestep.is_finite() && timestep > 0.0)
+        || !(good(damping) && good(lag) && good(latency))
+    {
+        return Err(to_py(Error::Config(format!(
+            "loop_margins(inertia={inertia}, timestep={timestep}, damping={damping}, lag={lag}, latency={latency}): give a positive inertia (kg·m²) and timestep (s), and a damping, lag and latency >= 0"
+        ))));
+    }
+    // the spec and the sensing delay checked as `gains` checks them
+    let plain =
+        pupper_core::plan::motor::feedback_of(Some(motor.unwrap_or("")), sensing_delay, timestep)
+            .map_err(to_py)?
+            .unwrap_or_default();
+    let m = pupper_core::plan::motor::Motor::parse(motor.unwrap_or("")).map_err(to_py)?;
+    let fb = if fitted {
+        pupper_core::plan::motor::fitted_feedback(&m, sensing_delay, timestep, lag, latency)
+    } else {
+        plain
+    };
+    Ok(fb.servo(inertia, damping, kp, kd))
+}
+
 /// The phase (deg) and gain (dB) margins of one joint's servo loop, as
 /// `gains(..., motor=, sensing_delay=)` computes them, from the joint's
 /// reflected inertia alone (no model loaded): what `recommend` checks for
-/// every candidate and drawn robot.
+/// every candidate and drawn robot. `damping`, `lag` and `latency`: a
+/// calibrated joint's fitted damping and servo times; `fitted`: its loop is
+/// a calibrated servo's (the sampled loop, as `gains` closes it on a
+/// calibrated model).
 #[pyfunction]
-#[pyo3(signature = (inertia, kp, kd, *, motor=None, sensing_delay=None, timestep))]
+#[pyo3(signature = (inertia, kp, kd, *, motor=None, sensing_delay=None, timestep, damping=0.0, lag=0.0, latency=0.0, fitted=false))]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn loop_margins(
     inertia: f64,
     kp: f64,
@@ -95,23 +141,72 @@ pub(crate) fn loop_margins(
     motor: Option<String>,
     sensing_delay: Option<f64>,
     timestep: f64,
+    damping: f64,
+    lag: f64,
+    latency: f64,
+    fitted: bool,
 ) -> PyResult<(f64, f64)> {
-    if !(inertia.is_finite() && inertia > 0.0 && timestep.is_finite() && timestep > 0.0) {
-        return Err(to_py(Error::Config(format!(
-            "loop_margins(inertia={inertia}, timestep={timestep}): give a positive inertia (kg·m²) and timestep (s)"
-        ))));
-    }
-    let fb = pupper_core::plan::motor::feedback_of(
-        Some(motor.as_deref().unwrap_or("")),
+    let l = servo_loop(
+        inertia,
+        kp,
+        kd,
+        motor.as_deref(),
         sensing_delay,
         timestep,
-    )
-    .map_err(to_py)?
-    .unwrap_or_default();
-    Ok(fb
-        .servo(inertia, 0.0, kp, kd)
-        .margins()
+        damping,
+        lag,
+        latency,
+        fitted,
+    )?;
+    Ok(l.margins()
         .map_or((f64::NAN, f64::NAN), |m| (m.phase_deg, m.gain_db)))
+}
+
+/// The closed loop of the same joint (`loop_margins`' keywords) from its
+/// target, the target `command_delay` s late: per frequency in `hz`, its
+/// gain (dB) and phase (deg, continuous from 0 at low frequency), what a
+/// sine through the simulated joint measures where the joint is linear.
+#[pyfunction]
+#[pyo3(signature = (inertia, kp, kd, hz, *, motor=None, sensing_delay=None, timestep, damping=0.0, lag=0.0, latency=0.0, command_delay=0.0, fitted=false))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn loop_response(
+    inertia: f64,
+    kp: f64,
+    kd: f64,
+    hz: Vec<f64>,
+    motor: Option<String>,
+    sensing_delay: Option<f64>,
+    timestep: f64,
+    damping: f64,
+    lag: f64,
+    latency: f64,
+    command_delay: f64,
+    fitted: bool,
+) -> PyResult<Vec<(f64, f64)>> {
+    let l = servo_loop(
+        inertia,
+        kp,
+        kd,
+        motor.as_deref(),
+        sensing_delay,
+        timestep,
+        damping,
+        lag,
+        latency,
+        fitted,
+    )?;
+    let mut last = 0.0_f64;
+    Ok(hz
+        .iter()
+        .map(|&f| {
+            let h = l.closed_loop(2.0 * std::f64::consts::PI * f, command_delay);
+            // unwrapped: each phase within half a turn of the previous one
+            let mut p = h.arg().to_degrees();
+            p -= 360.0 * ((p - last) / 360.0).round();
+            last = p;
+            (20.0 * h.norm().log10(), p)
+        })
+        .collect())
 }
 
 /// Stand report (what `pupper stand --json` prints), as a dict. Keyword
@@ -148,4 +243,12 @@ pub(crate) fn builtin_model(name: &str) -> PyResult<Py<PyAny>> {
         )));
     }
     api::compiled(&source).map_err(to_py)
+}
+
+/// The calibrated model of a `pupper fit` run directory, the run checked
+/// against its manifest first (kind, files, their SHA-256): what
+/// `recommend --from-fit` and `gains --from-fit` read.
+#[pyfunction]
+pub(crate) fn fit_run(dir: PathBuf) -> PyResult<PathBuf> {
+    pupper_core::results::fit_run::calibrated(&dir).map_err(to_py)
 }

@@ -79,6 +79,21 @@ fn steps_of(run: &pupper_core::results::tables::RunTables) -> Vec<Option<u64>> {
         .collect()
 }
 
+/// Every file an older run of any kind left in `dir` removed (`--force`),
+/// and its `plots/` and `robots/` once empty: the one rule the Rust and
+/// the Python kinds share (`pupper_core::results::clear`).
+#[pyfunction]
+pub(crate) fn clear_run(dir: PathBuf) -> PyResult<()> {
+    pupper_core::results::clear::clear_run(&dir).map_err(to_py)
+}
+
+/// Refuses to resume `dir` as a run of `kind` when another kind's run is
+/// there, in one line naming both.
+#[pyfunction]
+pub(crate) fn check_kind(dir: PathBuf, kind: &str) -> PyResult<()> {
+    pupper_core::results::clear::check_kind(&dir, kind).map_err(to_py)
+}
+
 /// The manifest of a run directory, as a dict.
 #[pyfunction]
 pub(crate) fn read_manifest(py: Python<'_>, dir: PathBuf) -> PyResult<Bound<'_, PyAny>> {

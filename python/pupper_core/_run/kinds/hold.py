@@ -49,6 +49,6 @@ def hold(
     if unknown:
         raise TypeError(f"hold() got unexpected keyword argument(s) {', '.join(unknown)}: "
                         "see help(pupper_core.hold)")
-    callback = progress_printer() if progress is True else (progress or None)
+    callback = progress_printer("pupper hold") if progress is True else (progress or None)
     return with_report(_native.hold(grid, out=out, progress=callback, load=load, ramp=ramp, shove=shove,
                                      shove_at=shove_at, shove_duration=shove_duration, **sweep_options(options)))

@@ -39,7 +39,7 @@ def lab(
     population (replicates, seed, randomize) as `sweep` takes them (defaults as
     `pupper lab --help`).
     """
-    callback = progress_printer() if progress is True else (progress or None)
+    callback = progress_printer("pupper lab") if progress is True else (progress or None)
     if isinstance(options.get("sine"), str):
         options["sine"] = parse_sine(options["sine"])
     res = _native.lab(_names(variants), _grid_specs(grid), out=out, progress=callback, **options)

@@ -48,7 +48,7 @@ def response(
     if unknown:
         raise TypeError(f"response() got unexpected keyword argument(s) {', '.join(unknown)}: "
                         "see help(pupper_core.response)")
-    callback = progress_printer() if progress is True else (progress or None)
+    callback = progress_printer("pupper response") if progress is True else (progress or None)
     if isinstance(chirp, str):
         chirp = parse_sine(chirp)
     if isinstance(joints, str):

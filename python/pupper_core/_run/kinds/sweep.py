@@ -42,5 +42,5 @@ def sweep(
     (done_steps, total_steps). Ctrl-C stops within a second, keeps what is
     finished, and raises KeyboardInterrupt.
     """
-    callback = progress_printer() if progress is True else (progress or None)
+    callback = progress_printer("pupper sweep") if progress is True else (progress or None)
     return with_report(_native.sweep(grid, preset=preset, out=out, progress=callback, **sweep_options(options)))

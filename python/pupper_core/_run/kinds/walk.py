@@ -56,7 +56,7 @@ def walk(
     if unknown:
         raise TypeError(f"walk() got unexpected keyword argument(s) {', '.join(unknown)}: "
                         "see help(pupper_core.walk)")
-    callback = progress_printer() if progress is True else (progress or None)
+    callback = progress_printer("pupper walk") if progress is True else (progress or None)
     return with_report(_native.walk(grid, out=out, progress=callback, gait=gait, frequency=frequency,
                                      speed=speed, sideways=sideways, yaw_rate=yaw_rate, duty=duty,
                                      step_height=step_height, height=height, **sweep_options(options)))

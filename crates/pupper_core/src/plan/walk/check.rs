@@ -76,7 +76,12 @@ impl Walk {
         if s.push.is_some() {
             return bad("a walk has no push: drop the push options".into());
         }
-        for axis in [Axis::PushForce, Axis::LegScale, Axis::Variant] {
+        if grid.has_axis(Axis::PushForce) {
+            return bad(
+                "a walk has no push (its robot is moved by the gait alone): drop the push_force grid axis".into(),
+            );
+        }
+        for axis in [Axis::LegScale, Axis::Variant] {
             if grid.has_axis(axis) {
                 return bad(format!(
                     "a walk runs the gait on one body's legs (measured on the compiled model): drop the {axis} grid axis, or give the other body as its own --model"

@@ -17,6 +17,14 @@ impl Walk {
         self.legs = legs_of(info)?;
         let g = info.gravity.iter().map(|v| v * v).sum::<f64>().sqrt();
         self.weight = info.total_mass * g;
+        // without weight nothing holds the feet on the floor, and the cost
+        // of transport divides by it: the numbers would say nothing
+        if self.weight.is_nan() || self.weight <= 0.0 {
+            return Err(Error::Model(format!(
+                "model '{}' has no weight (mass {:.3} kg, gravity {g:.3} m/s^2): a walk needs the robot's weight on its feet; give the model gravity (<option gravity=\"0 0 -9.81\"/>) and mass",
+                info.name, info.total_mass
+            )));
+        }
         self.gears = info.actuators.iter().map(|a| a.gear).collect();
         if self.step_height.is_none() {
             let length = crate::robot::pose::leg_length(info)
@@ -44,6 +52,15 @@ fn legs_of(info: &ModelInfo) -> Result<Vec<Leg>> {
             info,
             format!("has {} legs pupper can measure", info.legs.len()),
         );
+    }
+    // a walk places each foot by its sphere's centre and radius: another
+    // shape's centre (a calf capsule's) lies inside the leg, and every
+    // stance would be measured centimetres into the floor
+    if let Some(l) = info.legs.iter().find(|l| !l.foot_sphere) {
+        return Err(Error::Model(format!(
+            "model '{}' has a leg ({}) whose foot (the colliding geom of its last body furthest from the knee) is not a sphere: pupper walk stands each foot by its sphere's centre and radius; give each foot a sphere geom at the leg's tip",
+            info.name, l.name
+        )));
     }
     let Some(free) = info.joints.iter().find(|j| j.kind == "free") else {
         return refuse(info, "has no free-joint base".into());

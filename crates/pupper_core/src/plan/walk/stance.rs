@@ -5,6 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::plan::grid::{Cell, Grid};
+use crate::plan::walk::gait::Gait;
 use crate::plan::walk::leg::{V3, norm, sub};
 use crate::plan::walk::{MAX_DEPTH, REACH_SLACK, Stance, Walk};
 
@@ -27,6 +28,7 @@ impl Walk {
             .zip(&at_start)
             .map(|(l, &q)| l.foot_at(q))
             .collect();
+        let given = self.height.is_some();
         let height = match self.height {
             Some(h) => h,
             None => {
@@ -59,33 +61,110 @@ impl Walk {
             })
             .collect();
         for cell in grid.cells() {
-            self.check_reach(&cell)?;
+            self.check_reach(&cell, given)?;
         }
         Ok(())
     }
 
-    /// Refuses a cell whose feet the gait sends beyond its legs' reach.
-    fn check_reach(&self, cell: &Cell) -> Result<()> {
+    /// Refuses a cell whose feet the gait sends beyond its legs' reach,
+    /// naming the flag that is the cause (`given`: the base's height was
+    /// --height's).
+    fn check_reach(&self, cell: &Cell, given: bool) -> Result<()> {
         let gait = self.gait_of(cell);
-        for (l, s) in self.legs.iter().zip(&self.stance) {
-            for p in gait.extremes(s.nominal) {
-                let miss = norm(sub(l.foot_at(l.solve(p, s.turns)), p));
-                if miss > REACH_SLACK {
-                    return Err(Error::Config(format!(
-                        "cell {}: the gait puts {}'s foot {:.0} mm beyond its reach (a stride of {:.3} m at {} m/s and {} Hz, a {} m step, the base {:.3} m high): lower the speed or the step height, raise the frequency, or give --height",
-                        cell.id,
-                        l.name,
-                        miss * 1e3,
-                        gait.velocity[0].hypot(gait.velocity[1]) * gait.stance_time(),
-                        gait.velocity[0],
-                        gait.frequency,
-                        gait.step_height,
-                        self.height.unwrap_or(f64::NAN),
-                    )));
-                }
-            }
+        match self.miss(&gait) {
+            Some(_) => Err(Error::Config(self.reach_words(&gait, given))),
+            None => Ok(()),
         }
-        Ok(())
+    }
+
+    /// The first leg `gait` sends beyond its reach, and by how much (m).
+    fn miss(&self, gait: &Gait) -> Option<(&str, f64)> {
+        self.legs.iter().zip(&self.stance).find_map(|(l, s)| {
+            gait.extremes(s.nominal)
+                .iter()
+                .map(|&p| norm(sub(l.foot_at(l.solve(p, s.turns)), p)))
+                .find(|&m| m > REACH_SLACK)
+                .map(|m| (l.name.as_str(), m))
+        })
+    }
+
+    /// What sends a foot beyond its reach, by the flag that sets it: the
+    /// base's height (a foot misses standing still), the sideways speed or
+    /// the yaw rate (the walk fits without it), the step (it misses at no
+    /// speed), else the forward speed at the gait's frequency. Only
+    /// `pupper walk` takes --height, --sideways, --yaw-rate and
+    /// --step-height, so only their own causes name them.
+    fn reach_words(&self, gait: &Gait, given: bool) -> String {
+        let at = |v: [f64; 3], step: f64| Gait {
+            velocity: v,
+            step_height: step,
+            ..*gait
+        };
+        let [vx, vy, wz] = gait.velocity;
+        let h = self.height.unwrap_or(f64::NAN);
+        let said = |g: &Gait, cause: String, fix: &str| match self.miss(g) {
+            Some((leg, m)) => format!(
+                "{cause} puts {leg}'s foot {:.0} mm beyond its reach: {fix}",
+                m * 1e3
+            ),
+            None => format!("{cause} puts a foot beyond its reach: {fix}"),
+        };
+        if self.miss(&at([0.0; 3], 0.0)).is_some() {
+            let cause = format!("the base {} m high, standing still,", round(h));
+            return match given {
+                true => said(
+                    &at([0.0; 3], 0.0),
+                    format!("--height {}: {cause}", round(h)),
+                    "give a --height the legs reach standing, or leave it out (the start pose's)",
+                ),
+                false => said(
+                    &at([0.0; 3], 0.0),
+                    cause,
+                    "give the model a start pose whose feet stand within the legs' reach",
+                ),
+            };
+        }
+        if vy != 0.0 && self.miss(&at([vx, 0.0, wz], gait.step_height)).is_none() {
+            let cause = format!(
+                "--sideways {} m/s (a sideways stride of {} m at {} Hz)",
+                round(vy),
+                round(vy.abs() * gait.stance_time()),
+                round(gait.frequency)
+            );
+            return said(gait, cause, "lower --sideways, or raise --frequency");
+        }
+        if wz != 0.0 && self.miss(&at([vx, vy, 0.0], gait.step_height)).is_none() {
+            let cause = format!(
+                "--yaw-rate {} rad/s (a turn of {:.0}° per stance at {} Hz)",
+                round(wz),
+                (wz * gait.stance_time()).to_degrees(),
+                round(gait.frequency)
+            );
+            return said(gait, cause, "lower --yaw-rate, or raise --frequency");
+        }
+        if self.miss(&at([0.0; 3], gait.step_height)).is_some() {
+            let cause = format!("a {} m step (--step-height)", round(gait.step_height));
+            return said(gait, cause, "lower --step-height");
+        }
+        let cause = format!(
+            "a stride of {} m (--speed {} m/s at --frequency {} Hz, a {} m step, the base {} m high)",
+            round(vx.hypot(vy) * gait.stance_time()),
+            round(vx),
+            round(gait.frequency),
+            round(gait.step_height),
+            round(h)
+        );
+        said(gait, cause, "lower --speed, or raise --frequency")
+    }
+}
+
+/// `v` to the millimetre (or the thousandth), without trailing zeros.
+fn round(v: f64) -> String {
+    let t = format!("{v:.3}");
+    let t = t.trim_end_matches('0').trim_end_matches('.');
+    match t {
+        "-0" => "0".into(),
+        t => t.into(),
     }
 }
 #[cfg(test)]
@@ -113,8 +192,9 @@ mod tests {
         };
         let e = w.stand_on(&[0.0; 12], &grid).unwrap_err().to_string();
         assert!(
-            e.contains("cell v3:") && e.contains("beyond its reach"),
+            e.contains("--speed 3 m/s") && e.contains("beyond its reach"),
             "{e}"
         );
+        assert!(!e.contains("cell v3") && !e.contains("--height"), "{e}");
     }
 }

@@ -6,12 +6,10 @@
 
 use crate::math::decimal::fmt_f64;
 use crate::plan::config::SweepConfig;
+use crate::plan::stand::Stand;
 use crate::plan::walk::Walk;
 use crate::results::kinds::KindTables;
-use crate::results::output::{
-    Detail, REPLICATES, STATISTICS, aggregated, axis_names, header, replicate_row,
-    replicates_header, robust_row, row,
-};
+use crate::results::output::{Detail, STATISTICS};
 use crate::sim::metrics::Status;
 use crate::sim::result::CellResult;
 use crate::sim::walk::{FIGURES, worse_low};
@@ -23,47 +21,34 @@ fn text(figures: &[f64], i: usize) -> String {
 
 impl KindTables for Walk {
     fn summary_header(&self, config: &SweepConfig) -> Vec<String> {
+        let mut h = Stand.summary_header(config);
         if config.replicates.is_plain() {
-            let mut h = header(&axis_names(config));
             h.extend(FIGURES.map(String::from));
-            return h;
-        }
-        let mut h: Vec<String> = ["index", "id", "name"].map(String::from).to_vec();
-        h.extend(axis_names(config));
-        h.extend(["replicates", "failure_fraction"].map(String::from));
-        for m in aggregated().chain(FIGURES) {
-            for s in STATISTICS {
-                h.push(format!("{s}:{m}"));
-            }
+        } else {
+            h.extend(
+                FIGURES
+                    .iter()
+                    .flat_map(|m| STATISTICS.map(|s| format!("{s}:{m}"))),
+            );
         }
         h
     }
 
+    /// The stand's replicates.csv, each row followed by the figures.
     fn details(&self, config: &SweepConfig, nu: usize) -> Vec<Detail> {
-        if config.replicates.is_plain() {
-            return Vec::new();
+        let mut details = Stand.details(config, nu);
+        for d in &mut details {
+            d.header.extend(FIGURES.map(String::from));
         }
-        let mut header = replicates_header(config, nu);
-        header.extend(FIGURES.map(String::from));
-        let sequence = header.iter().position(|h| h == "replicate");
-        vec![Detail {
-            file: REPLICATES,
-            header,
-            per_cell: Some(config.replicate_count()),
-            sequence,
-        }]
+        details
     }
 
     fn summary_row(&self, config: &SweepConfig, r: &CellResult) -> Vec<String> {
+        let mut out = Stand.summary_row(config, r);
         if config.replicates.is_plain() {
-            let mut out = row(&r.cell, &r.metrics);
             out.extend((0..FIGURES.len()).map(|i| text(&r.figures, i)));
             return out;
         }
-        let mut out = robust_row(
-            &r.cell,
-            &r.replicates.iter().map(|p| &p.metrics).collect::<Vec<_>>(),
-        );
         // over the replicates that stayed up, as robust_row takes them
         let up: Vec<&[f64]> = r
             .replicates
@@ -89,19 +74,12 @@ impl KindTables for Walk {
     }
 
     fn detail_rows(&self, config: &SweepConfig, r: &CellResult) -> Vec<Vec<Vec<String>>> {
-        if config.replicates.is_plain() {
-            return Vec::new();
+        let mut tables = Stand.detail_rows(config, r);
+        for rows in &mut tables {
+            for (out, p) in rows.iter_mut().zip(&r.replicates) {
+                out.extend((0..FIGURES.len()).map(|i| text(&p.figures, i)));
+            }
         }
-        vec![
-            r.replicates
-                .iter()
-                .enumerate()
-                .map(|(k, p)| {
-                    let mut out = replicate_row(&r.cell, k, &p.drawn, &p.metrics);
-                    out.extend((0..FIGURES.len()).map(|i| text(&p.figures, i)));
-                    out
-                })
-                .collect(),
-        ]
+        tables
     }
 }

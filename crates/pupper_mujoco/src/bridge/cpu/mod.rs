@@ -11,12 +11,9 @@ use pyo3::prelude::*;
 
 use super::model::LoadedModel;
 use pupper_core::error::Result;
-use pupper_core::plan::mode::Mode;
-use pupper_core::plan::schedule::InitialState;
-use pupper_core::plan::setup::CellSetup;
 use pupper_core::robot::layout::Layout;
 use pupper_core::robot::model::ModelInfo;
-use pupper_core::sim::physics::{Physics, SimBatch};
+use pupper_core::sim::physics::{BatchStart, Physics, SimBatch};
 
 impl Physics for LoadedModel<'_> {
     fn info(&self) -> &ModelInfo {
@@ -30,14 +27,8 @@ impl Physics for LoadedModel<'_> {
             .unwrap_or_else(|| unreachable!("layout of a non-floating model"))
     }
 
-    fn start(
-        &self,
-        cells: &[CellSetup],
-        mode: Mode,
-        initial: &InitialState,
-        threads: usize,
-    ) -> Result<Box<dyn SimBatch + '_>> {
-        let batch = MujocoBatch::new(self, cells, mode, initial, threads)?;
+    fn start(&self, b: &BatchStart<'_>) -> Result<Box<dyn SimBatch + '_>> {
+        let batch = MujocoBatch::new(self, b.cells, b.mode, b.initial, b.threads)?;
         Ok(Box::new(batch))
     }
 }

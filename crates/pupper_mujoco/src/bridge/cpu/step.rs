@@ -10,7 +10,7 @@ use pyo3::types::PyDict;
 use super::MujocoBatch;
 use crate::bridge::python::{PyResultExt, py_err};
 use pupper_core::error::{Error, Result};
-use pupper_core::sim::physics::{Controller, Force, Observer, SimBatch};
+use pupper_core::sim::physics::{Advance, Controlled, Controller, Force, Observer, SimBatch};
 
 impl<'py> MujocoBatch<'_, 'py> {
     /// The rollout's control input when the force changes per step or
@@ -204,15 +204,13 @@ impl SimBatch for MujocoBatch<'_, '_> {
     /// (servo targets that move), both as the rollout's control input.
     fn advance(
         &mut self,
-        ids: &[usize],
-        nstep: usize,
-        force: Force<'_>,
-        ctrl: Option<&[f64]>,
+        call: Advance<'_>,
         observe: &mut Observer<'_>,
     ) -> Result<Vec<(usize, usize)>> {
+        let (ids, nstep) = (call.ids, call.nstep);
         let py = self.owner.mj.py;
         let kw = PyDict::new(py);
-        let per_step = match force {
+        let per_step = match call.force {
             Force::Constant(f) => {
                 let mut s = self.state.readwrite();
                 let rows = s
@@ -225,7 +223,7 @@ impl SimBatch for MujocoBatch<'_, '_> {
             }
             Force::PerStep(f) => Some(f),
         };
-        if let Some((arr, spec)) = self.control_input(ids.len(), nstep, per_step, ctrl)? {
+        if let Some((arr, spec)) = self.control_input(ids.len(), nstep, per_step, call.ctrl)? {
             kw.set_item("control", arr).internal()?;
             kw.set_item("control_spec", spec).internal()?;
         }
@@ -250,11 +248,11 @@ impl SimBatch for MujocoBatch<'_, '_> {
 
     fn step_controlled(
         &mut self,
-        ids: &[usize],
-        force: &[[f64; 3]],
+        call: Controlled<'_>,
         control: &mut Controller<'_>,
         observe: &mut Observer<'_>,
     ) -> Result<Vec<usize>> {
+        let (ids, force) = (call.ids, call.force);
         let (nq, nv, nu) = (self.owner.info.nq, self.owner.info.nv, self.owner.info.nu);
         let off = self.off;
         let mut ctrl = vec![0.0f64; nu];

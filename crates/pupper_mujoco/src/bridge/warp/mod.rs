@@ -18,12 +18,11 @@ use worlds::array3;
 use super::model::LoadedModel;
 use super::python::{PyResultExt, exception_name, python_message};
 use pupper_core::error::{Error, Result};
-use pupper_core::plan::mode::Mode;
-use pupper_core::plan::schedule::InitialState;
-use pupper_core::plan::setup::CellSetup;
 use pupper_core::robot::layout::Layout;
 use pupper_core::robot::model::ModelInfo;
-use pupper_core::sim::physics::{Controller, Force, Observer, Physics, SimBatch};
+use pupper_core::sim::physics::{
+    Advance, BatchStart, Controlled, Controller, Force, Observer, Physics, SimBatch,
+};
 
 /// The device-side module of the package.
 const MODULE: &str = "pupper_core._warp";
@@ -82,14 +81,8 @@ impl Physics for WarpPhysics<'_, '_> {
         Physics::layout(self.owner)
     }
 
-    fn start(
-        &self,
-        cells: &[CellSetup],
-        mode: Mode,
-        initial: &InitialState,
-        _threads: usize,
-    ) -> Result<Box<dyn SimBatch + '_>> {
-        Ok(Box::new(WarpBatch::new(self, cells, mode, initial)?))
+    fn start(&self, b: &BatchStart<'_>) -> Result<Box<dyn SimBatch + '_>> {
+        Ok(Box::new(WarpBatch::new(self, b.cells, b.mode, b.initial)?))
     }
 
     fn batch_limit(&self) -> Option<usize> {
@@ -241,17 +234,14 @@ impl SimBatch for WarpBatch<'_> {
     /// simulation-major), written on the device before each step.
     fn advance(
         &mut self,
-        ids: &[usize],
-        nstep: usize,
-        force: Force<'_>,
-        ctrl: Option<&[f64]>,
+        call: Advance<'_>,
         observe: &mut Observer<'_>,
     ) -> Result<Vec<(usize, usize)>> {
-        let (nq, nu) = (self.nq, self.nu);
+        let (nq, nu, nstep) = (self.nq, self.nu, call.nstep);
         let mut diverged = Vec::new();
         // where each simulation of the call sits: its position in ids
         let mut pos_of = vec![usize::MAX; self.place.len()];
-        for (pos, &sim) in ids.iter().enumerate() {
+        for (pos, &sim) in call.ids.iter().enumerate() {
             pos_of[sim] = pos;
         }
         let (mut qbuf, mut abuf) = (vec![0.0f64; nq], vec![0.0f64; nu]);
@@ -274,8 +264,8 @@ impl SimBatch for WarpBatch<'_> {
             let mut start = 0;
             while start < nstep {
                 let k = group.block.min(nstep - start);
-                let table = force_table(py, &force, &members, n, nstep, start, k)?;
-                let drive = match ctrl {
+                let table = force_table(py, &call.force, &members, n, nstep, start, k)?;
+                let drive = match call.ctrl {
                     None => py.None().into_bound(py),
                     Some(ctrl) => self.drive(py, group, &pos_of, ctrl, nstep, start, k)?,
                 };
@@ -317,8 +307,7 @@ impl SimBatch for WarpBatch<'_> {
 
     fn step_controlled(
         &mut self,
-        _ids: &[usize],
-        _force: &[[f64; 3]],
+        _call: Controlled<'_>,
         _control: &mut Controller<'_>,
         _observe: &mut Observer<'_>,
     ) -> Result<Vec<usize>> {

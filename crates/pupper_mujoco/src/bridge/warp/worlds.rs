@@ -92,24 +92,21 @@ impl<'py> WarpBatch<'py> {
             for (w, &sim) in sims.iter().enumerate() {
                 place[sim] = (g, w);
             }
-            let WorldArrays {
-                qpos,
-                ctrl,
-                gain,
-                bias,
-                range,
-                friction,
-            } = world_arrays(owner, &starts, &reset, cells, &sims, mode)?;
-            let friction = world_friction(py, &model, &colliding, &friction)?;
+            let arrays = world_arrays(owner, &starts, &reset, cells, &sims, mode)?;
+            let friction = world_friction(py, &model, &colliding, &arrays.friction)?;
             let args = (
                 &model,
                 &physics.device,
                 starts.keyframe.map_or(-1, |k| k as i64),
-                PyArray1::from_vec(py, qpos).reshape([n, nq]).internal()?,
-                PyArray1::from_vec(py, ctrl).reshape([n, nu]).internal()?,
-                array3(py, gain, [n, nu, 3])?,
-                array3(py, bias, [n, nu, 3])?,
-                array3(py, range, [n, nu, 2])?,
+                PyArray1::from_vec(py, arrays.qpos)
+                    .reshape([n, nq])
+                    .internal()?,
+                PyArray1::from_vec(py, arrays.ctrl)
+                    .reshape([n, nu])
+                    .internal()?,
+                array3(py, arrays.gain, [n, nu, 3])?,
+                array3(py, arrays.bias, [n, nu, 3])?,
+                array3(py, arrays.range, [n, nu, 2])?,
                 friction,
                 colliding,
                 layout.base.body,
