@@ -381,7 +381,7 @@ def test_a_calibrated_model_runs_its_fitted_servo(run, tmp_path):
     knee = lambda r: min(j["phase_margin_deg"] for j in r["joints"] if j["group"] == "kfe")  # noqa: E731
     assert knee(g) < knee(plain) - 10
     p = run("sweep", "--model", model, "--grid", "kp=5", "--seconds", "1", "-q", "-o", tmp_path / "servo", check=0)
-    assert "carries a calibrated servo (torque lag up to 8 ms" in p.stderr and "--mode torque runs them" in p.stderr
+    assert "the model carries a calibrated servo (torque lag up to 8 ms" in p.stderr and "--mode torque runs them" in p.stderr
 
 
 def test_sigterm_stops_it_in_one_line_keeping_what_ran(pupper_bin, tmp_path):

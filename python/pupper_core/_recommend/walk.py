@@ -108,8 +108,8 @@ def check_walk(task: WalkTask, plan: Plan) -> None:
 
 
 #: The gaits the best available gains walk when none holds: the gait frequency (Hz) and the step
-#: height (m), slower and higher than the classical 2 Hz, 6 cm trot (on the nominal model at kp 5, a
-#: 1.25 Hz trot with a 7 cm step halves the 2 Hz trot's shortfall).
+#: height (m), slower than the classical 2 Hz trot, with lower and higher steps than its 6 cm (on the
+#: nominal model at kp 5, a 1.25 Hz trot with a 7 cm step halves the 2 Hz trot's shortfall).
 GAIT_FREQUENCIES = (1.0, 1.25, 1.5, 2.0)
 STEP_HEIGHTS = (0.04, 0.06, 0.08)
 
@@ -121,7 +121,7 @@ def gait_search(task: WalkTask, plan: Plan, c: Candidate, models: Sequence[str],
     walks best (the lowest p95 speed error among those every robot walks
     without falling, else the least short), beside the gait asked."""
     say(f"no gains walk the {task.frequency:g} Hz {task.gait}: the best available walking "
-        f"{len(GAIT_FREQUENCIES) * len(STEP_HEIGHTS)} slower or higher-stepping gaits on the same robots")
+        f"{len(GAIT_FREQUENCIES) * len(STEP_HEIGHTS)} gaits (slower, lower or higher steps) on the same robots")
     tried = []
     for hz in GAIT_FREQUENCIES:
         for h in STEP_HEIGHTS:
@@ -143,7 +143,7 @@ def gait_search(task: WalkTask, plan: Plan, c: Candidate, models: Sequence[str],
     return [f"the gait these gains walk best on the same robots: a {task.gait} at {hz:g} Hz, its steps "
             f"{h * 100:g} cm high, p95 speed error {best.score:.3g} % of the {task.speed:g} m/s{than}, lowest robot "
             f"{best.min_height_m * 1000:.1f} mm, p95 pitch {w.get('p95_pitch_rms_deg', math.nan):.3g}°; it "
-            f"{held}: where the motors keep the gains soft, a slower, higher-stepping gait is what still moves "
+            f"{held}: where the motors keep the gains soft, the gait is what can still change "
             f"(pupper walk --frequency {hz:g} --step-height {h:g})"]
 
 
@@ -388,9 +388,10 @@ class WalkTask(Task):
 
     def unanswered(self, rec: Any, models: Sequence[str], say: Callable[[str], None]) -> list[str]:
         """Where the robot's gains cannot walk this gait, the gait is what
-        can still move (the chapter re-tunes gains for the gait frequency):
-        the best available gains walk slower and higher-stepping trots on
-        the same robots, and the card says which gait they walk best."""
+        can still change (the chapter re-tunes gains for the gait
+        frequency): the best available gains walk slower trots with lower
+        and higher steps on the same robots, and the card says which gait
+        they walk best."""
         if rec.nearest is None or not rec.nearest.robots:
             return []
         return gait_search(self, rec.plan, rec.nearest, models, say)

@@ -137,8 +137,15 @@ logged) by mujoco.sysid's bounded Levenberg-Marquardt. With angles only, joint d
 servo's kd act as one damping: fit a second log at another kd (pupper excite --kd) or log torque,
 or leave one of them out of --params; fit warns when they are confounded. calibrated.xml keeps
 armature, damping and friction loss in the joints, the delay and the torque limit in the
-actuators (MuJoCo's own actuator delay and force range) and the gain scales as custom numerics
-that pupper applies to every gain it commands. Needs the fit extra (make setup PUPPER_EXTRAS=fit).
+actuators (MuJoCo's own actuator delay and force range), the gain scales as custom numerics
+that pupper applies to every gain it commands, and the torque lag and feedback latency as
+custom numerics torque mode runs (and gains and recommend close the loop through). A logged
+joint's armature and damping go to the same joint of the legs no log covers. robots.csv holds
+the robots the logs allow: 8 draws from the fit's joint distribution, each within 1.25x the
+fit's RMS error on the logs (what recommend --from-fit stands its candidates on).
+A real Pupper v3 log (the real2sim logger's header: motor_idx, command (rad), ...) is read
+with no column map; a map's motor=COLUMN names the log's motor by a column for any other.
+Needs the fit extra (make setup PUPPER_EXTRAS=fit).
 
 Examples:
   pupper excite -o ex1.csv && pupper excite --kd 0.3 -o ex2.csv    then play both on the robot

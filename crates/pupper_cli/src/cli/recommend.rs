@@ -31,12 +31,16 @@ use pupper_mujoco::bridge::calls;
     (what the motors deliver of the gains, the joints' least and most inertia).
 A --command-delay is not in that loop: it leaves the margins alone and shows as a later step
 response. Push dips within 2 % are a tie, won by the candidate whose slowest group tracks fastest.
+Exit status: 0 gains named; 3 none held every constraint (the card then names the best available,
+how far short it falls and the gains in use beside it); 2 bad input; 1 an internal error.
 
 The robots (default spread): torso mass ±15 %, leg masses ±10 %, motor gains ±10 % per joint,
 floor friction 0.6-1.2, 1 mrad of encoder noise, 0 to --sensing-delay of sensing latency; every
 candidate meets the same robots (common draws), so the card's numbers are reproduced by the sweep
-the manifest names. With --from-fit DIR the robot is the fit's calibrated model and the spread is
-its 95 % intervals: 8 joint models drawn inside them, the gain scales and the delay per robot.
+the manifest names. With --from-fit DIR (checked against its manifest first) the robot is the fit's calibrated model
+and the robots are the ones its logs allow (its robots.csv: 8 draws from its joint distribution,
+each with its whole motor); the margins close the loop the fit found (its firmware, lag, latency
+and damping), nothing stacked on top.
 With several runs (--from-fit A B, e.g. per-joint fits of different motors) the robot is one model
 of what each fitted, written to the run directory as calibrated.xml.
 

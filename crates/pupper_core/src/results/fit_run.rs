@@ -39,6 +39,12 @@ pub fn calibrated(dir: &Path) -> Result<PathBuf> {
             return bad("no manifest.json: not a `pupper fit` run directory; give the one `pupper fit -o DIR` wrote".into());
         }
     };
+    // Python's json writes NaN and ±Infinity as bare words, which JSON has
+    // not: read as null (inside a string, still a string)
+    let text = text
+        .replace("-Infinity", "null")
+        .replace("Infinity", "null")
+        .replace("NaN", "null");
     let m: Value = match serde_json::from_str(&text) {
         Ok(v) => v,
         Err(e) => {
@@ -108,6 +114,8 @@ mod tests {
             sha("a"),
             sha("<mujoco/>")
         );
+        // Python's NaN and Infinity in it are read
+        let manifest = manifest.replacen('{', r#"{"x": [NaN, -Infinity, Infinity], "#, 1);
         let d = run(
             &[("fit.csv", "a"), ("calibrated.xml", "<mujoco/>")],
             &manifest,

@@ -40,7 +40,7 @@ impl<'a, 'py> StabilityBound<'a, 'py> {
             && (cfg.motor.filter.is_some()
                 || cfg.motor.lag.is_some()
                 // a calibrated model's fitted lag or latency, which torque mode runs
-                || info.actuators.iter().any(|a| a.lag > 0.0 || a.latency > 0.0)
+                || info.fitted_servo_times()
                 || cfg
                     .motor
                     .rate

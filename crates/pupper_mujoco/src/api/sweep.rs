@@ -479,8 +479,7 @@ fn servo_note(cfg: &SweepConfig, info: &pupper_core::robot::model::ModelInfo) ->
         (info.actuators.iter().map(f).fold(0.0_f64, f64::max) * 1e6).round() / 1e3
     };
     Some(format!(
-        "{} carries a calibrated servo (torque lag up to {} ms, feedback latency up to {} ms, pupper fit's) that MuJoCo's servo cannot run: this servo-mode run leaves them out; --mode torque runs them",
-        info.source,
+        "the model carries a calibrated servo (torque lag up to {} ms, feedback latency up to {} ms, pupper fit's) that MuJoCo's servo cannot run: this servo-mode run leaves them out; --mode torque runs them",
         most(|a| a.lag),
         most(|a| a.latency)
     ))
