@@ -32,12 +32,16 @@ SCRUBBED_ENV = ("VIRTUAL_ENV", "PYTHONHOME", "PUPPER_PYTHON")
 TIMEOUT_S = 480
 
 
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Under pytest-xdist (`make test` runs `-n 2 --dist loadgroup`), the
     tests that share a module- or session-scoped fixture of their own
     module (a sweep, a fit, a wheel, a Ray cluster) run on one worker, so
-    that fixture runs once rather than once per worker; every other test
-    goes to whichever worker is free."""
+    that fixture runs once rather than once per worker (two workers
+    building one wheel race in target/maturin); every other test goes to
+    whichever worker is free. First among the hooks: xdist's own reads the
+    groups from the marks (registered after this file, it runs before it
+    otherwise, and saw none)."""
     for item in items:
         module = getattr(item, "module", None)
         info = getattr(item, "_fixtureinfo", None)

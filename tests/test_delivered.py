@@ -13,6 +13,7 @@ loop model on the delivered gains.
 from __future__ import annotations
 
 import csv
+import math
 import json
 import sys
 from pathlib import Path
@@ -39,6 +40,50 @@ def loop_phase_margin(inertia: float, kp: float, kd: float, latency: float, d_de
     return float(np.degrees(np.angle(ctrl[k]) - w[k] * latency))
 
 
+def sampled_phase_margin(inertia: float, damping: float, kp: float, kd: float, h: float, late: float,
+                         lag: float = 0.0) -> float:
+    """The same PD acting every physics step of ``h`` s, as the simulation
+    steps it (a calibrated model's loop): 180° + arg L at |L| = 1 for the
+    loop written out in z = e^{jwh} and scanned up to Nyquist. Semi-implicit
+    Euler, v' = (v + h·u/J)/(1 + h·b/J), q' = q + h·v', puts h²·z /
+    (J·(z − 1)·((1 + hb/J)·z − 1)) from torque to angle; the PD reads the
+    state ``late`` steps old (between two steps: linearly), its velocity
+    the angle's difference over a step; a torque ``lag`` follows
+    y' = y + a·(u − y), a = 1 − e^{−h/lag}."""
+    w = np.linspace(1e-3, np.pi / h, 400001)[:-1]
+    z = np.exp(1j * w * h)
+    joint = h * h * z / (inertia * (z - 1) * ((1 + h * damping / inertia) * z - 1))
+    whole, frac = divmod(late, 1.0)
+    old = z ** -whole * ((1 - frac) + frac / z)
+    a = -np.expm1(-h / lag) if lag > 0 else 1.0
+    follow = a / (1 - (1 - a) / z)
+    loop = (kp + kd * (1 - 1 / z) / h) * joint * old * follow
+    k = int(np.argmax(np.abs(loop) <= 1.0))
+    return float(180.0 + np.degrees(np.unwrap(np.angle(loop))[k]))
+
+
+def sampled_gain_margin(inertia: float, damping: float, kp: float, kd: float, h: float, late: float) -> float:
+    """The same loop's gain margin (dB): −20·log10 |L| where its phase
+    crosses −180° above the gain crossover, at the latest at Nyquist (where
+    a sampled loop's phase comes back to the real axis); inf where it
+    never does."""
+    w = np.linspace(1e-3, np.pi / h * (1 - 1e-9), 400001)
+    z = np.exp(1j * w * h)
+    whole, frac = divmod(late, 1.0)
+    loop = ((kp + kd * (1 - 1 / z) / h) * h * h * z * z ** -whole * ((1 - frac) + frac / z)
+            / (inertia * (z - 1) * ((1 + h * damping / inertia) * z - 1)))
+    phase = np.degrees(np.unwrap(np.angle(loop)))
+    above = np.abs(loop) <= 1.0
+    cross = np.flatnonzero(above & (phase <= -180.0 + 1e-6))
+    return float(-20 * np.log10(np.abs(loop[cross[0]]))) if cross.size else math.inf
+
+
+def joint_damping(model: Path) -> dict[str, float]:
+    """Each actuator's joint's viscous damping (N·m·s/rad), read by MuJoCo."""
+    m = mujoco.MjModel.from_xml_path(str(model))
+    return {m.actuator(a).name: float(m.dof_damping[m.jnt_dofadr[m.actuator_trnid[a, 0]]]) for a in range(m.nu)}
+
+
 def scaled_model(tmp: Path, kp: float, kd: float) -> Path:
     """The built-in robot whose every motor delivers SCALE_KP x kp and
     SCALE_KD x kd, written as `pupper fit` writes a calibrated model."""
@@ -58,21 +103,29 @@ def test_gains_states_the_margins_of_the_delivered_gains(run, tmp_path):
     args = ("--kp", "16.71", "--kd", "0.2646", "--motor", MOTOR, "--sensing-delay", str(SENSING), "--json")
     scaled = json.loads(run("gains", "--model", model, *args, check=0).stdout)
     plain = json.loads(run("gains", *args, check=0).stdout)
+    damping = joint_damping(model)
     for js, jp in zip(scaled["joints"], plain["joints"]):
         assert js["actuator"] == jp["actuator"] and js["inertia"] == pytest.approx(jp["inertia"])
         # commanded as given, delivered scaled
         assert (js["kp"], js["kd"]) == (16.71, 0.2646)
         assert js["delivered"] == pytest.approx([16.71 * SCALE_KP, 0.2646 * SCALE_KD])
         assert "delivered" not in jp
-        # latency: 2 ms sensing + half the 2 ms period; the derivative 1 ms more
-        want = loop_phase_margin(js["inertia"], 16.71 * SCALE_KP, 0.2646 * SCALE_KD, 0.003, 0.001)
+        # the calibrated model: the loop its fit was made through, the
+        # 500 Hz PD acting every 2 ms step on the state one step old
+        want = sampled_phase_margin(js["inertia"], damping[js["actuator"]], 16.71 * SCALE_KP,
+                                    0.2646 * SCALE_KD, 0.002, SENSING / 0.002)
         assert js["phase_margin_deg"] == pytest.approx(want, abs=0.3)
+        # the nominal one: the continuous loop, latency 2 ms sensing + half
+        # the 2 ms period, the derivative 1 ms more
         assert jp["phase_margin_deg"] == pytest.approx(loop_phase_margin(jp["inertia"], 16.71, 0.2646, 0.003,
                                                                          0.001), abs=0.3)
-    # the knee: comfortable on the commanded gains, nearly unstable on the delivered ones
+        # the commanded gains in the very same loop: more margin
+        assert sampled_phase_margin(js["inertia"], damping[js["actuator"]], 16.71, 0.2646, 0.002,
+                                    SENSING / 0.002) > js["phase_margin_deg"] + 5
+    # the knee: comfortable on the commanded gains, close to the edge on the delivered ones
     knee_s = next(j for j in scaled["joints"] if j["actuator"] == "leg_front_r_3")
     knee_p = next(j for j in plain["joints"] if j["actuator"] == "leg_front_r_3")
-    assert knee_p["phase_margin_deg"] > 30 > 10 > knee_s["phase_margin_deg"]
+    assert knee_p["phase_margin_deg"] > 30 > knee_s["phase_margin_deg"]
     # the natural frequency is the delivered kp's
     assert knee_s["natural_hz"] == pytest.approx(knee_p["natural_hz"] * SCALE_KP ** 0.5)
     text = run("gains", "--model", model, *args[:-1], check=0).stdout
@@ -137,42 +190,76 @@ def test_recommend_from_a_fit_checks_its_margins_on_the_delivered_gains(scaled_f
     assert "motor kp" in rec.stdout and "the gains to command" in rec.stdout
     yaml_text = (d / "rec" / "recommended.yaml").read_text()
     assert "the gains to command" in yaml_text and "the motors deliver" in yaml_text
-    # the card's margins are what `pupper gains` states on the calibrated model
-    # (its scales applied) at the card's gains, at the worst corner of what the
-    # fit does not know: each motor's gains over the fit's interval of its
-    # scales, the joints' armature at its interval's low end
-    with open(d / "fit" / "fit.csv", newline="") as f:
-        low_armature = next(float(r["low95"]) for r in csv.DictReader(f) if r["parameter"] == "armature")
-    spec = mujoco.MjSpec.from_file(str(d / "fit" / "calibrated.xml"))
-    for j in spec.joints:
-        if j.type == mujoco.mjtJoint.mjJNT_HINGE:
-            j.armature = low_armature
-    light = d / "light.xml"
-    light.write_text(spec.to_xml())
+    # the card's margins are what `pupper gains` states at the card's gains
+    # on every robot the fit's logs allow (its robots.csv, each written into
+    # the calibrated model here) and on the fitted one: their worst joint
+    models = [d / "fit" / "calibrated.xml", *robot_models(d / "fit", d / "drawn")]
+    assert len(models) == 1 + 8
     m = json.loads((d / "rec" / "manifest.json").read_text())
-    factors = [(fp, fd) for fp in m["inputs"]["kp_factors"] for fd in m["inputs"]["kd_factors"]]
-    assert max(abs(f - 1) for f in m["inputs"]["kp_factors"]) < 0.1
+    # the robots carry the motor's gains: no spread of its own on top
+    assert m["inputs"]["kp_factors"] == [1.0, 1.0] == m["inputs"]["kd_factors"]
     for group, card in cards.items():
         kp, kd = float(card["kp"]), float(card["kd"])
         stated = []
-        for model in (d / "fit" / "calibrated.xml", light):
-            for fp, fd in factors:
-                g = json.loads(run("gains", "--model", model, "--kp", kp * fp, "--kd", kd * fd, "--motor", MOTOR,
-                                   "--sensing-delay", SENSING, "--json", check=0).stdout)
-                joints = [j for j in g["joints"] if j["group"] == group]
-                assert all(j["delivered"] == pytest.approx([kp * fp * fitted["kp_scale"], kd * fd * fitted["kd_scale"]],
-                                                           rel=1e-5) for j in joints)
-                stated += [(j["phase_margin_deg"], j["gain_margin_db"], j["inertia"], fp, fd) for j in joints]
+        for model in models:
+            g = json.loads(run("gains", "--model", model, "--kp", kp, "--kd", kd, "--json", check=0).stdout)
+            damping = joint_damping(model)
+            for j in (j for j in g["joints"] if j["group"] == group):
+                sp, sd = (numeric(model, f"pupper:{k}_scale:{j['actuator']}") for k in ("kp", "kd"))
+                assert j["delivered"] == pytest.approx([kp * sp, kd * sd], rel=1e-5)
+                stated.append((j["phase_margin_deg"], j["gain_margin_db"], j["inertia"],
+                               damping[j["actuator"]], sp, sd))
         worst_pm = min(stated)
         assert float(card["phase_margin_deg"]) == pytest.approx(worst_pm[0], abs=0.05), (group, worst_pm)
         assert float(card["gain_margin_db"]) == pytest.approx(min(s[1] for s in stated), abs=0.02), group
-        # both hold the stated margin there, and this file's own loop model agrees
+        # the stated margin holds there, and this file's own loop model agrees
+        # (the fit's firmware is the ideal servo: the PD every step on the state now)
         assert worst_pm[0] >= 30 - 0.05
-        _, _, inertia, fp, fd = worst_pm
-        own = loop_phase_margin(inertia, kp * fp * fitted["kp_scale"], kd * fd * fitted["kd_scale"], 0.003, 0.001)
+        _, _, inertia, damping_, sp, sd = worst_pm
+        own = sampled_phase_margin(inertia, damping_, kp * sp, kd * sd, 0.002, 0.0)
         assert own == pytest.approx(worst_pm[0], abs=0.3) and own >= 30 - 0.3
-        # the commanded gains alone would have claimed far more: the test can fail
-        assert loop_phase_margin(inertia, kp, kd, 0.003, 0.001) > float(card["phase_margin_deg"]) + 5
+        worst_gm = min(stated, key=lambda s: s[1])
+        own_gm = sampled_gain_margin(worst_gm[2], worst_gm[3], kp * worst_gm[4], kd * worst_gm[5], 0.002, 0.0)
+        assert own_gm == pytest.approx(float(card["gain_margin_db"]), abs=0.1)
+        # a card closed on the commanded gains would state another margin: the test can tell
+        assert sampled_gain_margin(worst_gm[2], worst_gm[3], kp, kd, 0.002, 0.0) > own_gm + 3
+
+
+def numeric(model: Path, name: str) -> float:
+    """A custom numeric's value (1 where the model has none)."""
+    m = mujoco.MjModel.from_xml_path(str(model))
+    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, name)
+    return 1.0 if i < 0 else float(m.numeric_data[m.numeric_adr[i]])
+
+
+def robot_models(fit: Path, out: Path) -> list[Path]:
+    """Each robot of a fit's robots.csv as a model: its calibrated.xml with
+    the robot's values of the fit's rows written over it (joint armature and
+    damping, the motors' gain scales), written here by MjSpec."""
+    with open(fit / "fit.csv", newline="") as f:
+        goes_to = {r["parameter"]: r["actuators"].split() for r in csv.DictReader(f)}
+    with open(fit / "robots.csv", newline="") as f:
+        robots = list(csv.DictReader(f))
+    out.mkdir(exist_ok=True)
+    paths = []
+    for r in robots:
+        spec = mujoco.MjSpec.from_file(str(fit / "calibrated.xml"))
+        joint_of = {a.name: a.target for a in spec.actuators}
+        numerics = {n.name: n for n in spec.numerics}
+        for parameter, actuators in goes_to.items():
+            kind, v = parameter.partition(".")[0], float(r[parameter])
+            for a in actuators:
+                if kind == "armature":
+                    spec.joint(joint_of[a]).armature = v
+                elif kind == "damping":  # the viscous term of MuJoCo's damping polynomial
+                    joint = spec.joint(joint_of[a])
+                    joint.damping = [v, *joint.damping[1:]]
+                elif kind in ("kp_scale", "kd_scale"):
+                    numerics[f"pupper:{kind}:{a}"].data = [v]
+        path = out / f"robot{r['robot']}.xml"
+        path.write_text(spec.to_xml())
+        paths.append(path)
+    return paths
 
 
 #: a robot's controller configuration as Pupper v3's ROS 2 launch files hold
@@ -222,10 +309,10 @@ def test_the_card_sets_the_gains_in_use_beside_the_pick(run, tmp_path):
 
 
 def test_recommend_from_a_fit_assumes_its_fitted_latency_and_says_so(tmp_path):
-    """Issue 48: recommend --from-fit closes its loops on the feedback
-    latency the fit measured (the upper end of its interval: the oldest
-    measurements the logs allow), not the 2 ms default, and says which
-    latency it assumed and where each came from; --sensing-delay still wins."""
+    """Issues 48 and 59: recommend --from-fit closes its loops on the
+    feedback latency the fit measured, each robot the logs allow on its own
+    draw of it (never a default stacked on top), and says which latency it
+    assumed and where it came from; --sensing-delay still wins."""
     pytest.importorskip("scipy")
     import pupper_core as pc
     from pupper_core._recommend import plan_for as plan
@@ -238,14 +325,21 @@ def test_recommend_from_a_fit_assumes_its_fitted_latency_and_says_so(tmp_path):
            out=tmp_path / "fit")
     with open(tmp_path / "fit" / "fit.csv", newline="") as f:
         lat = next(r for r in csv.DictReader(f) if r["parameter"] == "latency")
+    with open(tmp_path / "fit" / "robots.csv", newline="") as f:
+        drawn = sorted(float(r["latency"]) for r in csv.DictReader(f))
     p = plan(from_fit=tmp_path / "fit", robots=8)
-    assert p.sensing_delay == pytest.approx(max(0.0, float(lat["high95"])))
-    assert p.sensing_delay > 0.002
-    assert p.latency_from.startswith("latency assumed: sensing (feedback) ")
-    assert "the upper end of the fit's feedback latency (fit.csv: latency" in p.latency_from, p.latency_from
-    assert "drawn per robot, the fit's delay interval (fit.csv: delay)" in p.latency_from, p.latency_from
+    # no sensing delay of recommend's own: the loops carry the fit's latency
+    assert p.sensing_delay is None and p.latency_words() == "the fit's own latency"
+    latencies = sorted({lp.latency for g in p.groups for lp in g.loops})
+    fitted = float(lat["fitted"])
+    assert latencies == pytest.approx(sorted({round(v, 12) for v in [fitted, *drawn]}), rel=1e-6)
+    assert float(lat["low95"]) - 1e-9 <= min(drawn) and max(drawn) <= float(lat["high95"]) + 1e-9
+    assert p.latency_from.startswith("the loop the fit found: ")
+    assert "feedback latency the fit's, each robot its own (fit.csv: latency" in p.latency_from, p.latency_from
+    assert "command delay the fit's, each robot its own (fit.csv: delay" in p.latency_from, p.latency_from
     assert p.inputs()["latency_from"] == p.latency_from
     given = plan(from_fit=tmp_path / "fit", robots=8, sensing_delay=0.001)
-    assert given.sensing_delay == 0.001 and "0.001 s, given by --sensing-delay (the fit measured" in given.latency_from
+    assert given.sensing_delay == 0.001
+    assert "feedback latency 0.001 s, given by --sensing-delay (the fit measured" in given.latency_from
     # no fit: the default, and nothing said (earlier cards unchanged)
     assert plan(robots=8).sensing_delay == 0.002 and plan(robots=8).latency_from == ""

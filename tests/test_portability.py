@@ -244,3 +244,18 @@ def test_output_keeps_its_order_whatever_pythons_buffering(pupper_bin, tmp_path,
     assert "warning" in kinds, p.stdout  # the case the order matters in
     order = [k for k in kinds if k != "other"]
     assert order == sorted(order, key=["table", "warning", "closing"].index), p.stdout
+
+
+@pytest.fixture(scope="module")
+def shared_once() -> str:
+    """A fixture of this module's own, as a sweep or a wheel is elsewhere."""
+    return "once"
+
+
+def test_tests_sharing_a_fixture_run_on_one_worker(request, shared_once):
+    """Under `make test` (pytest-xdist, --dist loadgroup) a test that shares
+    a module fixture carries its module's group: with pytest 9.2 and xdist
+    3.8 it did not, and two workers built one wheel at once."""
+    if not request.config.getvalue("loadgroup"):
+        pytest.skip("not under pytest-xdist's --dist loadgroup (PUPPER_TEST_WORKERS=0, or no xdist)")
+    assert request.node.nodeid.endswith("@test_portability"), request.node.nodeid

@@ -97,7 +97,11 @@ pub(crate) const DUAL_ERRORS: [(&str, &str, &str, &str); 4] = [
 /// The Python exception of a Rust error: the family's class (or its
 /// `OSError` twin), with the stable `kind` code as an attribute.
 pub(crate) fn to_py(e: Error) -> PyErr {
-    let msg = pythonic(&e.to_string());
+    let msg = match &e {
+        // a KeyboardInterrupt says why it stopped, as Python's own does
+        Error::Interrupted(why) => pythonic(why),
+        _ => pythonic(&e.to_string()),
+    };
     let dual = match e.code() {
         "model_not_found" => Some("ModelNotFoundError"),
         "run_not_found" | "not_found" => Some("RunNotFoundError"),

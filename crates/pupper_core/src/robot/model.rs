@@ -511,12 +511,15 @@ impl ModelInfo {
             .any(|a| a.lag > 0.0 || a.latency > 0.0 || a.delay > 0.0 || a.gain_scale != [1.0, 1.0])
     }
 
-    /// Whether some actuator has a fitted torque lag or feedback latency:
-    /// a servo only torque mode's firmware runs (MuJoCo's servo has none).
+    /// Whether some actuator has a fitted torque lag or feedback latency
+    /// of half a physics step or more: a servo only torque mode's firmware
+    /// runs (MuJoCo's servo has none). Less is none a step can show (a
+    /// noise-free fit ends near, not at, zero).
     pub fn fitted_servo_times(&self) -> bool {
+        let half = 0.5 * self.timestep;
         self.actuators
             .iter()
-            .any(|a| a.lag > 0.0 || a.latency > 0.0)
+            .any(|a| a.lag >= half || a.latency >= half)
     }
 
     /// What a standing run should know of the ground: a note when the
@@ -681,6 +684,23 @@ mod tests {
 
     fn check(numeric: &str, values: &[f64]) -> Result<Option<(usize, usize, f64)>> {
         GAIN_SCALE.read(numeric, values, &[actuator("a"), actuator("knee")], "m.xml")
+    }
+
+    #[test]
+    fn a_fitted_servo_time_counts_from_half_a_physics_step() {
+        let with = |lag: f64, latency: f64| {
+            let mut a = actuator("knee");
+            (a.lag, a.latency) = (lag, latency);
+            ModelInfo::for_test("m", vec![JointInfo::free_base()], vec![actuator("a"), a])
+        };
+        // the test model steps at 2 ms: from 1 ms on, a step can show it
+        assert!(!with(0.0, 0.0).fitted_servo_times());
+        assert!(!with(1.05e-4, 0.0).fitted_servo_times());
+        assert!(!with(0.0, 0.000_999).fitted_servo_times());
+        assert!(with(0.001, 0.0).fitted_servo_times());
+        assert!(with(0.0, 0.004).fitted_servo_times());
+        // still calibrated: the model carries what the fit found
+        assert!(with(1.05e-4, 0.0).calibrated());
     }
 
     #[test]

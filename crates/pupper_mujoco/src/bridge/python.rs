@@ -13,9 +13,15 @@ pub(crate) const MUJOCO_FIX: &str = "run `make setup` in the pupper checkout (or
 
 pub(crate) fn py_err(e: PyErr) -> Error {
     Python::attach(|py| {
-        // Ctrl-C landing inside a MuJoCo call from a notebook
+        // Ctrl-C landing inside a MuJoCo call from a notebook; its words
+        // kept (a stop handler's "fit stopped by SIGTERM: ...")
         if e.is_instance_of::<pyo3::exceptions::PyKeyboardInterrupt>(py) {
-            return Error::Interrupted("KeyboardInterrupt".into());
+            let msg = python_message(py, &e);
+            return Error::Interrupted(if msg.is_empty() {
+                "KeyboardInterrupt".into()
+            } else {
+                msg
+            });
         }
         Error::Internal(python_message(py, &e))
     })
