@@ -35,6 +35,8 @@ METRICS: list[str]
 VARIANTS: list[str]
 #: The metric a standing run ranks by unless told.
 DEFAULT_METRIC: str
+#: The experiment kinds besides the stand, as the Rust core's registry names them.
+KINDS: list[str]
 #: Seconds after a push's end within which its dip (the lowest base height) is sought.
 DIP_AFTER: float
 
@@ -170,6 +172,9 @@ def info(model: str = ..., variant: str = ...) -> ModelInfo:
 
 def sweep_defaults() -> dict[str, Any]:
     """The default of every sweep keyword, from the Rust SweepSpec."""
+
+def kind_defaults() -> dict[str, dict[str, Any]]:
+    """Each experiment kind's own keywords and defaults, by its key in KINDS."""
 
 def stand(**options: Unpack[SimOptions]) -> StandReport:
     """What `pupper stand --json` prints, as a dict."""

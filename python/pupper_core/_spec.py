@@ -29,6 +29,15 @@ OVERSHOOT_NOISE_PCT: float = 1e-6
 #: (the CLI's --help shows the same ones; tests/test_spec.py checks).
 DEFAULTS: dict[str, Any] = _native.sweep_defaults()
 
+#: Each experiment kind's own keywords and their defaults, by its key in
+#: the Rust core's registry (the structs the CLI's flags default to):
+#: what `pupper_core.response`, `hold` and `walk` take when a keyword is
+#: left out. A list reads as a tuple (a default shared between calls).
+KIND_DEFAULTS: dict[str, dict[str, Any]] = {
+    kind: {name: tuple(v) if isinstance(v, list) else v for name, v in own.items()}
+    for kind, own in _native.kind_defaults().items()
+}
+
 Mode = Literal["servo", "torque"]
 Variant = Literal["original", "long-leg", "heavy"]
 

@@ -326,6 +326,10 @@ pub(crate) trait Options: Sized {
 
     fn read(k: &Keywords<'_, '_>) -> PyResult<Self>;
 
+    /// `{name: default, ...}`: the struct's `Default`, which the Python
+    /// function's signature takes (`_native.kind_defaults`).
+    fn defaults(py: Python<'_>) -> PyResult<Bound<'_, pyo3::types::PyDict>>;
+
     /// `name=default, ...` as Python writes the defaults: what the
     /// command's `text_signature` shows.
     #[cfg(test)]
@@ -344,6 +348,14 @@ macro_rules! keywords {
                 Ok(Self {
                     $($field: k.get(stringify!($field), d.$field)?),+
                 })
+            }
+
+            fn defaults(py: pyo3::Python<'_>) -> pyo3::PyResult<pyo3::Bound<'_, pyo3::types::PyDict>> {
+                use pyo3::types::PyDictMethods;
+                let d = <$ty as Default>::default();
+                let out = pyo3::types::PyDict::new(py);
+                $(out.set_item(stringify!($field), d.$field)?;)+
+                Ok(out)
             }
 
             #[cfg(test)]

@@ -76,6 +76,11 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(record::record_run, m)?)?;
     m.add_function(wrap_pyfunction!(record::step_traces, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::sweep_defaults, m)?)?;
+    m.add_function(wrap_pyfunction!(commands::kind_defaults, m)?)?;
+    m.add(
+        "KINDS",
+        pupper_core::plan::experiment::Experiment::KINDS.to_vec(),
+    )?;
     m.add_function(wrap_pyfunction!(model::builtin_model, m)?)?;
     m.add_function(wrap_pyfunction!(cli::cli_main, m)?)?;
     m.add_function(wrap_pyfunction!(cli::_run_task, m)?)?;

@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+from typing import Callable
 
 from pupper_core.plots.grid import bars, base_z, heatmap, metric_vs_axis
 from pupper_core.plots.lab import lab_heatmaps, write_lab_plots
@@ -53,10 +54,14 @@ def __dir__() -> list[str]:
     return sorted(__all__)
 
 
+#: The registry of the kinds' plot writers (a sweep's, and any kind not
+#: here, the run plots).
+WRITERS: dict[str, Callable[[str | os.PathLike], list[Path]]] = {
+    "lab": write_lab_plots, "response": write_response_plots, "hold": write_hold_plots, "walk": write_walk_plots}
+
+
 def write_plots(run_dir: str | os.PathLike) -> list[Path]:
     """Writes the plots of a run's kind (its manifest names it) into
-    ``<run_dir>/plots/``; returns their paths. The registry of the kinds'
-    plot writers."""
+    ``<run_dir>/plots/``; returns their paths."""
     manifest = json.loads((Path(run_dir) / "manifest.json").read_text())
-    writers = {"lab": write_lab_plots, "response": write_response_plots, "hold": write_hold_plots, "walk": write_walk_plots}
-    return writers.get(str(manifest.get("kind")), write_run_plots)(run_dir)
+    return WRITERS.get(str(manifest.get("kind")), write_run_plots)(run_dir)

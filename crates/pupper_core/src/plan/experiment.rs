@@ -60,6 +60,11 @@ macro_rules! kinds {
         }
 
         impl Experiment {
+            /// The kinds besides the stand, by the key a manifest writes
+            /// each under (`pupper KEY` is its command), in the registry's
+            /// order: what the other layers' registries are checked against.
+            pub const KINDS: &'static [&'static str] = &[$(stringify!($key)),*];
+
             /// The registry: the kind's plan.
             pub fn plan(&self) -> &dyn KindPlan {
                 match self {
@@ -157,6 +162,18 @@ mod tests {
         assert_eq!(back, Experiment::Response(step()));
         let old: Experiment = serde_json::from_str("{}").unwrap();
         assert_eq!(old, Experiment::Stand);
+    }
+
+    #[test]
+    fn the_registry_names_its_kinds_by_their_keys() {
+        assert_eq!(Experiment::KINDS, ["response", "hold", "walk"]);
+        for (kind, key) in [
+            (Experiment::Response(step()), "response"),
+            (Experiment::Hold(Load::new(1.0, 1.0, 2.0, 0.25)), "hold"),
+        ] {
+            let v = serde_json::to_value(kind).unwrap();
+            assert!(v.get(key).is_some(), "{v}");
+        }
     }
 
     #[test]

@@ -24,7 +24,7 @@ kind_command! {
 
 /// `response`'s own keywords: the signal (`SignalInput`'s fields), the
 /// hold before it, the joints it excites, and whether the robot stands.
-struct ResponseOptions {
+pub(crate) struct ResponseOptions {
     signal: String,
     amplitude: f64,
     frequency: Option<f64>,

@@ -8,20 +8,24 @@ from typing import Any, Callable, Mapping, Sequence
 from pupper_core import _native
 from pupper_core._native import SweepResult
 from pupper_core._types import exported_from
-from pupper_core._spec import DEFAULTS, sweep_options
+from pupper_core._spec import DEFAULTS, KIND_DEFAULTS, sweep_options
 from pupper_core._run.progress import progress_printer
 from pupper_core._run.runs import with_report
+
+
+#: This kind's own keywords' defaults (the Rust core's)
+OWN = KIND_DEFAULTS["hold"]
 
 
 @exported_from("pupper_core")
 def hold(
     grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | str | None = None,
     *,
-    load: float = 1.0,
-    ramp: float = 2.0,
-    shove: float = 0.25,
-    shove_at: float | None = None,
-    shove_duration: float = 0.25,
+    load: float = OWN["load"],
+    ramp: float = OWN["ramp"],
+    shove: float = OWN["shove"],
+    shove_at: float | None = OWN["shove_at"],
+    shove_duration: float = OWN["shove_duration"],
     out: str | os.PathLike[str] | None = None,
     progress: bool | Callable[[int, int], None] = True,
     **options: Any,

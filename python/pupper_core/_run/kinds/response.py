@@ -8,22 +8,26 @@ from typing import Any, Callable, Mapping, Sequence
 from pupper_core import _native
 from pupper_core._native import SweepResult
 from pupper_core._types import exported_from
-from pupper_core._spec import DEFAULTS, parse_sine, sweep_options
+from pupper_core._spec import DEFAULTS, KIND_DEFAULTS, parse_sine, sweep_options
 from pupper_core._run.progress import progress_printer
 from pupper_core._run.runs import with_report
+
+
+#: This kind's own keywords' defaults (the Rust core's)
+OWN = KIND_DEFAULTS["response"]
 
 
 @exported_from("pupper_core")
 def response(
     grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | str | None = None,
     *,
-    signal: str = "step",
-    amplitude: float = 0.2,
-    frequency: float | None = None,
-    chirp: Sequence[float] | str | None = None,
-    hold: float = 0.5,
-    joints: Sequence[str] | str = (),
-    standing: bool = False,
+    signal: str = OWN["signal"],
+    amplitude: float = OWN["amplitude"],
+    frequency: float | None = OWN["frequency"],
+    chirp: Sequence[float] | str | None = OWN["chirp"],
+    hold: float = OWN["hold"],
+    joints: Sequence[str] | str = OWN["joints"],
+    standing: bool = OWN["standing"],
     out: str | os.PathLike[str] | None = None,
     progress: bool | Callable[[int, int], None] = True,
     **options: Any,

@@ -8,23 +8,27 @@ from typing import Any, Callable, Mapping, Sequence
 from pupper_core import _native
 from pupper_core._native import SweepResult
 from pupper_core._types import exported_from
-from pupper_core._spec import DEFAULTS, sweep_options
+from pupper_core._spec import DEFAULTS, KIND_DEFAULTS, sweep_options
 from pupper_core._run.progress import progress_printer
 from pupper_core._run.runs import with_report
+
+
+#: This kind's own keywords' defaults (the Rust core's)
+OWN = KIND_DEFAULTS["walk"]
 
 
 @exported_from("pupper_core")
 def walk(
     grid: Mapping[str, Sequence[float] | float | str] | Sequence[str] | str | None = None,
     *,
-    gait: str = "trot",
-    frequency: float = 2.0,
-    speed: float = 0.25,
-    sideways: float = 0.0,
-    yaw_rate: float = 0.0,
-    duty: float | None = None,
-    step_height: float | None = None,
-    height: float | None = None,
+    gait: str = OWN["gait"],
+    frequency: float = OWN["frequency"],
+    speed: float = OWN["speed"],
+    sideways: float = OWN["sideways"],
+    yaw_rate: float = OWN["yaw_rate"],
+    duty: float | None = OWN["duty"],
+    step_height: float | None = OWN["step_height"],
+    height: float | None = OWN["height"],
     out: str | os.PathLike[str] | None = None,
     progress: bool | Callable[[int, int], None] = True,
     **options: Any,
