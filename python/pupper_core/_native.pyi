@@ -37,6 +37,8 @@ VARIANTS: list[str]
 DEFAULT_METRIC: str
 #: The experiment kinds besides the stand, as the Rust core's registry names them.
 KINDS: list[str]
+#: Cells at the torque limit in this share of actuator-steps or more are never best.
+MAX_SATURATION: float
 #: Seconds after a push's end within which its dip (the lowest base height) is sought.
 DIP_AFTER: float
 
@@ -139,10 +141,10 @@ class SweepResult:
         """Row `i` as a dict: index an int, text as str, numbers as float."""
     @overload
     def best(self, metric: str | None = None, *, by: None = None, minimize: bool = True,
-             max_saturation: float = 0.05) -> dict[str, Any]: ...
+             max_saturation: float = ...) -> dict[str, Any]: ...
     @overload
     def best(self, metric: str | None = None, *, by: Sequence[str], minimize: bool = True,
-             max_saturation: float = 0.05) -> list[dict[str, Any]]:
+             max_saturation: float = ...) -> list[dict[str, Any]]:
         """The best cell, by pupper's rule: among cells whose status is ok,
         whose metric is a number and whose saturation_frac is under
         `max_saturation`, the lowest metric (highest with `minimize=False`).

@@ -31,6 +31,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("VARIANTS", pupper_core::request::lab::VARIANTS.to_vec())?;
     m.add("DEFAULT_METRIC", pupper_core::results::best::DEFAULT_METRIC)?;
     m.add("DIP_AFTER", pupper_core::math::stats::DIP_AFTER)?;
+    m.add("MAX_SATURATION", pupper_core::results::best::MAX_SATURATION)?;
     m.add("PupperError", py.get_type::<PupperError>())?;
     m.add("GridError", py.get_type::<GridError>())?;
     m.add("ConfigError", py.get_type::<ConfigError>())?;

@@ -20,6 +20,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from pupper_core._native import MAX_SATURATION
 from pupper_core._rundir import printing
 from pupper_core._recommend.card import card_of, in_use, print_card, write_outputs, write_trials
 from pupper_core._types import exported_from
@@ -47,7 +48,7 @@ def recommend(
     sensing_delay: float | None = None,
     command_delay: float = 0.0, spread: Sequence[str] | None = None, from_fit: FitRuns = None,
     # the constraints, the motors' limits, the gains in use; what the gains are ranked for (standing, walking)
-    min_phase_margin: float = 30.0, min_gain_margin: float = 6.0, max_saturation: float = 0.05, max_sag: float = 0.1,
+    min_phase_margin: float = 30.0, min_gain_margin: float = 6.0, max_saturation: float = MAX_SATURATION, max_sag: float = 0.1,
     kp_max: float | None = None, kd_max: float | None = None, current: Sequence[float] | str | None = None,
     robot_config: str | os.PathLike[str] | None = None, task: str = "stand",
     gait: str | None = None, speed: float | None = None, frequency: float | None = None, max_tilt: float | None = None,
