@@ -27,26 +27,8 @@ mujoco = pytest.importorskip("mujoco")
 SCENE = Path(pc.__file__).parent / "models" / "pupper_v3" / "scene.xml"
 #: the least walk: one cell, one whole gait cycle of steady walking
 WALK = ("walk", "--kp", "5", "--kd", "0.25", "--seconds", "4")
-#: the least recommend search: one robot, one candidate
-TINY = ("--robots", "1", "--trials", "1", "--batch", "1", "--polish", "0")
-
-
-def _no_internal(p: subprocess.CompletedProcess[str]) -> None:
-    """No panic, no traceback, no internal error."""
-    assert p.returncode not in (1, 101), (p.returncode, p.stderr[-3000:])
-    for said in ("panicked", "internal error", "Traceback", "RUST_BACKTRACE"):
-        assert said not in p.stderr, p.stderr[-3000:]
-
-
-def _one_error(p: subprocess.CompletedProcess[str], *words: str) -> str:
-    """Exit 2 and one line on stderr, saying `words`."""
-    _no_internal(p)
-    assert p.returncode == 2, (p.returncode, p.stderr[-3000:])
-    lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1, p.stderr
-    for w in words:
-        assert w in lines[0], (w, lines[0])
-    return lines[0]
+#: the least recommend search, and what every refusal must be (round 4's)
+from test_trust4 import TINY, _no_internal, _one_error  # noqa: E402
 
 
 def _names(d: Path) -> set[str]:
@@ -426,3 +408,10 @@ def test_item_15_the_python_runs_off_a_terminal_print_lines(capsys, monkeypatch)
     update(25, 100)
     line = capsys.readouterr().err.strip()
     assert line.startswith("progress: pupper walk of 100 steps 25 % done") and "left" in line, line
+
+
+def test_item_12_a_joint_order_naming_an_actuator_twice_says_which(run, tmp_path) -> None:
+    order = "leg_front_r_1,leg_front_r_2,leg_front_r_1"
+    p = run("recommend", *TINY, "--joint-order", order, "-o", tmp_path / "r", timeout=600)
+    line = _one_error(p, "--joint-order names leg_front_r_1 twice (at 1 and 3)")
+    assert "name each actuator once" in line and not (tmp_path / "r").exists()

@@ -114,8 +114,10 @@ def joint_order_of(order: Sequence[str] | str | None, names: list[str]) -> list[
     if unknown:
         raise RecommendError(f"--joint-order names '{unknown[0]}', which is not an actuator of the model: "
                              f"its actuators are {', '.join(names)}")
-    if len(set(got)) != len(got):
-        raise RecommendError("--joint-order names an actuator twice: name each once")
+    twice = next((n for i, n in enumerate(got) if n in got[:i]), None)
+    if twice is not None:
+        raise RecommendError(f"--joint-order names {twice} twice (at {got.index(twice) + 1} and "
+                             f"{got.index(twice, got.index(twice) + 1) + 1}): name each actuator once")
     # the controller's kps and kds are one per joint: a joint left out would
     # be dropped from the file, silently
     if not got:
