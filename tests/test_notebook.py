@@ -14,6 +14,10 @@ NOTEBOOK = Path(__file__).resolve().parents[1] / "examples" / "quickstart.ipynb"
 
 def test_quickstart_notebook_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     nb = nbformat.read(NOTEBOOK, as_version=4)
+    # the kernel knows it is one (a progress bar draws there; a process that
+    # merely imported ipykernel prints plain lines)
+    nb.cells.append(nbformat.v4.new_code_cell(
+        "from pupper_core._run.progress import in_notebook\nprint('in a notebook:', in_notebook())"))
     # for the kernel only: this process may have imported mujoco already
     monkeypatch.setenv("MUJOCO_GL", os.environ.get("MUJOCO_GL", "egl"))
     client = NotebookClient(nb, timeout=600, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}})
@@ -23,6 +27,7 @@ def test_quickstart_notebook_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
     text = "".join(
         o.get("text", "") + str(o.get("data", {}).get("text/plain", "")) for o in outputs
     )
+    assert "in a notebook: True" in text
     # the sweep ran and its best cell was shown
     assert "last_1s_std_mm" in text
     images = [o for o in outputs if "image/png" in o.get("data", {}) or "image/gif" in o.get("data", {})]

@@ -399,6 +399,9 @@ def test_item_15_a_fit_off_a_terminal_says_it_runs(capsys, monkeypatch) -> None:
 def test_item_15_the_python_runs_off_a_terminal_print_lines(capsys, monkeypatch) -> None:
     from pupper_core._run import progress
 
+    # a notebook test in this process may have imported ipykernel: that is no notebook
+    import ipykernel  # noqa: F401
+
     update = progress.progress_printer("pupper walk")
     assert update is not None
     update(10, 100)

@@ -44,10 +44,18 @@ def line_printer(what: str, unit: str = "step") -> Callable[[int, int], None]:
     return update
 
 
+def in_notebook() -> bool:
+    """Whether this process is a Jupyter kernel running a notebook (where a
+    bar draws), not merely one that has imported ipykernel on the way."""
+    ipython = sys.modules.get("IPython")
+    shell = ipython.get_ipython() if ipython is not None and hasattr(ipython, "get_ipython") else None
+    return getattr(shell, "kernel", None) is not None
+
+
 def progress_printer(what: str = "pupper sweep") -> Callable[[int, int], None] | None:
     """A progress callback: tqdm in notebooks/terminals if installed; off a
     terminal, plain lines (`line_printer`); else none."""
-    shown = sys.stderr.isatty() or "ipykernel" in sys.modules
+    shown = sys.stderr.isatty() or in_notebook()
     if not shown:
         return line_printer(what)
     try:
