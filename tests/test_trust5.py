@@ -418,3 +418,26 @@ def test_item_12_a_joint_order_naming_an_actuator_twice_says_which(run, tmp_path
     p = run("recommend", *TINY, "--joint-order", order, "-o", tmp_path / "r", timeout=600)
     line = _one_error(p, "--joint-order names leg_front_r_1 twice (at 1 and 3)")
     assert "name each actuator once" in line and not (tmp_path / "r").exists()
+
+
+def test_round_6_probes_name_the_flag_that_is_wrong(run, tmp_path) -> None:
+    """A second hostile round on this stop's code: hold's own times are
+    refused by hold's flags (not the sweep's --push-at they become); a
+    sensing delay typed in milliseconds is caught as the torque lag is,
+    with a reading to the nanosecond and none where milliseconds make no
+    servo; a sweep's --rank without --best-by is refused, not ignored."""
+    for args, words in [
+        (("hold", "--grid", "kp=5", "--ramp", "nan"), "--ramp NaN must be a time >= 0 s"),
+        (("hold", "--grid", "kp=5", "--shove-at", "-2"), "--shove-at -2 must be a time >= 0 s"),
+        (("hold", "--grid", "kp=5", "--shove-duration", "-1"), "--shove-duration -1 must be a time >= 0 s"),
+        (("gains", "--kp", "5", "--kd", "0.25", "--sensing-delay", "2"),
+         "for 2 ms give --sensing-delay 0.002"),
+        (("gains", "--kp", "5", "--kd", "0.25", "--motor", "lag=7.3"), "for 7.3 ms write lag=0.0073"),
+        (("gains", "--kp", "5", "--kd", "0.25", "--motor", "lag=0.06"), "e.g. lag=0.007 for 7 ms"),
+        (("sweep", "--grid", "kp=5", "--rank", "bogus"), "--rank bogus ranks the cells --best-by picks from"),
+    ]:
+        out = tmp_path / args[0]
+        p = run(*args, *(("-o", out) if args[0] != "gains" else ()), check=None)
+        line = _one_error(p, words)
+        assert "--push" not in line and "0.0000" not in line, line
+        assert not out.exists()

@@ -103,7 +103,7 @@ impl HoldArgs {
             // the height plot draws the traces
             ..self.runner.apply(self.show.traces(), sim)
         };
-        Ok(spec(base, &input))
+        spec(base, &input)
     }
 }
 
@@ -116,7 +116,7 @@ pub(super) fn run(a: HoldArgs, stop: &'static AtomicBool) -> Result<u8> {
             ..SweepSpec::default()
         },
         &input,
-    );
+    )?;
     let metric = a
         .show
         .rank

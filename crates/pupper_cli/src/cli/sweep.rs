@@ -165,6 +165,13 @@ impl Job {
 
 /// `pupper sweep`.
 pub(super) fn run(a: SweepArgs, stop: &'static AtomicBool) -> Result<u8> {
+    // a sweep ranks only what --best-by picks: a --rank alone would be
+    // neither used nor checked
+    if let (Some(rank), None) = (&a.show.rank, &a.best_by) {
+        return Err(pupper_core::error::Error::Config(format!(
+            "--rank {rank} ranks the cells --best-by picks from: give --best-by too (e.g. --best-by kd), or leave --rank out"
+        )));
+    }
     // no --rank: chosen in run_job, once the run's config is known
     let metric = a.show.rank.clone().unwrap_or_default();
     let rule = a.best_by.as_ref().map(|by| best::Rule {

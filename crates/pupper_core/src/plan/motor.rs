@@ -76,6 +76,17 @@ pub fn feedback_of(
             "--sensing-delay {sensing} must be a number of seconds >= 0"
         )));
     }
+    // as a torque lag: past what a servo's latency can be (the bound a fit
+    // fits it within) is most often milliseconds typed bare
+    if let Some((_, meant)) = crate::robot::model::servo_time_typo(sensing) {
+        let fix = meant.map_or("e.g. --sensing-delay 0.002 for 2 ms".into(), |s| {
+            format!("for {sensing} ms give --sensing-delay {s}")
+        });
+        return Err(Error::Config(format!(
+            "--sensing-delay {sensing}: {sensing} s is past the {} s a servo's feedback latency can be (the bound `pupper fit` fits it within); it is in seconds: {fix}",
+            crate::robot::model::MAX_SERVO_TIME
+        )));
+    }
     Ok(Some(
         Motor::parse(motor.unwrap_or(""))?.feedback(sensing, dt),
     ))
@@ -362,6 +373,25 @@ mod tests {
         // 0 is no lag (a fitted 0 pasted back); 10 is 10 ms typed bare
         assert!(Motor::parse("lag=0").unwrap().is_ideal());
         assert!(e("lag=10").contains("write lag=0.01"), "{}", e("lag=10"));
+        let sensing = |v: f64| feedback_of(None, Some(v), 0.002).unwrap_err().to_string();
+        assert!(
+            sensing(2.0).contains("for 2 ms give --sensing-delay 0.002"),
+            "{}",
+            sensing(2.0)
+        );
+        assert!(feedback_of(None, Some(0.05), 0.002).is_ok());
+        // a reading to the nanosecond, and none where milliseconds make no servo
+        assert!(
+            e("lag=7.3").contains("for 7.3 ms write lag=0.0073:")
+                || e("lag=7.3").ends_with("lag=0.0073"),
+            "{}",
+            e("lag=7.3")
+        );
+        assert!(
+            e("lag=0.06").contains("e.g. lag=0.007 for 7 ms") && !e("lag=0.06").contains("0.0000"),
+            "{}",
+            e("lag=0.06")
+        );
         assert!(e("rate=1,rate=2").contains("twice"));
         assert!(!e("wind=3").contains('\n'));
         let m = Motor::parse("rate=1000").unwrap();

@@ -2,6 +2,7 @@
 //! spec whose robot stands under a ramped load and is then shoved sideways.
 //! Its defaults are written here once, for the CLI and Python.
 
+use crate::error::{Error, Result};
 use crate::plan::experiment::Experiment;
 use crate::plan::hold::{LOAD, Load, RAMP, SHOVE, SHOVE_DURATION, WINDOW};
 use crate::plan::schedule::LANDING;
@@ -51,15 +52,28 @@ pub fn seconds(h: &HoldInput) -> f64 {
 
 /// A sweep spec running the hold experiment on `base` (its grid, gains,
 /// model, seconds): the load starts when the landing ends.
-pub fn spec(base: SweepSpec, h: &HoldInput) -> SweepSpec {
+/// Refuses a hold's own times by their own flags (the shove becomes the
+/// sweep's push, whose checks would name `--push-at`).
+pub fn spec(base: SweepSpec, h: &HoldInput) -> Result<SweepSpec> {
+    for (flag, v) in [
+        ("--ramp", Some(h.ramp)),
+        ("--shove-at", h.shove_at),
+        ("--shove-duration", Some(h.shove_duration)),
+    ] {
+        if let Some(v) = v
+            && !(v.is_finite() && v >= 0.0)
+        {
+            return Err(Error::Config(format!("{flag} {v} must be a time >= 0 s")));
+        }
+    }
     let load = Load::new(h.load, LANDING, h.ramp, h.shove);
-    SweepSpec {
+    Ok(SweepSpec {
         push: h.shove > 0.0,
         push_at: h.shove_at.unwrap_or_else(|| default_shove_at(h.ramp)),
         push_duration: h.shove_duration,
         experiment: Experiment::Hold(load),
         ..base
-    }
+    })
 }
 
 #[cfg(test)]
@@ -73,8 +87,38 @@ mod tests {
                 ..SweepSpec::default()
             },
             h,
-        )
+        )?
         .build()
+    }
+
+    #[test]
+    fn a_bad_time_is_named_by_holds_own_flag() {
+        for (h, flag) in [
+            (
+                HoldInput {
+                    ramp: f64::NAN,
+                    ..HoldInput::default()
+                },
+                "--ramp NaN",
+            ),
+            (
+                HoldInput {
+                    shove_at: Some(-2.0),
+                    ..HoldInput::default()
+                },
+                "--shove-at -2",
+            ),
+            (
+                HoldInput {
+                    shove_duration: -1.0,
+                    ..HoldInput::default()
+                },
+                "--shove-duration -1",
+            ),
+        ] {
+            let e = built(10.0, &h).err().unwrap().to_string();
+            assert!(e.contains(flag) && !e.contains("--push"), "{e}");
+        }
     }
 
     #[test]

@@ -410,7 +410,10 @@ pub fn servo_time_typo(v: f64) -> Option<(String, Option<f64>)> {
     let why = format!(
         "{v} s is past the {MAX_SERVO_TIME} s a servo's torque lag can be (the bound `pupper fit` fits it within); it is in seconds"
     );
-    (v > MAX_SERVO_TIME).then(|| (why, Some(v / 1000.0).filter(|&s| s <= MAX_SERVO_TIME)))
+    // milliseconds only where that reads as a servo's time, to the nanosecond
+    let meant =
+        Some((v / 1000.0 * 1e9).round() / 1e9).filter(|&s| (0.001..=MAX_SERVO_TIME).contains(&s));
+    (v > MAX_SERVO_TIME).then_some((why, meant))
 }
 
 /// The largest gain scale a model may declare: a fit that lands past it has

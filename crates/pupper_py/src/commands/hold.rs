@@ -10,6 +10,7 @@ use pupper_core::results::best;
 
 use super::sweep::{Kind, kind_command};
 use crate::convert::keywords;
+use crate::error::to_py;
 
 kind_command! {
     /// `pupper_core.hold`: the hold experiment; `options` are its own
@@ -38,7 +39,7 @@ impl Kind for HoldInput {
     }
 
     fn spec(self, base: SweepSpec, _: Option<&Bound<'_, PyDict>>) -> PyResult<SweepSpec> {
-        Ok(request::spec(base, &self))
+        request::spec(base, &self).map_err(to_py)
     }
 
     /// The stiffest cell.
