@@ -97,6 +97,26 @@ def test_a_kill_at_a_named_moment_resumes_to_the_uninterrupted_study(pupper_bin,
     _same_results(cut, whole(study))
 
 
+@pytest.mark.parametrize("sig", ["INT", "TERM"])
+def test_a_stop_in_the_middle_of_a_generations_bookkeeping_waits_for_its_end(pupper_bin, whole, tmp_path, sig):
+    """SIGINT or SIGTERM while a generation is being told (the study's
+    SQLite queries, where a KeyboardInterrupt left SQLAlchemy printing a
+    traceback) stops the tune at the next batch instead: that generation
+    is told and journaled whole, stderr is the one line, and the resume
+    gives the uninterrupted study."""
+    cut = tmp_path / "cut"
+    p = _pupper(pupper_bin, "tune", *STUDIES["tpe"], "-o", cut, env={"PUPPER_TUNE_TEST_SIGNAL": f"{sig}:tell:1:2"})
+    assert p.returncode == 130, (p.returncode, p.stderr)
+    lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and f"tune stopped by SIG{sig}" in lines[0] and "--resume" in lines[0], p.stderr
+    journal = [json.loads(ln) for ln in (cut / "journal.jsonl").read_text().splitlines()]
+    assert [g["generation"] for g in journal] == [0, 1]
+    assert [len(g["trials"]) for g in journal] == [4, 4]
+    p = _pupper(pupper_bin, "tune", "--resume", cut, "-q")
+    assert p.returncode == 0, p.stderr
+    _same_results(cut, whole("tpe"))
+
+
 def test_a_kill_during_the_rebuild_of_a_resume_is_harmless(pupper_bin, whole, tmp_path):
     """A resume rebuilds study.db from the journal into a temporary file:
     killed half way through, the next resume starts it again."""

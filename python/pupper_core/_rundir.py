@@ -128,7 +128,11 @@ def stop_on_signals(what: str, left: str = "nothing written") -> Iterator[None]:
         return
 
     def stop(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt(f"{what} stopped by {signal.Signals(signum).name}: {left}")
+        said = f"{what} stopped by {signal.Signals(signum).name}: {left}"
+        if _HOLD.depth:
+            _HOLD.pending = _HOLD.pending or said
+            return
+        raise KeyboardInterrupt(said)
 
     saved = []
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -144,6 +148,49 @@ def stop_on_signals(what: str, left: str = "nothing written") -> Iterator[None]:
                 signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
             else:
                 _libc().sigaction(int(sig), raw, None)
+
+
+class _Hold:
+    """How deep in `held_signals` the main thread is, and the stop that
+    waits for its end (signal handlers run on the main thread only)."""
+
+    depth = 0
+    pending: str | None = None
+
+
+_HOLD = _Hold()
+
+
+@contextlib.contextmanager
+def held_signals() -> Iterator[None]:
+    """A `stop_on_signals` stop that arrives inside waits for the block's
+    end: for a storage's queries, which a KeyboardInterrupt in the middle
+    leaves half-closed, SQLAlchemy then logging a traceback of it to stderr.
+    `signals_through` opens it again around the long, safe-to-stop work."""
+    _HOLD.depth += 1
+    try:
+        yield
+    finally:
+        _HOLD.depth -= 1
+    _raise_pending()
+
+
+@contextlib.contextmanager
+def signals_through() -> Iterator[None]:
+    """Inside a `held_signals` block, a stretch a stop may cut (a batch of
+    simulations): a stop that waited is raised on entry."""
+    depth, _HOLD.depth = _HOLD.depth, 0
+    try:
+        _raise_pending()
+        yield
+    finally:
+        _HOLD.depth = depth
+
+
+def _raise_pending() -> None:
+    if _HOLD.depth == 0 and _HOLD.pending is not None:
+        said, _HOLD.pending = _HOLD.pending, None
+        raise KeyboardInterrupt(said)
 
 
 def _libc() -> Any:

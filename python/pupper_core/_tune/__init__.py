@@ -38,7 +38,7 @@ from typing import Any
 from pupper_core._rundir import atomic_write_text, printing
 from pupper_core._native import PupperError
 from pupper_core._types import exported_from
-from pupper_core._rundir import locked, sayer, stop_on_signals
+from pupper_core._rundir import held_signals, locked, sayer, stop_on_signals
 from pupper_core._tune.figures import progress_figure as progress_figure
 from pupper_core._tune.figures import trials_figure as trials_figure
 from pupper_core._tune.figures import write_plots
@@ -143,7 +143,13 @@ def tune(
         study = optuna.create_study(study_name=STUDY, directions=plan.directions)
         spent = _search(optuna, study, plan, None, say)
         return _result(study, plan, None, spent)
-    out_dir = Path(out)
+    # a stop waits out the study's queries and is taken between batches
+    with held_signals():
+        return _tune_in(optuna, plan, Path(out), resume, force, say)
+
+
+def _tune_in(optuna: Any, plan: _Plan, out_dir: Path, resume: bool, force: bool, say: Callable[[str], None]) -> TuneResult:
+    """`tune` writing its study to ``out_dir``."""
     if resume:
         _check_resume(out_dir, plan)
     else:

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from pupper_core._run import sweep
+from pupper_core._rundir import signals_through
 from pupper_core._tune.plan import PENALTY, VARIANTS, _Plan, _sampler, _steps_per_cell
 from pupper_core._tune.study import _append_journal, _test_signal
 from pupper_core._tune.tables import _best, _finished, _write
@@ -111,7 +112,8 @@ class _Cells:
             cells.append(cell)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            res = sweep(cells, progress=False, **opts)
+            with signals_through():
+                res = sweep(cells, progress=False, **opts)
         for w in caught:
             text = str(w.message)
             if text not in self.notes:
