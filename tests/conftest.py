@@ -141,6 +141,26 @@ def same_files(got: Path, want: Path, names=("summary.csv",)) -> None:
         assert a == b, f"{got / n} differs from {want / n} ({len(a)} vs {len(b)} bytes)"
 
 
+#: What every run's manifest starts with, whichever side wrote it.
+STAMP = ("kind", "pupper_version", "mujoco_version", "python")
+
+
+def stamp_of(run_dir: Path, kind: str) -> dict[str, str]:
+    """The stamp heading ``run_dir``'s manifest, checked to be ``kind``'s
+    and this package's and MuJoCo's versions."""
+    import json
+
+    import mujoco
+    import pupper_core
+
+    manifest = json.loads((run_dir / "manifest.json").read_text())
+    head = dict(list(manifest.items())[: len(STAMP)])
+    assert tuple(head) == STAMP, list(manifest)[:6]
+    assert head["kind"] == kind and head["pupper_version"] == pupper_core.__version__, head
+    assert head["mujoco_version"] == mujoco.__version__ and Path(head["python"]).name.startswith("python"), head
+    return head
+
+
 def read_csv(path: Path) -> tuple[list[str], list[dict[str, str]]]:
     """summary.csv's header and rows (dicts of strings), checking every row is complete."""
     text = Path(path).read_text()

@@ -18,7 +18,7 @@ import numpy as np
 import pupper_core as pc
 import pytest
 
-from conftest import hidden, read_csv, write_hardware_log
+from conftest import hidden, read_csv, stamp_of, write_hardware_log
 from pupper_core._fit.terms import SERVO_FREE_PARAMS
 
 pytest.importorskip("scipy", reason="the fit extra (make test installs it)")
@@ -158,6 +158,7 @@ def test_fit_recovers_the_hardware_from_angles_alone(logs, tmp_path):
     assert [r["parameter"] for r in rows] == list(TRUE)
     assert float(rows[0]["nominal"]) == NOMINAL["armature"]
     manifest = json.loads((out / "manifest.json").read_text())
+    stamp_of(out, "fit")
     import hashlib
 
     assert [x["sha256"] for x in manifest["inputs"]["logs"]] == [

@@ -22,6 +22,8 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import stamp_of
+
 pytest.importorskip("optuna")
 
 # a quick search: the Done-when's 32 robots per candidate, fewer candidates
@@ -90,6 +92,7 @@ def test_the_card_holds_every_constraint_on_every_robot(default_run):
     # latency 2 ms + 1 ms, the derivative 1 ms more
     inertia = reflected_inertia()
     groups = json.loads((d / "manifest.json").read_text())["inputs"]["ranges"]
+    stamp_of(d, "recommend")
     assert set(groups) == set(c)
     import pupper_core as pc
 

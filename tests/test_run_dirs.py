@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import REPO, clean_env, read_csv, same_files
+from conftest import REPO, clean_env, read_csv, same_files, stamp_of
 
 # 64 traced cells of 3 s, 4 per batch, one thread: a few seconds of work.
 TRACED = ["sweep", "--grid", "kp=10:120:16", "--grid", "kd=0.5,1,2,5", "--seconds", "3",
@@ -470,3 +470,15 @@ def test_a_run_read_back_knows_its_cell_steps_where_the_manifest_does(tmp_path):
     del old["model"]["timestep"]
     m.write_text(json.dumps(old))
     assert pc.load_run(tmp_path / "fell").cell_steps == [None, None]
+
+
+def test_every_kind_heads_its_manifest_with_the_same_stamp(run, tmp_path):
+    """A sweep's manifest (Rust's) and a tune's (its body built in Python,
+    written by the Rust core) start with one stamp: the kind, then which
+    pupper, MuJoCo and Python wrote it, equal but for the kind."""
+    pytest.importorskip("optuna")
+    run("sweep", "--grid", "kp=10", "--grid", "kd=1", "--seconds", "0.5", "-q", "-o", tmp_path / "s")
+    run("tune", "--space", "kp=5:50", "--trials", "2", "--batch", "2", "--seconds", "0.5", "--no-push", "-q",
+        "-o", tmp_path / "t", check=0)
+    sweep, tune = stamp_of(tmp_path / "s", "sweep"), stamp_of(tmp_path / "t", "tune")
+    assert {**sweep, "kind": "tune"} == tune

@@ -307,6 +307,25 @@ def load_run(run_dir: str) -> SweepResult:
 def read_manifest(dir: str) -> dict[str, Any]:
     """The manifest of a run directory, as a dict."""
 
+class RunLock:
+    """A held run-directory lock (`lock_run`)."""
+
+    def release(self) -> None:
+        """Lets the lock go; the lock file stays, naming nobody."""
+
+def lock_run(dir: str) -> RunLock:
+    """Takes `dir`'s lock, the one every pupper command takes: PupperError
+    of kind run_busy while another pupper writes there; OSError if it
+    cannot be written."""
+
+def publish(tmp: str, path: str) -> None:
+    """The finished temporary file `tmp` flushed and renamed into place as
+    `path`; OSError naming `path` if that fails."""
+
+def write_manifest(dir: str, kind: str, body: dict[str, Any]) -> None:
+    """`dir/manifest.json`: the stamp every manifest starts with (kind,
+    pupper_version, mujoco_version, python), then `body`'s fields."""
+
 def clear_run(dir: str) -> None:
     """Every file an older run of any kind left in `dir` removed (--force)."""
 

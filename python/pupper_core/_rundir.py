@@ -9,11 +9,9 @@ import contextlib
 import ctypes
 import os
 import signal
-import socket
 import stat
 import sys
 import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Callable
@@ -45,11 +43,14 @@ def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
     ``path``; the temporary file is removed on every error. A ``path`` that
     is not a regular file is refused (`refuse_non_regular`); an `OSError`
     (a full disk, a read-only folder) names ``path``, not the temporary."""
+    from pupper_core import _native
+
     refuse_non_regular(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
         write(tmp)
-        os.replace(tmp, path)
+        # flushed and renamed by the Rust core, as a sweep's files are
+        _native.publish(os.fspath(tmp), os.fspath(path))
     except OSError as e:
         if e.errno is None:
             raise
@@ -222,13 +223,13 @@ def is_ours_to_ignore(name: str) -> bool:
 
 @contextlib.contextmanager
 def locked(out_dir: Path, error: Callable[[str], Exception]) -> Iterator[None]:
-    """The run directory's lock for the study's whole life: an flock on
-    .pupper.lock, the file pupper's Rust commands lock, so a second tune or
-    a sweep there is refused; the OS drops it when this process dies, kill
+    """The run directory's lock for the study's whole life: the Rust core's
+    lock on .pupper.lock, the one every pupper command takes, so a second
+    tune or a sweep there is refused; the OS drops it when this process dies, kill
     -9 included, so a resume after a kill finds it free. At the end the
     file names nobody, as a sweep leaves it. A directory that cannot be
     written (read-only, a full disk) is `error`, one line."""
-    import fcntl  # (POSIX only: imported where a lock is taken)
+    from pupper_core import _native
 
     def unwritable(e: OSError) -> Exception:
         return error(f"cannot write the run directory '{out_dir}' ({e.strerror or e}): "
@@ -236,36 +237,21 @@ def locked(out_dir: Path, error: Callable[[str], Exception]) -> Iterator[None]:
 
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
-        refuse_non_regular(out_dir / LOCK)
-        f = open(out_dir / LOCK, "a+")
+        # the Rust core's lock, the one its sweeps take (it also clears a
+        # killed writer's temporary files)
+        held = _native.lock_run(os.fspath(out_dir))
     except OSError as e:
         raise unwritable(e) from None
-    with f:
-        try:
-            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            f.seek(0)
-            holder = f.read().strip() or "a process starting up"
-            busy = error(f"run directory '{out_dir}' is being written by another pupper ({holder}): "
-                         "wait for it to end, or choose another -o")
-            busy.kind = "run_busy"  # type: ignore[attr-defined]  # (the CLI's exit code for a busy run)
-            raise busy from None
-        try:
-            f.truncate(0)
-            f.write(f"pid {os.getpid()} on {socket.gethostname()}, since unix time {int(time.time())}")
-            f.flush()
-        except OSError as e:
-            raise unwritable(e) from None
-        # a killed writer's temporary files (we hold the lock: no live writer owns them)
-        for p in out_dir.iterdir():
-            if p.name != LOCK and is_ours_to_ignore(p.name):
-                p.unlink(missing_ok=True)
-        try:
-            yield
-        finally:
-            # the file stays (a second writer must lock this one, not a new one)
-            with contextlib.suppress(OSError):
-                f.truncate(0)
+    except _native.PupperError as e:
+        if getattr(e, "kind", None) != "run_busy":
+            raise
+        busy = error(str(e))
+        busy.kind = "run_busy"  # type: ignore[attr-defined]  # (the CLI's exit code for a busy run)
+        raise busy from None
+    try:
+        yield
+    finally:
+        held.release()
 
 
 def clear_run(out_dir: Path) -> None:

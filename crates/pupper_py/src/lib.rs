@@ -63,6 +63,10 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(result::_result_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::sweep, m)?)?;
     m.add_function(wrap_pyfunction!(runs::read_manifest, m)?)?;
+    m.add_function(wrap_pyfunction!(commands::rundir::lock_run, m)?)?;
+    m.add_function(wrap_pyfunction!(commands::rundir::publish, m)?)?;
+    m.add_function(wrap_pyfunction!(commands::rundir::write_manifest, m)?)?;
+    m.add_class::<commands::rundir::RunLock>()?;
     m.add_function(wrap_pyfunction!(runs::clear_run, m)?)?;
     m.add_function(wrap_pyfunction!(runs::check_kind, m)?)?;
     m.add_function(wrap_pyfunction!(runs::load_run, m)?)?;

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import csv
 import hashlib
-import json
 import os
 import shutil
 from pathlib import Path
@@ -14,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from pupper_core import _native
 from pupper_core._rundir import clear_run, refuse_non_regular
 from pupper_core._fit.cover import LINK_KINDS, type_sets
 from pupper_core._fit.problem import FitResult, _Problem, _Solution
@@ -98,7 +98,6 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
     xml = _calibrated_xml(robot.full, _whole_labels(robot, pb.labels, per), x)
     atomic_write(out / "calibrated.xml", lambda tmp: _write_text(tmp, xml))
     manifest = {
-        "kind": "fit",
         "command": "fit",
         "inputs": {"model": str(model), "logs": [{"path": str(lg.path), "sha256": lg.sha256} for lg in logs],
                    "params": names, "per": per,
@@ -114,13 +113,12 @@ def _write(out: Path, res: FitResult, pb: _Problem, x: np.ndarray, model: Any, n
         "intervals": {"noise_floor": dict(zip(("angle_rad", "velocity_rad_s", "torque_nm"), NOISE_FLOOR)),
                       "floored": res.floored, "correlation_time_samples": res.correlation_time,
                       "source": res.interval_source},
-        "versions": {"mujoco": mujoco.__version__, "pupper": _version()},
         **({"robots": res.robots.manifest()} if res.robots is not None else {}),
         # the bytes of what a reader believes (recommend and gains --from-fit check them)
         "outputs": {n: hashlib.sha256((out / n).read_bytes()).hexdigest()
                     for n in ("fit.csv", "calibrated.xml", "robots.csv") if (out / n).is_file()},
     }
-    atomic_write(out / "manifest.json", lambda tmp: _write_text(tmp, json.dumps(manifest, indent=2) + "\n"))
+    _native.write_manifest(os.fspath(out), "fit", manifest)
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -251,12 +249,6 @@ def _calibrated_xml(robot: Robot, labels: list[tuple[str, str, list[int], float]
     if name:
         spec.modelname = f"{spec.modelname}_{name}" if spec.modelname else name
     return str(spec.to_xml())
-
-
-def _version() -> str:
-    from pupper_core import _native
-
-    return str(_native.__version__)
 
 
 def _plot(out: Path, pb: _Problem, sol: _Solution) -> list[Path]:

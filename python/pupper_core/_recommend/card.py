@@ -7,13 +7,14 @@ actuators), the manifest and report.html."""
 from __future__ import annotations
 
 import csv
-import json
 import math
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from pupper_core import _native
 from pupper_core._rundir import atomic_write, atomic_write_text
 from pupper_core._recommend import short
 from pupper_core._recommend.fits import readings_line
@@ -327,7 +328,7 @@ def write_outputs(rec: Recommendation, d: Path, keep: bool, wall: float) -> tupl
                 w.writerows(rows)
 
         atomic_write(d / "recommend.csv", cards)
-    atomic_write_text(d / "manifest.json", json.dumps(_manifest(rec, wall), indent=1) + "\n")
+    _native.write_manifest(os.fspath(d), "recommend", _manifest(rec, wall))
     from pupper_core import _report
 
     _report.report(d)
@@ -335,13 +336,8 @@ def write_outputs(rec: Recommendation, d: Path, keep: bool, wall: float) -> tupl
 
 
 def _manifest(rec: Recommendation, wall: float) -> dict[str, Any]:
-    import mujoco
-
-    from pupper_core._native import __version__
-
     pick, task = rec.pick, rec.plan.task
     return {
-        "kind": "recommend",
         "inputs": rec.plan.inputs(),
         "pick": None if pick is None else {g: {"kp": kp, "kd": kd} for g, (kp, kd) in pick.gains.items()},
         task.column: None if pick is None else pick.score,
@@ -363,8 +359,6 @@ def _manifest(rec: Recommendation, wall: float) -> dict[str, Any]:
         "cell_steps": sum(c.cell_steps for c in rec.candidates),
         "complete": True,
         "wall_seconds": round(wall, 3),
-        "pupper_version": __version__,
-        "mujoco_version": mujoco.__version__,
     }
 
 

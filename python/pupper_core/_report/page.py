@@ -160,7 +160,7 @@ def inputs_html(manifest: dict[str, Any], kind: str) -> str:
         if k in manifest:
             v = manifest[k]
             items.append((k.replace("_", " "), f"{v:.3g}" if isinstance(v, float) else str(v)))
-    if "versions" in manifest:
+    if "versions" in manifest:  # a fit from before the stamp
         items.append(("versions", json.dumps(manifest["versions"])))
     return "<dl>" + "".join(f"<dt>{html.escape(k)}</dt><dd>{html.escape(v)}</dd>" for k, v in items) + "</dl>"
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -91,7 +92,7 @@ def _write(out: Path, plan: _Plan, study: Any, spent: int, complete: bool) -> No
 def _write_manifest(out: Path, plan: _Plan, trials: int, spent: int, complete: bool) -> None:
     import optuna
 
-    manifest = {"kind": "tune", "inputs": plan.inputs, "pupper_version": _native.__version__,
-                "optuna_version": optuna.__version__, "stop": plan.stop, "trials": trials, "cell_steps": spent,
-                "complete": complete, "study": "study.db (optuna-dashboard sqlite:///study.db)"}
-    atomic_write_text(out / "manifest.json", json.dumps(manifest, indent=2) + "\n")
+    manifest = {"inputs": plan.inputs, "optuna_version": optuna.__version__, "stop": plan.stop, "trials": trials,
+                "cell_steps": spent, "complete": complete,
+                "study": "study.db (optuna-dashboard sqlite:///study.db)"}
+    _native.write_manifest(os.fspath(out), "tune", manifest)

@@ -14,21 +14,44 @@ use crate::error::{Error, Result};
 /// on every error.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     refuse_non_regular(path)?;
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+    let tmp = temporary_of(path);
     let written = File::create(&tmp)
-        .and_then(|mut f| {
-            f.write_all(bytes)?;
-            f.sync_all()
-        })
+        .and_then(|mut f| f.write_all(bytes))
         .map_err(|e| Error::io("write", path, e))
-        .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io("rename into", path, e)));
+        .and_then(|()| publish(&tmp, path));
     if written.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
-    written?;
-    sync_dir(dir)
+    written
+}
+
+/// The temporary name a whole file of `path` is written under before
+/// [`publish`]: `.NAME.tmpPID` beside it (a killed writer's is removed by
+/// the next holder of the run's lock).
+pub fn temporary_of(path: &Path) -> PathBuf {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+    dir.join(format!(".{name}.tmp{}", std::process::id()))
+}
+
+/// Puts the finished temporary file `tmp` in place as `path`: flushed,
+/// renamed over it, the directory flushed, so a crash leaves the old file
+/// or the new one, never a short one. A `path` that is not a regular file
+/// is refused. Every writer of a run's files, Rust's and Python's, ends
+/// here.
+pub fn publish(tmp: &Path, path: &Path) -> Result<()> {
+    refuse_non_regular(path)?;
+    File::options()
+        .write(true)
+        .open(tmp)
+        .and_then(|f| f.sync_all())
+        .map_err(|e| Error::io("write", path, e))?;
+    std::fs::rename(tmp, path).map_err(|e| Error::io("rename into", path, e))?;
+    sync_dir(
+        path.parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new(".")),
+    )
 }
 
 /// Refuses a `path` that exists and is not a regular file (a FIFO, a

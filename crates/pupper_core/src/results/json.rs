@@ -61,6 +61,46 @@ impl Doc {
         }
     }
 
+    /// As Python's `json.dumps(doc, indent=2)` writes it: ±inf and NaN the
+    /// tokens `Infinity`, `-Infinity` and `NaN` that Python's json (and
+    /// pupper's readers) take back as floats.
+    pub fn write_python_pretty(&self, out: &mut String, depth: usize) -> Result<()> {
+        let pad = |out: &mut String, d: usize| {
+            out.push('\n');
+            out.push_str(&"  ".repeat(d));
+        };
+        match self {
+            Doc::Float(f) if f.is_nan() => out.push_str("NaN"),
+            Doc::List(v) if !v.is_empty() => {
+                out.push('[');
+                for (i, x) in v.iter().enumerate() {
+                    out.push_str(if i > 0 { "," } else { "" });
+                    pad(out, depth + 1);
+                    x.write_python_pretty(out, depth + 1)?;
+                }
+                pad(out, depth);
+                out.push(']');
+            }
+            Doc::Map(m) if !m.is_empty() => {
+                out.push('{');
+                for (i, (k, x)) in m.iter().enumerate() {
+                    out.push_str(if i > 0 { "," } else { "" });
+                    pad(out, depth + 1);
+                    out.push_str(
+                        &serde_json::to_string(k)
+                            .map_err(|e| Error::Internal(format!("json: {e}")))?,
+                    );
+                    out.push_str(": ");
+                    x.write_python_pretty(out, depth + 1)?;
+                }
+                pad(out, depth);
+                out.push('}');
+            }
+            other => other.write_python(out)?,
+        }
+        Ok(())
+    }
+
     fn write_python(&self, out: &mut String) -> Result<()> {
         let quoted =
             |s: &str| serde_json::to_string(s).map_err(|e| Error::Internal(format!("json: {e}")));

@@ -8,8 +8,8 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::plan::config::SweepConfig;
 use crate::results::output::{
-    Detail, LOCK, Manifest, REPLICATES, SUMMARY, TRACES, Trace, config_diff, read_detail,
-    read_rows, read_traces, short,
+    Detail, Manifest, REPLICATES, SUMMARY, TRACES, Trace, config_diff, read_detail, read_rows,
+    read_traces, short,
 };
 use crate::results::tables::{BODE, RESPONSE, RESPONSE_TRACES, header_of};
 
@@ -88,8 +88,7 @@ pub(crate) fn only_ours(dir: &Path) -> bool {
     };
     entries.flatten().all(|e| {
         let name = e.file_name().to_string_lossy().into_owned();
-        name == LOCK
-            || (name.starts_with('.') && name.contains(".tmp"))
+        crate::results::lock::is_ours_to_ignore(&name)
             || ((name == SUMMARY
                 || name == TRACES
                 || name == REPLICATES

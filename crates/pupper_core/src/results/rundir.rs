@@ -10,16 +10,15 @@
 //! holds the lock) drops the one and deletes the other.
 
 use std::collections::BTreeMap;
-use std::fs::{File, OpenOptions};
-use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
 use crate::results::files::{Appender, refuse_non_regular, write_atomic};
+use crate::results::lock::RunLock;
 use crate::results::output::Detail;
 use crate::results::output::{
-    LOCK, MANIFEST, Manifest, REPLICATES, SUMMARY, TRACES, Trace, csv_bytes, fmt_f64, read_manifest,
+    MANIFEST, Manifest, REPLICATES, SUMMARY, TRACES, Trace, csv_bytes, fmt_f64, read_manifest,
 };
 use crate::results::resume;
 use crate::results::tables::NamedTable;
@@ -64,74 +63,9 @@ fn refuse_non_regular_outputs(dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Takes the directory's lock, or says who holds it.
-fn lock(dir: &Path) -> Result<File> {
-    let path = dir.join(LOCK);
-    let mut f = OpenOptions::new()
-        .read(true)
-        .write(true)
-        .create(true)
-        .truncate(false)
-        .open(&path)
-        .map_err(|e| Error::io("open", &path, e))?;
-    match f.try_lock() {
-        Ok(()) => {}
-        Err(std::fs::TryLockError::WouldBlock) => {
-            let mut holder = String::new();
-            let _ = f.read_to_string(&mut holder);
-            let holder = holder.trim();
-            return Err(Error::RunBusy(format!(
-                "run directory '{}' is being written by another pupper ({}): wait for it to end, or choose another --out",
-                dir.display(),
-                if holder.is_empty() {
-                    "a process starting up".into()
-                } else {
-                    holder.to_string()
-                }
-            )));
-        }
-        Err(std::fs::TryLockError::Error(e)) => return Err(Error::io("lock", &path, e)),
-    }
-    let me = format!(
-        "pid {} on {}, since unix time {}",
-        std::process::id(),
-        hostname(),
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_secs())
-    );
-    f.set_len(0)
-        .and_then(|()| f.seek(SeekFrom::Start(0)))
-        .and_then(|_| f.write_all(me.as_bytes()))
-        .map_err(|e| Error::io("write", &path, e))?;
-    Ok(f)
-}
-
-pub fn hostname() -> String {
-    std::fs::read_to_string("/proc/sys/kernel/hostname")
-        .map(|h| h.trim().to_string())
-        .or_else(|_| std::env::var("HOSTNAME"))
-        .unwrap_or_else(|_| "this host".into())
-}
-
-/// Deletes temporary files a killed writer left (we hold the lock, so no
-/// live writer owns them).
-fn remove_stale_temps(dir: &Path) {
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return;
-    };
-    for e in entries.flatten() {
-        let name = e.file_name();
-        let name = name.to_string_lossy();
-        if name.starts_with('.') && name.contains(".tmp") {
-            let _ = std::fs::remove_file(e.path());
-        }
-    }
-}
-
 /// Open files of a directory being written.
 struct Open {
-    _lock: File,
+    _lock: RunLock,
     summary: Option<Appender>,
     traces: Option<Appender>,
     /// One per table of [`RunWriter::details`].
@@ -220,7 +154,7 @@ pub struct RunWriter {
     pub(crate) details: Vec<Detail>,
     pub(crate) detail_rows: Vec<BTreeMap<usize, Vec<Vec<String>>>>,
     pub manifest: Manifest,
-    lock: Option<File>,
+    lock: Option<RunLock>,
     open: Option<Open>,
     started: Instant,
 }
@@ -267,21 +201,21 @@ impl RunWriter {
             // a run killed while creating its directory left no manifest
             // and no rows: the full command with --resume starts it afresh
             Existing::Resume if !dir.join(MANIFEST).exists() && resume::only_ours(dir) => {
-                w.lock = Some(lock(dir)?);
+                w.lock = Some(RunLock::take(dir)?);
             }
             Existing::Resume => {
                 // another kind's run is refused before its manifest is parsed
                 // (a tune's or a fit's is not a sweep's)
                 crate::results::clear::check_kind(dir, &w.manifest.kind)?;
                 let old = read_manifest(dir)?;
-                w.lock = Some(lock(dir)?);
+                w.lock = Some(RunLock::take(dir)?);
                 // read under the lock: no writer is changing it now
                 let old = read_manifest(dir).unwrap_or(old);
                 resume::check_continues(dir, &old, &w.manifest)?;
                 let kept = resume::read_kept(dir, &w.manifest.config, &w.details, w.want_traces)?;
                 (w.rows, w.detail_rows, w.traces) = (kept.rows, kept.details, kept.traces);
             }
-            Existing::Overwrite if dir.is_dir() => w.lock = Some(lock(dir)?),
+            Existing::Overwrite if dir.is_dir() => w.lock = Some(RunLock::take(dir)?),
             _ => {}
         }
         Ok(w)
@@ -356,9 +290,8 @@ impl RunWriter {
         };
         let lock = match self.lock.take() {
             Some(l) => l,
-            None => lock(&dir)?,
+            None => RunLock::take(&dir)?,
         };
-        remove_stale_temps(&dir);
         if self.existing == Existing::Overwrite {
             // an overwritten run keeps no file of the old one, whatever
             // kind wrote it (a fit's calibrated.xml under a walk's manifest
@@ -488,11 +421,8 @@ impl RunWriter {
             self.write_tables(&dir)?;
             self.write_manifest()?;
         }
-        // the lock file stays (removing it would let a second writer lock a
-        // new file while this one still holds the old), but names nobody
-        if let Some(open) = self.open.take() {
-            let _ = open._lock.set_len(0);
-        }
+        // released: the lock file stays, naming nobody
+        self.open = None;
         Ok(())
     }
 }
@@ -541,8 +471,10 @@ mod tests {
     use super::*;
     use crate::plan::config::SweepConfig;
     use crate::plan::grid::{Cell, Grid};
-    use crate::results::output::ModelRecord;
+    use crate::results::output::{LOCK, ModelRecord};
     use crate::sim::metrics::{Metrics, Status};
+    use std::fs::OpenOptions;
+    use std::io::Write;
 
     fn manifest(cfg: SweepConfig) -> Manifest {
         Manifest {

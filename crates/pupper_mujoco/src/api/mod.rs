@@ -39,7 +39,7 @@ pub fn run_task(job: &[u8], task: &[u8], threads: usize) -> Result<Vec<u8>> {
     let outcome = match task_results(job, task, threads) {
         Ok(results) => Outcome::Done(results),
         Err(e) => Outcome::Failed {
-            host: pupper_core::results::rundir::hostname(),
+            host: pupper_core::results::lock::hostname(),
             user: e.is_user_error(),
             message: e.to_string(),
         },

@@ -259,7 +259,7 @@ fn manifest_of(
         command: req.command.clone(),
         shard: s.shard.map(|shard| ShardRecord {
             shard,
-            host: pupper_core::results::rundir::hostname(),
+            host: pupper_core::results::lock::hostname(),
         }),
         merged: Vec::new(),
         ray: None,

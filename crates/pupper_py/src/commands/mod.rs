@@ -8,6 +8,7 @@ pub(crate) mod model;
 pub(crate) mod record;
 pub(crate) mod replay;
 pub(crate) mod response;
+pub(crate) mod rundir;
 pub(crate) mod runs;
 pub(crate) mod sweep;
 pub(crate) mod walk;
