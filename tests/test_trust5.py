@@ -441,3 +441,31 @@ def test_round_6_probes_name_the_flag_that_is_wrong(run, tmp_path) -> None:
         line = _one_error(p, words)
         assert "--push" not in line and "0.0000" not in line, line
         assert not out.exists()
+
+
+def test_round_6_usage_errors_are_one_line_and_saturation_is_a_share(run, tmp_path) -> None:
+    """What clap refuses is one line too (its details, tips and where the
+    help is, without its usage block); a value after a flag that clap reads
+    as a flag says how to give it; --max-saturation past 1 (a percentage
+    typed) is refused by sweep, lab and recommend alike, before anything
+    runs."""
+    for args, words in [
+        (("swep",), ("unrecognized subcommand 'swep'", "similar subcommand exists: 'sweep'", "`pupper --help`")),
+        (("sweep", "--mode", "x"), ("possible values: servo, torque", "`pupper sweep --help`")),
+        (("sweep", "-j", "-1"), ("unexpected argument '-1'", "join them with '='")),
+        (("fit",), ("required arguments were not provided: <LOG>", "`pupper fit --help`")),
+        (("sweep", "--grid", "kp=5", "--max-saturation", "5"), ("must lie in (0, 1]",)),
+        (("lab", "--max-saturation", "0"), ("must lie in (0, 1]",)),
+        (("recommend", "--max-saturation", "1.5"), ("must lie in (0, 1]",)),
+        (("recommend", "--joint-order", "a,,b"), ("empty entry at position 2",)),
+    ]:
+        out = tmp_path / "run"
+        p = run(*args, *(("-o", out) if args[0] in ("sweep", "lab", "recommend") else ()), check=None)
+        _one_error(p, *words)
+        assert not out.exists()
+    # a run directory under a file: the file named, not the OS's "File exists"
+    (tmp_path / "notes.txt").write_text("mine")
+    for kind in ("sweep", "lab"):
+        p = run(kind, "--seconds", "0.5", "-o", tmp_path / "notes.txt" / "run", check=None)
+        _one_error(p, f"lies under '{tmp_path / 'notes.txt'}', which is a file", "choose another --out")
+    assert (tmp_path / "notes.txt").read_text() == "mine"

@@ -109,7 +109,12 @@ def config_gains(config: tuple[list[str], list[float], list[float]], names: Sequ
 def joint_order_of(order: Sequence[str] | str | None, names: list[str]) -> list[str]:
     if order is None:
         return list(names)
-    got = [s.strip() for s in (order.split(",") if isinstance(order, str) else order) if s.strip()]
+    entries = [s.strip() for s in (order.split(",") if isinstance(order, str) else order)]
+    # an empty entry among names is a typo (two commas); no name at all is refused below
+    if any(entries) and "" in entries[:-1]:
+        raise RecommendError(f"--joint-order has an empty entry at position {entries.index('') + 1} (two commas?): "
+                             "name each actuator once, comma-separated")
+    got = [s for s in entries if s]
     unknown = [n for n in got if n not in names]
     if unknown:
         raise RecommendError(f"--joint-order names '{unknown[0]}', which is not an actuator of the model: "

@@ -53,6 +53,12 @@ pub(super) fn finite(text: &str) -> std::result::Result<f64, String> {
     }
 }
 
+/// A `--max-saturation` value: the core's rule for one.
+pub(super) fn saturation(text: &str) -> std::result::Result<f64, String> {
+    let x = finite(text)?;
+    pupper_core::results::best::saturation_problem(x).map_or(Ok(x), Err)
+}
+
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub(super) enum ModeArg {
     /// MuJoCo's affine actuators do the PD (gains written into gainprm/biasprm).

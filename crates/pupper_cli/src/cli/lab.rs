@@ -48,7 +48,7 @@ pub(super) struct LabArgs {
     #[arg(long, value_name = "SPEC")]
     motor: Option<String>,
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
-    #[arg(long, default_value_t = pupper_core::results::best::MAX_SATURATION, value_name = "FRACTION")]
+    #[arg(long, default_value_t = pupper_core::results::best::MAX_SATURATION, value_name = "FRACTION", value_parser = super::args::saturation)]
     max_saturation: f64,
     #[command(flatten)]
     show: ShowArgs<LabArgs>,

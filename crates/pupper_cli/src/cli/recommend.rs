@@ -134,7 +134,7 @@ pub(super) struct RecommendArgs {
     #[arg(long, default_value_t = 6.0, value_name = "DB", allow_negative_numbers = true, value_parser = finite)]
     min_gain_margin: f64,
     /// Largest share of steps a robot may spend at its torque limit.
-    #[arg(long, default_value_t = pupper_core::results::best::MAX_SATURATION, value_name = "F", allow_negative_numbers = true, value_parser = finite)]
+    #[arg(long, default_value_t = pupper_core::results::best::MAX_SATURATION, value_name = "F", allow_negative_numbers = true, value_parser = super::args::saturation)]
     max_saturation: f64,
     /// Most a robot's final base height may lie below its stance height, as a share of it.
     #[arg(long, default_value_t = 0.1, value_name = "F", allow_negative_numbers = true, value_parser = finite)]

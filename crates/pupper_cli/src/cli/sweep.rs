@@ -69,7 +69,7 @@ pub(super) struct SweepArgs {
     #[command(flatten)]
     show: ShowArgs<SweepArgs>,
     /// Cells at the torque limit in this share of actuator-steps or more are never "best".
-    #[arg(long, default_value_t = pupper_core::results::best::MAX_SATURATION, value_name = "FRACTION")]
+    #[arg(long, default_value_t = pupper_core::results::best::MAX_SATURATION, value_name = "FRACTION", value_parser = super::args::saturation)]
     max_saturation: f64,
     // last: their help headings would hold every option after them
     #[command(flatten)]

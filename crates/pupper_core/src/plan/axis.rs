@@ -140,12 +140,25 @@ impl Axis {
             return Ok(*axis);
         }
         let names: Vec<&str> = Axis::ALL.iter().map(|a| a.name()).collect();
-        // the list names the axes every kind takes; a kind's own are in its
-        // --help (and still suggested for a typo)
+        // the axes every kind takes, then each kind's own under its name
+        // (this parse does not know which kind asks)
         let listed: Vec<&str> = Axis::ALL
             .iter()
             .filter(|a| a.kind().is_none())
             .map(|a| a.name())
+            .collect();
+        let mut own: Vec<(&str, Vec<&str>)> = Vec::new();
+        for a in Axis::ALL.iter() {
+            if let Some(k) = a.kind() {
+                match own.iter_mut().find(|(kind, _)| *kind == k) {
+                    Some((_, names)) => names.push(a.name()),
+                    None => own.push((k, vec![a.name()])),
+                }
+            }
+        }
+        let own: String = own
+            .iter()
+            .map(|(k, names)| format!("; {k} also takes {}", names.join(", ")))
             .collect();
         let dist: Vec<(usize, &str)> = names
             .iter()
@@ -164,7 +177,7 @@ impl Axis {
             format!("did you mean {}? ", close.join(" or "))
         };
         Err(Error::Grid(format!(
-            "unknown grid axis '{}': {hint}known axes are {}",
+            "unknown grid axis '{}': {hint}known axes are {}{own}",
             name.trim(),
             listed.join(", ")
         )))

@@ -97,17 +97,33 @@ fn first_figure(header: &[String]) -> usize {
         .unwrap_or(header.len())
 }
 
+/// What is wrong with `x` as a saturation threshold, a share of
+/// actuator-steps in (0, 1] (a 5 for 5 % is the usual slip, and over 1
+/// would exclude nothing), or None.
+pub fn saturation_problem(x: f64) -> Option<String> {
+    match x.is_finite() && x > 0.0 && x <= 1.0 {
+        true => None,
+        false => Some(format!(
+            "must lie in (0, 1]: a share of actuator-steps, e.g. {MAX_SATURATION} for {} %",
+            MAX_SATURATION * 100.0
+        )),
+    }
+}
+
+/// `x` if it is a saturation threshold ([`saturation_problem`]).
+pub fn check_max_saturation(x: f64) -> Result<f64> {
+    match saturation_problem(x) {
+        None => Ok(x),
+        Some(p) => Err(Error::Config(format!("--max-saturation {x} {p}"))),
+    }
+}
+
 /// The best cell of each group of `rows` (summary.csv's rows as text).
 pub fn best(header: &[String], rows: &[Vec<String>], rule: &Rule) -> Result<Vec<Group>> {
     let replicated = column(header, "failure_fraction").is_some();
     let metric = metric_column(header, rule, replicated)?;
     let by = by_columns(header, rule)?;
-    if !(rule.max_saturation.is_finite() && rule.max_saturation > 0.0) {
-        return Err(Error::Config(format!(
-            "saturation threshold {} is not a positive fraction: give --max-saturation a value in (0, 1]",
-            rule.max_saturation
-        )));
-    }
+    check_max_saturation(rule.max_saturation)?;
     let (status, failures, saturation) = judged_by(header, rule);
     let (tolerance, dip) = ties(header, rule);
     let number = |r: &Vec<String>, c: usize| r[c].parse::<f64>().unwrap_or(f64::NAN);
@@ -425,6 +441,17 @@ mod tests {
     }
 
     use super::*;
+
+    #[test]
+    fn a_saturation_threshold_is_a_share_of_steps() {
+        for ok in [MAX_SATURATION, 1.0, 1e-9] {
+            assert_eq!(check_max_saturation(ok).unwrap(), ok);
+        }
+        for bad in [0.0, -0.5, 1.5, 5.0, f64::NAN, f64::INFINITY] {
+            let e = check_max_saturation(bad).unwrap_err().to_string();
+            assert!(e.contains("must lie in (0, 1]"), "{e}");
+        }
+    }
     use crate::results::output::header;
 
     fn table(rows: &[(&str, &str, &str, &str, &str)]) -> (Vec<String>, Vec<Vec<String>>) {

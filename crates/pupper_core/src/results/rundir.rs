@@ -182,6 +182,7 @@ impl RunWriter {
         };
         w.detail_rows = vec![BTreeMap::new(); w.details.len()];
         let Some(dir) = dir else { return Ok(w) };
+        refuse_file_above(dir)?;
         if dir.exists() && !dir.is_dir() {
             return Err(Error::Output(format!(
                 "--out '{}' is a file, not a directory: choose another path",
@@ -431,6 +432,29 @@ fn trace_lines(out: &mut String, id: &str, samples: &[(f64, f64)]) {
     for (t, z) in samples {
         out.push_str(&format!("{id},{},{}\n", fmt_f64(*t), fmt_f64(*z)));
     }
+}
+
+/// Refuses a `dir` below a file (`-o notes.txt/run`): no directory can
+/// be made there, and the OS's "File exists" names neither.
+fn refuse_file_above(dir: &Path) -> Result<()> {
+    for above in dir
+        .ancestors()
+        .skip(1)
+        .filter(|a| !a.as_os_str().is_empty())
+    {
+        match std::fs::metadata(above) {
+            Ok(m) if m.is_dir() => return Ok(()),
+            Ok(_) => {
+                return Err(Error::Output(format!(
+                    "--out '{}' lies under '{}', which is a file, not a directory: choose another --out",
+                    dir.display(),
+                    above.display()
+                )));
+            }
+            Err(_) => continue,
+        }
+    }
+    Ok(())
 }
 
 /// Creates `dir` (its parents as needed); it must not exist yet.
