@@ -6,6 +6,7 @@ uninterrupted run writes, byte for byte, or with one clear line."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import random
 import re
@@ -482,3 +483,17 @@ def test_every_kind_heads_its_manifest_with_the_same_stamp(run, tmp_path):
         "-o", tmp_path / "t", check=0)
     sweep, tune = stamp_of(tmp_path / "s", "sweep"), stamp_of(tmp_path / "t", "tune")
     assert {**sweep, "kind": "tune"} == tune
+    # one reader for every kind's manifest: the JSON as written, NaN kept
+    import pupper_core as pc
+    from pupper_core import _native
+
+    for d in (tmp_path / "s", tmp_path / "t"):
+        assert _native.read_manifest(str(d)) == json.loads((d / "manifest.json").read_text())
+    m = json.loads((tmp_path / "t" / "manifest.json").read_text())
+    (tmp_path / "t" / "manifest.json").write_text(json.dumps({**m, "x": float("nan")}, indent=2))
+    assert math.isnan(_native.read_manifest(str(tmp_path / "t"))["x"])
+    (tmp_path / "t" / "manifest.json").write_text('{"kind": "tune", "inp')
+    with pytest.raises(pc.OutputError, match="not a pupper manifest .damaged.*run the tune again"):
+        _native.read_manifest(str(tmp_path / "t"))
+    with pytest.raises(pc.RunNotFoundError, match="holds no pupper run"):
+        _native.read_manifest(str(tmp_path))

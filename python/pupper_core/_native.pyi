@@ -305,7 +305,9 @@ def load_run(run_dir: str) -> SweepResult:
     """A run directory read back, its rows checked against its manifest."""
 
 def read_manifest(dir: str) -> dict[str, Any]:
-    """The manifest of a run directory, as a dict."""
+    """The manifest of a run directory of any kind, as a dict (the one
+    reader): RunNotFoundError without one, OutputError for one that is not
+    a JSON object."""
 
 class RunLock:
     """A held run-directory lock (`lock_run`)."""

@@ -13,7 +13,6 @@ runs' logs together instead: one fit takes logs of several motors)."""
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 import re
@@ -23,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from pupper_core import _native
+from pupper_core._native import PupperError
 from pupper_core._recommend.plan import Loop, RecommendError
 
 #: What ``from_fit`` takes: a run directory, or a list of them.
@@ -109,8 +110,8 @@ def _fitted(d: Path, row: Mapping[str, str]) -> float:
 def _fitted_on(d: Path) -> str | None:
     """The model a run was fitted on, as its manifest names it."""
     try:
-        return str(json.loads((d / "manifest.json").read_text())["inputs"]["model"])
-    except (OSError, ValueError, KeyError, TypeError):
+        return str(_native.read_manifest(os.fspath(d))["inputs"]["model"])
+    except (OSError, PupperError, KeyError, TypeError):
         return None
 
 
@@ -194,8 +195,8 @@ def fit_motor(runs: Sequence[Path]) -> str:
     specs: dict[str, Path] = {}
     for d in runs:
         try:
-            spec = str(json.loads((d / "manifest.json").read_text())["inputs"].get("motor") or "ideal")
-        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            spec = str(_native.read_manifest(os.fspath(d))["inputs"].get("motor") or "ideal")
+        except (OSError, PupperError, KeyError, TypeError, AttributeError):
             spec = "ideal"
         kept = ",".join(p for p in spec.split(",") if p.strip() and not p.strip().startswith("noise="))
         specs.setdefault("" if kept in ("", "ideal") else kept, d)
@@ -224,9 +225,9 @@ def fit_robots(runs: Sequence[Path], rows: Sequence[Mapping[str, str]]) -> tuple
             with open(f, newline="") as fh:
                 table = list(csv.DictReader(fh))
             per_run.append([[float(t[n]) for n in names] for t in table])
-            manifest = json.loads((d / "manifest.json").read_text())
+            manifest = _native.read_manifest(os.fspath(d))
             worst = max(worst, float(manifest["robots"]["worst_over_fitted"]))
-        except (OSError, ValueError, KeyError, TypeError) as e:
+        except (OSError, ValueError, PupperError, KeyError, TypeError) as e:
             raise RecommendError(f"--from-fit {d}: robots.csv does not hold its fit.csv's parameters "
                                  f"({type(e).__name__}: {e}): run its `pupper fit` again") from None
         if not per_run[-1] or any(not all(math.isfinite(v) for v in x) for x in per_run[-1]):

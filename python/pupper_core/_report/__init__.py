@@ -11,7 +11,6 @@ experiment kind's own tables), never by stepping physics.
 from __future__ import annotations
 
 import html
-import json
 import os
 from pathlib import Path
 from typing import Any
@@ -45,12 +44,11 @@ def report(run_dir: str | os.PathLike[str]) -> Path:
     from pupper_core._rundir import atomic_write
 
     d = Path(run_dir)
-    mpath = d / "manifest.json"
-    if not mpath.is_file():
-        from pupper_core._native import OutputError
+    from pupper_core import _native
 
-        raise OutputError(f"{d} holds no pupper run (no manifest.json): give a run directory")
-    manifest = json.loads(mpath.read_text())
+    if not (d / "manifest.json").is_file():
+        raise _native.OutputError(f"{d} holds no pupper run (no manifest.json): give a run directory")
+    manifest = _native.read_manifest(os.fspath(d))
     kind = kind_of(manifest)
     warnings: list[str] = []
     answer: list[str] = []

@@ -5,7 +5,6 @@ plane, each beside a grid of the same question if given."""
 from __future__ import annotations
 
 import csv
-import json
 import os
 from pathlib import Path
 from typing import Any
@@ -15,7 +14,9 @@ from pupper_core._tune.plan import PENALTY, TuneError, parse_space
 
 
 def _study_table(out: Path) -> tuple[dict[str, Any], list[dict[str, str]]]:
-    manifest = json.loads((out / "manifest.json").read_text())
+    from pupper_core import _native
+
+    manifest = _native.read_manifest(os.fspath(out))
     with (out / "trials.csv").open(newline="") as f:
         return manifest["inputs"], list(csv.DictReader(f))
 
@@ -60,7 +61,9 @@ def progress_figure(out: str | os.PathLike[str], grid: str | os.PathLike[str] | 
         ax.step(spent, best, where="post", color="black", lw=1.6, label="best so far")
         if grid is not None:
             grows, gv = _grid_table(grid, objective, maximize)
-            per = json.loads((Path(grid) / "manifest.json").read_text())["config"]["schedule"]["duration"]
+            from pupper_core import _native
+
+            per = _native.read_manifest(os.fspath(grid))["config"]["schedule"]["duration"]
             steps = round(float(per) / 0.002)
             gbest = (np.fmax if maximize else np.fmin).accumulate(np.where(np.isnan(gv), worst, gv))
             ax.step(steps * np.arange(1, len(gv) + 1), gbest, where="post", color="tab:orange", lw=1.4,

@@ -54,9 +54,11 @@ def _manifest(out_dir: Path) -> dict[str, Any]:
     path = out_dir / "manifest.json"
     if not path.is_file():
         raise TuneError(f"--resume {out_dir}: no tune there (no manifest.json); start it without --resume")
+    from pupper_core import _native
+
     try:
-        manifest = json.loads(path.read_text())
-    except (OSError, ValueError):
+        manifest = _native.read_manifest(os.fspath(out_dir))
+    except (OSError, _native.PupperError):
         raise TuneError(f"cannot resume {out_dir}: its manifest.json is not valid JSON (damaged?): "
                         "start the study anew with --force, or use a new -o") from None
     if not isinstance(manifest, dict) or manifest.get("kind") != "tune":

@@ -18,7 +18,6 @@ from __future__ import annotations
 # style, their reading in tables): this module re-exports them and keeps the
 # registry of each run kind's plot writer.
 
-import json
 import os
 from pathlib import Path
 from typing import Callable
@@ -63,5 +62,7 @@ WRITERS: dict[str, Callable[[str | os.PathLike], list[Path]]] = {
 def write_plots(run_dir: str | os.PathLike) -> list[Path]:
     """Writes the plots of a run's kind (its manifest names it) into
     ``<run_dir>/plots/``; returns their paths."""
-    manifest = json.loads((Path(run_dir) / "manifest.json").read_text())
+    from pupper_core import _native
+
+    manifest = _native.read_manifest(os.fspath(run_dir))
     return WRITERS.get(str(manifest.get("kind")), write_run_plots)(run_dir)

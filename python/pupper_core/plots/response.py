@@ -4,7 +4,6 @@ time, overshoot and settling time over a Kp x Kd grid."""
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
@@ -69,7 +68,7 @@ def step_curves(d: Path, cells: Sequence[str]) -> dict[tuple[str, str], tuple[np
 
     index = {r["id"]: int(r["index"]) for r in _read_csv(d / "summary.csv")}
     group_of = {r["joint"]: r["group"] for r in _read_csv(d / "response.csv")}
-    manifest = json.loads((d / "manifest.json").read_text())
+    manifest = _native.read_manifest(str(d))
     amp = float(manifest["config"]["response"]["signal"]["amplitude"])
     wanted = [index[c] for c in cells if c in index]
     per: dict[tuple[str, str], list[tuple[np.ndarray, np.ndarray]]] = {}

@@ -6,7 +6,6 @@ rule picks, and one line saying what a run was."""
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 from pathlib import Path
@@ -211,9 +210,10 @@ def read_run(run_dir: str | os.PathLike) -> tuple[dict[str, Any], dict[str, Any]
         else:
             table[name] = np.array([float(v) if v.strip() else np.nan for v in col], dtype=float)
     manifest: dict[str, Any] = {}
-    mp = d / "manifest.json"
-    if mp.exists():
-        manifest = json.loads(mp.read_text())
+    if (d / "manifest.json").exists():
+        from pupper_core import _native
+
+        manifest = _native.read_manifest(os.fspath(d))
     traces: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     tp = d / "traces.csv"
     if tp.exists():

@@ -20,11 +20,21 @@ pub struct Stamp {
     pub python: String,
 }
 
+/// The kinds whose manifest body Python builds; every other kind's
+/// manifest is a [`crate::results::output::Manifest`].
+pub const KINDS: [&str; 3] = ["fit", "tune", "recommend"];
+
 /// The keys the stamp owns, first in every manifest, a sweep's too.
 pub const STAMP_KEYS: [&str; 4] = ["kind", "pupper_version", "mujoco_version", "python"];
 
 /// The manifest text: the stamp, then `body`'s fields in their order.
 pub fn manifest_text(kind: &str, stamp: &Stamp, body: Doc) -> Result<String> {
+    if !KINDS.contains(&kind) {
+        return Err(Error::Internal(format!(
+            "'{kind}' is not a kind whose manifest Python builds ({})",
+            KINDS.join(", ")
+        )));
+    }
     let Doc::Map(fields) = body else {
         return Err(Error::Internal(format!(
             "a {kind} manifest's body must be a map"
@@ -59,6 +69,36 @@ pub fn write_manifest(dir: &Path, kind: &str, stamp: &Stamp, body: Doc) -> Resul
         &dir.join(MANIFEST),
         manifest_text(kind, stamp, body)?.as_bytes(),
     )
+}
+
+/// The text of `dir`'s manifest, whichever kind wrote it: one line naming
+/// the fix where there is none.
+pub fn read_text(dir: &Path) -> Result<String> {
+    let path = dir.join(MANIFEST);
+    std::fs::read_to_string(&path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => Error::RunNotFound(format!(
+            "'{}' holds no pupper run (no {MANIFEST}): give the directory a pupper command wrote",
+            dir.display()
+        )),
+        _ => Error::io("read", &path, e),
+    })
+}
+
+/// What kind of run a manifest's text says it is, as far as a glance at
+/// its head tells ([`STAMP_KEYS`] first; None for an old sweep's manifest,
+/// which named no kind, or for text that is no manifest).
+pub fn kind_of(text: &str) -> Option<String> {
+    #[derive(serde::Deserialize)]
+    struct Head {
+        kind: String,
+    }
+    // the kind is the first field: read up to it only (a Python kind's body
+    // may hold NaN, which serde_json does not read)
+    let start = text.find("\"kind\"")?;
+    let end = start + text[start..].find(',').unwrap_or(text.len() - start);
+    serde_json::from_str::<Head>(&format!("{{{}}}", &text[start..end]))
+        .ok()
+        .map(|h| h.kind)
 }
 
 #[cfg(test)]
@@ -96,6 +136,28 @@ mod tests {
             crate::VERSION
         );
         assert_eq!(t, want);
+    }
+
+    #[test]
+    fn the_kind_is_read_from_the_head() {
+        let t = manifest_text(
+            "fit",
+            &stamp(),
+            Doc::Map(vec![("x".into(), Doc::Float(f64::NAN))]),
+        )
+        .unwrap();
+        assert_eq!(kind_of(&t).as_deref(), Some("fit"));
+        assert_eq!(
+            kind_of("{\n  \"kind\": \"sweep\",\n  \"config\": {}\n}").as_deref(),
+            Some("sweep")
+        );
+        assert_eq!(kind_of("{\"pupper_version\": \"0.1\"}"), None);
+        assert_eq!(kind_of("not json"), None);
+    }
+
+    #[test]
+    fn only_a_python_kind_is_written_here() {
+        assert!(manifest_text("sweep", &stamp(), Doc::Map(vec![])).is_err());
     }
 
     #[test]

@@ -5,9 +5,8 @@ use std::path::PathBuf;
 
 use pyo3::prelude::*;
 
-use pupper_core::results::{best, output};
+use pupper_core::results::{best, kind_manifest};
 
-use crate::convert::to_dict;
 use crate::error::to_py;
 use crate::result::{Parts, SweepResult};
 
@@ -94,10 +93,26 @@ pub(crate) fn check_kind(dir: PathBuf, kind: &str) -> PyResult<()> {
     pupper_core::results::clear::check_kind(&dir, kind).map_err(to_py)
 }
 
-/// The manifest of a run directory, as a dict.
+/// The manifest of a run directory of any kind, as a dict: the one reader,
+/// every kind's JSON as it is (a Python kind's NaN and infinities
+/// included, which Python's json reads; `load_run` checks a sweep's
+/// against its struct). No manifest: `RunNotFoundError`; one that is not
+/// JSON holding an object: `OutputError`, each one line.
 #[pyfunction]
 pub(crate) fn read_manifest(py: Python<'_>, dir: PathBuf) -> PyResult<Bound<'_, PyAny>> {
-    to_dict(py, &output::read_manifest(&dir).map_err(to_py)?)
+    let text = kind_manifest::read_text(&dir).map_err(to_py)?;
+    let kind = kind_manifest::kind_of(&text);
+    match PyModule::import(py, "json")?
+        .getattr("loads")?
+        .call1((text,))
+    {
+        Ok(m) if m.is_instance_of::<pyo3::types::PyDict>() => Ok(m),
+        _ => Err(to_py(pupper_core::error::Error::Output(format!(
+            "'{}': its manifest.json is not a pupper manifest (damaged?): run the {} again into a new directory",
+            dir.display(),
+            kind.as_deref().unwrap_or("command")
+        )))),
+    }
 }
 
 /// pupper's ranking rule (`best::best`) on any table: `header` and rows of
