@@ -355,3 +355,33 @@ def test_a_tune_holds_its_directory_against_a_python_caller_too(tmp_path):
             T.tune(["kp=5:50"], trials=2, batch=2, seconds=1.5, push=False, progress=False, out=d)
         assert e.value.kind == "run_busy"
     assert sorted(p.name for p in d.iterdir()) == [".pupper.lock"]
+
+
+def test_a_held_stop_waits_for_the_holds_end_and_dies_with_its_command():
+    """`held_signals` (a tune's storage queries): a SIGTERM inside it is
+    raised at its end, not in the middle; one that arrives in a block that
+    fails anyway is not raised later, in the next command's."""
+    import os
+    import threading
+
+    from pupper_core import _rundir as R
+
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signals reach the main thread only")
+    reached = False
+    with pytest.raises(KeyboardInterrupt, match="x stopped by SIGTERM"):
+        with R.stop_on_signals("x"), R.held_signals():
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(0.05)  # the handler has run by now: held
+            reached = True
+    assert reached
+    with R.stop_on_signals("y"):
+        with pytest.raises(ValueError), R.held_signals():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+            raise ValueError
+        try:
+            with R.held_signals(), R.signals_through():
+                pass
+        except KeyboardInterrupt as e:  # (not pytest's own Ctrl-C)
+            pytest.fail(f"a stop from a failed block was raised in the next one: {e}")

@@ -144,6 +144,7 @@ def stop_on_signals(what: str, left: str = "nothing written") -> Iterator[None]:
     try:
         yield
     finally:
+        _HOLD.pending = None  # a stop belongs to this command
         for sig, previous, raw in reversed(saved):
             if callable(previous) or raw is None:
                 signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
@@ -171,8 +172,12 @@ def held_signals() -> Iterator[None]:
     _HOLD.depth += 1
     try:
         yield
-    finally:
+    except BaseException:
         _HOLD.depth -= 1
+        if _HOLD.depth == 0:
+            _HOLD.pending = None  # the block ends anyway: no stop left for a later one
+        raise
+    _HOLD.depth -= 1
     _raise_pending()
 
 
