@@ -81,14 +81,14 @@ fn doc_of(v: &Bound<'_, PyAny>) -> PyResult<Doc> {
     } else if let Ok(f) = v.cast::<PyFloat>() {
         Doc::Float(f.value())
     } else if let Ok(s) = v.cast::<PyString>() {
-        Doc::Text(s.to_str()?.to_string())
+        Doc::Text(text_of(s))
     } else if let Ok(d) = v.cast::<PyDict>() {
         let mut m = Vec::with_capacity(d.len());
         for (k, x) in d.iter() {
             let k = k.cast::<PyString>().map_err(|_| {
                 PyTypeError::new_err(format!("a manifest's keys are strings, not {k:?}"))
             })?;
-            m.push((k.to_str()?.to_string(), doc_of(&x)?));
+            m.push((text_of(k), doc_of(&x)?));
         }
         Doc::Map(m)
     } else if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
@@ -103,6 +103,13 @@ fn doc_of(v: &Bound<'_, PyAny>) -> PyResult<Doc> {
             v.get_type().name()?
         )));
     })
+}
+
+/// A string as the manifest keeps it: a path's bytes that are not UTF-8
+/// (Python's surrogate escapes) shown as U+FFFD, as a sweep's manifest
+/// shows them.
+fn text_of(s: &Bound<'_, PyString>) -> String {
+    s.to_string_lossy().into_owned()
 }
 
 /// An I/O failure as the `OSError` Python's own writes raise; the rest as
